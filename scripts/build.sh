@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Configures and builds LTLO-SLAM into build/ (Release, assertions on, 2 jobs).
+# Extra arguments are passed to cmake at configure time, e.g. -DLTLO_BUILD_BENCHMARKS=ON.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD_DIR=${BUILD_DIR:-build}
+JOBS=${JOBS:-2}
+cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release -DLTLO_ENABLE_ASSERTS=ON "$@" >/dev/null
+cmake --build "$BUILD_DIR" -j "$JOBS"

@@ -1,0 +1,65 @@
+#include "ltlo/core/log.h"
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <mutex>
+
+namespace ltlo::log {
+namespace {
+
+std::atomic<Level> g_level{Level::kInfo};
+std::mutex g_sink_mutex;  // guards stderr writes so lines do not interleave
+
+std::string& threadNameStorage() {
+  thread_local std::string name = "main";
+  return name;
+}
+
+const char* levelName(Level level) {
+  switch (level) {
+    case Level::kTrace: return "trace";
+    case Level::kDebug: return "debug";
+    case Level::kInfo: return "info";
+    case Level::kWarn: return "warn";
+    case Level::kError: return "error";
+    case Level::kOff: return "off";
+  }
+  return "?";
+}
+
+}  // namespace
+
+void setLevel(Level level) { g_level.store(level); }
+Level level() { return g_level.load(std::memory_order_relaxed); }
+
+bool parseLevel(const std::string& text, Level* level) {
+  static const std::pair<const char*, Level> kNames[] = {
+      {"trace", Level::kTrace}, {"debug", Level::kDebug}, {"info", Level::kInfo},
+      {"warn", Level::kWarn},   {"error", Level::kError}, {"off", Level::kOff}};
+  for (const auto& [name, value] : kNames) {
+    if (text == name) {
+      *level = value;
+      return true;
+    }
+  }
+  return false;
+}
+
+void initFromEnvironment() {
+  const char* env = std::getenv("LTLO_LOG_LEVEL");
+  Level parsed;
+  if (env != nullptr && parseLevel(env, &parsed)) setLevel(parsed);
+}
+
+void setThreadName(const std::string& name) { threadNameStorage() = name; }
+const std::string& threadName() { return threadNameStorage(); }
+
+void write(Level level, const std::string& message) {
+  const std::string line = "[" + threadName() + "] " + levelName(level) + " " + message + "\n";
+  std::lock_guard<std::mutex> lock(g_sink_mutex);
+  std::fwrite(line.data(), 1, line.size(), stderr);
+  std::fflush(stderr);
+}
+
+}  // namespace ltlo::log

@@ -1,0 +1,171 @@
+#include "ltlo/core/settings_file.h"
+
+#include <opencv2/core.hpp>
+
+#include <cmath>
+#include <sstream>
+
+#include "ltlo/core/errors.h"
+#include "ltlo/core/log.h"
+
+namespace ltlo {
+namespace {
+
+std::string rangeText(double min, double max) {
+  std::ostringstream os;
+  os << "[" << min << ", " << max << "]";
+  return os.str();
+}
+
+}  // namespace
+
+SettingsFile::SettingsFile(const std::string& path) : path_(path) {
+  try {
+    if (!storage_.open(path, cv::FileStorage::READ)) {
+      throw ConfigError(path + ": cannot open settings file");
+    }
+  } catch (const cv::Exception& e) {
+    throw ConfigError(path + ": cannot parse settings file (" + e.msg + ")");
+  }
+}
+
+cv::FileNode SettingsFile::node(const std::string& key) const {
+  read_keys_.insert(key);
+  return storage_[key];
+}
+
+bool SettingsFile::has(const std::string& key) const {
+  const cv::FileNode n = storage_[key];
+  return !n.empty() && !n.isNone();
+}
+
+std::string SettingsFile::describe(const cv::FileNode& n) {
+  if (n.isString()) return "\"" + static_cast<std::string>(n) + "\"";
+  if (n.isInt()) return std::to_string(static_cast<int>(n));
+  if (n.isReal()) {
+    std::ostringstream os;
+    os << static_cast<double>(n);
+    return os.str();
+  }
+  if (n.isMap()) return "a map";
+  if (n.isSeq()) return "a sequence";
+  return "an empty value";
+}
+
+void SettingsFile::fail(const std::string& key, const std::string& value,
+                        const std::string& expected) const {
+  throw ConfigError(path_ + ": " + key + " = " + value + ", expected " + expected);
+}
+
+double SettingsFile::getDouble(const std::string& key, double min, double max) const {
+  const cv::FileNode n = node(key);
+  const std::string expected = "a number in " + rangeText(min, max);
+  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  if (!n.isReal() && !n.isInt()) fail(key, describe(n), expected);
+  const double value = static_cast<double>(n);
+  if (!std::isfinite(value) || value < min || value > max) fail(key, describe(n), expected);
+  return value;
+}
+
+int SettingsFile::getInt(const std::string& key, int min, int max) const {
+  const cv::FileNode n = node(key);
+  const std::string expected = "an integer in " + rangeText(min, max);
+  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  if (!n.isInt()) fail(key, describe(n), expected);
+  const int value = static_cast<int>(n);
+  if (value < min || value > max) fail(key, describe(n), expected);
+  return value;
+}
+
+bool SettingsFile::getBool(const std::string& key) const {
+  const cv::FileNode n = node(key);
+  const std::string expected = "a boolean (0/1 or true/false)";
+  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  if (n.isInt()) {
+    const int value = static_cast<int>(n);
+    if (value == 0 || value == 1) return value == 1;
+  } else if (n.isString()) {
+    const std::string value = static_cast<std::string>(n);
+    if (value == "true") return true;
+    if (value == "false") return false;
+  }
+  fail(key, describe(n), expected);
+}
+
+std::string SettingsFile::getString(const std::string& key) const {
+  const cv::FileNode n = node(key);
+  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected a string");
+  if (!n.isString()) fail(key, describe(n), "a string");
+  return static_cast<std::string>(n);
+}
+
+MatX SettingsFile::getMatrix(const std::string& key, int rows, int cols) const {
+  const cv::FileNode n = node(key);
+  const std::string expected =
+      "a " + std::to_string(rows) + "x" + std::to_string(cols) + " !!opencv-matrix of finite numbers";
+  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  cv::Mat m;
+  try {
+    n >> m;
+  } catch (const cv::Exception&) {
+    fail(key, describe(n), expected);
+  }
+  if (m.empty()) fail(key, describe(n), expected);
+  if (m.rows != rows || m.cols != cols) {
+    fail(key, std::to_string(m.rows) + "x" + std::to_string(m.cols) + " matrix", expected);
+  }
+  cv::Mat m64;
+  m.convertTo(m64, CV_64F);
+  MatX out(rows, cols);
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      const double value = m64.at<double>(r, c);
+      if (!std::isfinite(value)) {
+        std::ostringstream os;
+        os << "matrix with element (" << r << ", " << c << ") = " << value;
+        fail(key, os.str(), expected);
+      }
+      out(r, c) = value;
+    }
+  }
+  return out;
+}
+
+double SettingsFile::getDouble(const std::string& key, double default_value, double min,
+                               double max) const {
+  read_keys_.insert(key);
+  return has(key) ? getDouble(key, min, max) : default_value;
+}
+
+int SettingsFile::getInt(const std::string& key, int default_value, int min, int max) const {
+  read_keys_.insert(key);
+  return has(key) ? getInt(key, min, max) : default_value;
+}
+
+bool SettingsFile::getBool(const std::string& key, bool default_value) const {
+  read_keys_.insert(key);
+  return has(key) ? getBool(key) : default_value;
+}
+
+std::string SettingsFile::getString(const std::string& key, const std::string& default_value) const {
+  read_keys_.insert(key);
+  return has(key) ? getString(key) : default_value;
+}
+
+std::vector<std::string> SettingsFile::unreadKeys() const {
+  std::vector<std::string> unread;
+  const cv::FileNode root = storage_.root();
+  for (auto it = root.begin(); it != root.end(); ++it) {
+    const std::string name = (*it).name();
+    if (read_keys_.count(name) == 0) unread.push_back(name);
+  }
+  return unread;
+}
+
+void SettingsFile::warnUnreadKeys() const {
+  for (const std::string& key : unreadKeys()) {
+    log::warn(path_, ": unknown key ", key, " (ignored; a typo?)");
+  }
+}
+
+}  // namespace ltlo
