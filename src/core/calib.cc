@@ -14,6 +14,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 CameraCalib CameraCalib::load(const SettingsFile& file) {
   CameraCalib calib;
+  // Optional, for ORB-SLAM3-style files; only the pinhole model exists here.
+  const std::string type = file.getString("Camera.type", "PinHole");
+  if (type != "PinHole") file.fail("Camera.type", "\"" + type + "\"", "\"PinHole\"");
   const int width = file.getInt("Camera.width", 1, 16384);
   const int height = file.getInt("Camera.height", 1, 16384);
   const double fx = file.getDouble("Camera.fx", 1e-3, kInf);

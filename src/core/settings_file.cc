@@ -57,10 +57,16 @@ void SettingsFile::fail(const std::string& key, const std::string& value,
   throw ConfigError(path_ + ": " + key + " = " + value + ", expected " + expected);
 }
 
+void SettingsFile::failMissing(const std::string& key, const std::string& expected) const {
+  throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+}
+
+std::string SettingsFile::valueText(const std::string& key) const { return describe(storage_[key]); }
+
 double SettingsFile::getDouble(const std::string& key, double min, double max) const {
   const cv::FileNode n = node(key);
   const std::string expected = "a number in " + rangeText(min, max);
-  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  if (n.empty() || n.isNone()) failMissing(key, expected);
   if (!n.isReal() && !n.isInt()) fail(key, describe(n), expected);
   const double value = static_cast<double>(n);
   if (!std::isfinite(value) || value < min || value > max) fail(key, describe(n), expected);
@@ -70,7 +76,7 @@ double SettingsFile::getDouble(const std::string& key, double min, double max) c
 int SettingsFile::getInt(const std::string& key, int min, int max) const {
   const cv::FileNode n = node(key);
   const std::string expected = "an integer in " + rangeText(min, max);
-  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  if (n.empty() || n.isNone()) failMissing(key, expected);
   if (!n.isInt()) fail(key, describe(n), expected);
   const int value = static_cast<int>(n);
   if (value < min || value > max) fail(key, describe(n), expected);
@@ -80,7 +86,7 @@ int SettingsFile::getInt(const std::string& key, int min, int max) const {
 bool SettingsFile::getBool(const std::string& key) const {
   const cv::FileNode n = node(key);
   const std::string expected = "a boolean (0/1 or true/false)";
-  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  if (n.empty() || n.isNone()) failMissing(key, expected);
   if (n.isInt()) {
     const int value = static_cast<int>(n);
     if (value == 0 || value == 1) return value == 1;
@@ -94,7 +100,7 @@ bool SettingsFile::getBool(const std::string& key) const {
 
 std::string SettingsFile::getString(const std::string& key) const {
   const cv::FileNode n = node(key);
-  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected a string");
+  if (n.empty() || n.isNone()) failMissing(key, "a string");
   if (!n.isString()) fail(key, describe(n), "a string");
   return static_cast<std::string>(n);
 }
@@ -103,7 +109,7 @@ MatX SettingsFile::getMatrix(const std::string& key, int rows, int cols) const {
   const cv::FileNode n = node(key);
   const std::string expected =
       "a " + std::to_string(rows) + "x" + std::to_string(cols) + " !!opencv-matrix of finite numbers";
-  if (n.empty() || n.isNone()) throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
+  if (n.empty() || n.isNone()) failMissing(key, expected);
   cv::Mat m;
   try {
     n >> m;

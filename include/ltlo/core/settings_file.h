@@ -46,9 +46,14 @@ class SettingsFile {
   /// Logs a warning per unread key.
   void warnUnreadKeys() const;
 
+  /// The value of `key` as error messages quote it ("\"abc\"", "12", "a sequence", ...).
+  std::string valueText(const std::string& key) const;
+
   /// "<path>: <key> = <value>, expected <expected>" as a ConfigError.
   [[noreturn]] void fail(const std::string& key, const std::string& value,
                          const std::string& expected) const;
+  /// "<path>: missing key <key>, expected <expected>" as a ConfigError.
+  [[noreturn]] void failMissing(const std::string& key, const std::string& expected) const;
 
  private:
   cv::FileNode node(const std::string& key) const;  // marks the key read

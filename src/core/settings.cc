@@ -1,0 +1,325 @@
+#include "ltlo/core/settings.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <sstream>
+
+#include "ltlo/core/errors.h"
+#include "ltlo/core/log.h"
+#include "ltlo/core/settings_file.h"
+
+namespace ltlo {
+namespace {
+
+// ---- One table per option struct ------------------------------------------------------------
+// Each visit*() lists key, field and range once; the same table drives loading from a file,
+// validating values built in code and describing the settings (so they cannot drift apart).
+// `O` is the struct or its const version; visitors take the field by (const) reference.
+
+template <typename O, typename V>
+void visitOrb(O& o, V& v) {
+  v.integer("ORBextractor.nFeatures", o.num_features, 50, 20000);
+  v.real("ORBextractor.scaleFactor", o.scale_factor, 1.05, 2.0);
+  v.integer("ORBextractor.nLevels", o.num_levels, 1, 16);
+  v.integer("ORBextractor.iniThFAST", o.ini_th_fast, 1, 255);
+  v.integer("ORBextractor.minThFAST", o.min_th_fast, 1, 255);
+  if (o.min_th_fast > o.ini_th_fast) {
+    v.fail("ORBextractor.minThFAST", std::to_string(o.min_th_fast),
+           "an integer in [1, ORBextractor.iniThFAST = " + std::to_string(o.ini_th_fast) + "]");
+  }
+}
+
+template <typename O, typename V>
+void visitSegmentation(O& o, V& v) {
+  v.integer("Seg.Clusters", o.num_clusters, 2, 256);
+  v.integer("Seg.KMeansIterations", o.kmeans_iterations, 1, 50);
+  v.real("Seg.MaxNeighbourGap", o.max_neighbour_gap_m, 0.001, 10.0);
+  v.real("Seg.AlphaIntensity", o.alpha_intensity, 0.001, 10.0);
+  v.real("Seg.NoiseWeightIntensity", o.noise_weight_intensity, 0.0, 1e6);
+  v.real("Seg.NoiseWeightDepth", o.noise_weight_depth, 0.0, 1e6);
+  v.real("Seg.SigmaIntensity", o.sigma_intensity, 1e-6, 1.0);
+  v.real("Seg.SigmaDepth", o.sigma_depth_m, 1e-6, 1.0);
+  v.real("Seg.CauchyC", o.cauchy_c, 1e-6, 1000.0);
+  v.real("Seg.LambdaD", o.lambda_d, 0.0, 1e6);
+  v.real("Seg.LambdaS", o.lambda_s, 0.0, 1e6);
+  v.real("Seg.LambdaP", o.lambda_p, 0.0, 1000.0);
+  v.real("Seg.LambdaPhi", o.lambda_phi, 0.0, 0.99);
+  v.real("Seg.StaticThreshold", o.static_threshold, 0.0, 1.0);
+}
+
+template <typename O, typename V>
+void visitKeyFrame(O& o, V& v) {
+  v.real("KF.MaxOverlap", o.max_overlap, 0.05, 0.99);
+  v.integer("KF.MinTrackedPoints", o.min_tracked_points, 0, 10000);
+  v.real("KF.MaxInterval", o.max_interval_s, 0.01, 100.0);
+}
+
+template <typename O, typename V>
+void visitLocalMapping(O& o, V& v) {
+  v.integer("LocalMapping.WindowSize", o.window_size, 2, 100);
+  v.integer("LocalMapping.Iterations", o.ba_iterations, 1, 1000);
+  v.integer("LocalMapping.Alternations", o.alternations, 1, 100);
+  v.real("LocalMapping.HuberChi2", o.huber_chi2, 0.01, 1000.0);
+  v.real("LocalMapping.DynamicCost", o.dynamic_cost, 0.01, 1000.0);
+  v.real("LocalMapping.LambdaImu", o.lambda_imu, 0.0, 1e6);
+  v.real("LocalMapping.MinPointBeta", o.min_point_beta, 0.0, 1.0);
+  v.real("LocalMapping.RedundantRatio", o.redundant_ratio, 0.5, 1.0);
+}
+
+template <typename O, typename V>
+void visitLoop(O& o, V& v) {
+  v.boolean("Loop.Enabled", o.enabled);
+  v.real("Loop.MinStaticRatio", o.min_static_ratio, 0.0, 1.0);
+  v.integer("Loop.MinConsistency", o.min_consistency, 1, 20);
+  v.integer("Loop.MinInliers", o.min_inliers, 3, 10000);
+  v.real("Loop.InlierThreshold", o.inlier_threshold_m, 0.001, 10.0);
+  v.integer("Loop.FullBaIterations", o.full_ba_iterations, 1, 1000);
+}
+
+template <typename O, typename V>
+void visitDense(O& o, V& v) {
+  v.resolution("Dense.Resolution", o.width, o.height, 16, 4096);
+  v.integer("Dense.PyramidLevels", o.pyramid_levels, 1, 8);
+  v.integer("Dense.IterationsPerLevel", o.iterations_per_level, 1, 100);
+  v.integer("Dense.Alternations", o.alternations, 1, 20);
+  // The coarsest level (base halved levels - 1 times) must keep at least 8 px per side.
+  const int coarsest_side = std::min(o.width, o.height) >> (o.pyramid_levels - 1);
+  if (coarsest_side < 8) {
+    int max_levels = 1;
+    while ((std::min(o.width, o.height) >> max_levels) >= 8) ++max_levels;
+    v.fail("Dense.PyramidLevels", std::to_string(o.pyramid_levels),
+           "an integer in [1, " + std::to_string(max_levels) + "] for Dense.Resolution " +
+               std::to_string(o.width) + "x" + std::to_string(o.height) +
+               " (coarsest level at least 8 px)");
+  }
+}
+
+template <typename O, typename V>
+void visitImuInit(O& o, V& v) {
+  v.real("ImuInit.MinTime", o.min_time_s, 0.1, 100.0);
+  v.integer("ImuInit.MinKeyFrames", o.min_keyframes, 3, 1000);
+  v.integer("ImuInit.Iterations", o.iterations, 1, 1000);
+  v.real("ImuInit.PriorGyroBias", o.prior_gyro_bias, 0.0, 1e12);
+  v.real("ImuInit.PriorAccBias", o.prior_acc_bias, 0.0, 1e12);
+}
+
+std::string numberText(double value) {
+  std::ostringstream os;
+  os << value;
+  return os.str();
+}
+
+std::string rangeText(double min, double max) { return "[" + numberText(min) + ", " + numberText(max) + "]"; }
+
+const char kResolutionExpected[] = "\"<width>x<height>\" with each side in ";
+
+// Reads every key of a table from a settings file (SettingsFile validates type and range).
+struct Loader {
+  const SettingsFile& file;
+
+  void integer(const char* key, int& value, int min, int max) { value = file.getInt(key, min, max); }
+  void real(const char* key, double& value, double min, double max) {
+    value = file.getDouble(key, min, max);
+  }
+  void boolean(const char* key, bool& value) { value = file.getBool(key); }
+  void resolution(const char* key, int& width, int& height, int min, int max) {
+    const std::string expected = kResolutionExpected + rangeText(min, max);
+    if (!file.has(key)) file.failMissing(key, expected);
+    std::string text;
+    try {
+      text = file.getString(key);
+    } catch (const ConfigError&) {
+      file.fail(key, file.valueText(key), expected);  // a number or a map instead of "WxH"
+    }
+    int w = 0, h = 0;
+    char extra = 0;
+    if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &extra) != 2 || w < min || w > max || h < min ||
+        h > max) {
+      file.fail(key, "\"" + text + "\"", expected);
+    }
+    width = w;
+    height = h;
+  }
+  [[noreturn]] void fail(const std::string& key, const std::string& value,
+                         const std::string& expected) {
+    file.fail(key, value, expected);
+  }
+};
+
+// Checks values already in memory (settings built in code), with the same ranges and messages.
+struct Validator {
+  std::string source = "settings";
+
+  [[noreturn]] void fail(const std::string& key, const std::string& value,
+                         const std::string& expected) const {
+    throw ConfigError(source + ": " + key + " = " + value + ", expected " + expected);
+  }
+  void integer(const char* key, int value, int min, int max) const {
+    if (value < min || value > max) {
+      fail(key, std::to_string(value), "an integer in " + rangeText(min, max));
+    }
+  }
+  void real(const char* key, double value, double min, double max) const {
+    if (!(value >= min && value <= max)) {
+      fail(key, numberText(value), "a number in " + rangeText(min, max));
+    }
+  }
+  void boolean(const char*, bool) const {}
+  void resolution(const char* key, int width, int height, int min, int max) const {
+    if (width < min || width > max || height < min || height > max) {
+      fail(key, "\"" + std::to_string(width) + "x" + std::to_string(height) + "\"",
+           kResolutionExpected + rangeText(min, max));
+    }
+  }
+};
+
+// "<key> = <value>" lines in table order.
+struct Describer {
+  std::ostringstream os;
+
+  void integer(const char* key, int value, int, int) { os << key << " = " << value << "\n"; }
+  void real(const char* key, double value, double, double) { os << key << " = " << value << "\n"; }
+  void boolean(const char* key, bool value) { os << key << " = " << (value ? 1 : 0) << "\n"; }
+  void resolution(const char* key, int width, int height, int, int) {
+    os << key << " = " << width << "x" << height << "\n";
+  }
+  void fail(const std::string&, const std::string&, const std::string&) {}  // describe never fails
+};
+
+// The whole-settings rule: the dense pyramid base cannot be finer than the camera image.
+template <typename Fail>
+void checkDenseAgainstCamera(const DenseOptions& dense, const PinholeCamera& camera,
+                             const std::string& calib_source, Fail&& fail) {
+  if (dense.width > camera.width() || dense.height > camera.height()) {
+    fail("Dense.Resolution",
+         "\"" + std::to_string(dense.width) + "x" + std::to_string(dense.height) + "\"",
+         "at most the camera resolution " + std::to_string(camera.width()) + "x" +
+             std::to_string(camera.height()) + " (" + calib_source + ")");
+  }
+}
+
+bool isCalibrationKey(const std::string& key) {
+  return key.rfind("Camera.", 0) == 0 || key.rfind("IMU.", 0) == 0 || key == "DepthMapFactor";
+}
+
+}  // namespace
+
+#define LTLO_OPTIONS_LOAD(Type, visit) \
+  Type Type::load(const SettingsFile& file) { \
+    Type options;                             \
+    Loader loader{file};                      \
+    visit(options, loader);                   \
+    return options;                           \
+  }
+
+LTLO_OPTIONS_LOAD(OrbOptions, visitOrb)
+LTLO_OPTIONS_LOAD(SegmentationOptions, visitSegmentation)
+LTLO_OPTIONS_LOAD(KeyFrameOptions, visitKeyFrame)
+LTLO_OPTIONS_LOAD(LocalMappingOptions, visitLocalMapping)
+LTLO_OPTIONS_LOAD(LoopOptions, visitLoop)
+LTLO_OPTIONS_LOAD(DenseOptions, visitDense)
+LTLO_OPTIONS_LOAD(ImuInitOptions, visitImuInit)
+
+#undef LTLO_OPTIONS_LOAD
+
+Settings Settings::load(const std::string& config_path, const std::string& calib_path) {
+  const SettingsFile config(config_path);
+  Settings settings;
+  settings.config_path = config_path;
+  if (calib_path.empty()) {
+    settings.calib_path = config_path;
+    settings.calib = SensorCalib::load(config);
+  } else {
+    settings.calib_path = calib_path;
+    const SettingsFile calib(calib_path);
+    settings.calib = SensorCalib::load(calib);
+    for (const std::string& key : calib.unreadKeys()) {
+      log::warn(calib_path, ": unknown key ", key, " (ignored; a typo?)");
+      settings.unknown_keys.push_back(calib_path + ": " + key);
+    }
+  }
+  settings.orb = OrbOptions::load(config);
+  settings.segmentation = SegmentationOptions::load(config);
+  settings.keyframe = KeyFrameOptions::load(config);
+  settings.local_mapping = LocalMappingOptions::load(config);
+  settings.loop = LoopOptions::load(config);
+  settings.dense = DenseOptions::load(config);
+  settings.imu_init = ImuInitOptions::load(config);
+  settings.sequence = SequenceOptions::load(config);
+  checkDenseAgainstCamera(settings.dense, settings.calib.camera.camera,
+                          "Camera.width/height of " + settings.calib_path,
+                          [&](const std::string& key, const std::string& value,
+                              const std::string& expected) { config.fail(key, value, expected); });
+
+  bool ignored_calibration = false;
+  for (const std::string& key : config.unreadKeys()) {
+    if (!calib_path.empty() && isCalibrationKey(key)) {
+      ignored_calibration = true;  // expected: configs may carry a default calibration
+      continue;
+    }
+    log::warn(config_path, ": unknown key ", key, " (ignored; a typo?)");
+    settings.unknown_keys.push_back(config_path + ": " + key);
+  }
+  if (ignored_calibration) {
+    log::info(config_path, ": Camera.*/DepthMapFactor/IMU.* keys ignored; calibration from ",
+              calib_path);
+  }
+  return settings;
+}
+
+void Settings::validate() const {
+  Validator validator;
+  visitOrb(orb, validator);
+  visitSegmentation(segmentation, validator);
+  visitKeyFrame(keyframe, validator);
+  visitLocalMapping(local_mapping, validator);
+  visitLoop(loop, validator);
+  visitDense(dense, validator);
+  visitImuInit(imu_init, validator);
+  checkDenseAgainstCamera(dense, calib.camera.camera, "camera calibration",
+                          [&](const std::string& key, const std::string& value,
+                              const std::string& expected) { validator.fail(key, value, expected); });
+}
+
+std::string Settings::describe() const {
+  Describer d;
+  d.os << "settings = " << config_path << "\n";
+  d.os << "calibration = " << calib_path << "\n";
+  const PinholeCamera& cam = calib.camera.camera;
+  d.os << "Camera.fx = " << cam.fx() << "\nCamera.fy = " << cam.fy() << "\nCamera.cx = " << cam.cx()
+       << "\nCamera.cy = " << cam.cy() << "\nCamera.width = " << cam.width()
+       << "\nCamera.height = " << cam.height() << "\nCamera.fps = " << calib.camera.fps
+       << "\nDepthMapFactor = " << calib.camera.depth_map_factor << "\n";
+  if (calib.has_imu) {
+    const SE3& T = calib.imu.T_b_c;
+    const Quat& q = T.quaternion();
+    d.os << "IMU.T_b_c1 = t [" << T.translation().transpose() << "] m, q (x y z w) [" << q.x() << " "
+         << q.y() << " " << q.z() << " " << q.w() << "]\n";
+    d.os << "IMU.NoiseGyro = " << calib.imu.noise_gyro << "\nIMU.NoiseAcc = " << calib.imu.noise_acc
+         << "\nIMU.GyroWalk = " << calib.imu.gyro_walk << "\nIMU.AccWalk = " << calib.imu.acc_walk
+         << "\nIMU.Frequency = " << calib.imu.rate_hz << "\n";
+  } else {
+    d.os << "IMU = none\n";
+  }
+  visitOrb(orb, d);
+  visitSegmentation(segmentation, d);
+  visitKeyFrame(keyframe, d);
+  visitLocalMapping(local_mapping, d);
+  visitLoop(loop, d);
+  visitDense(dense, d);
+  visitImuInit(imu_init, d);
+  d.os << "Sequence.MaxImuGap = " << sequence.max_imu_gap_s << "\n";
+  d.os << "Sequence.ImuGapPolicy = "
+       << (sequence.imu_gap_policy == ImuGapPolicy::kFail ? "fail" : "warn") << "\n";
+  std::string text = d.os.str();
+  if (!text.empty()) text.pop_back();  // no trailing newline
+  return text;
+}
+
+void Settings::log() const {
+  std::istringstream lines(describe());
+  std::string line;
+  while (std::getline(lines, line)) log::info("settings: ", line);
+}
+
+}  // namespace ltlo

@@ -1,0 +1,403 @@
+// Settings, SettingsFile and SensorCalib: every config_yaml/*.yaml loads and validates; missing,
+// mistyped, out-of-range and unknown keys give their exact messages; calib.yaml round trips.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "ltlo/core/calib.h"
+#include "ltlo/core/errors.h"
+#include "ltlo/core/settings.h"
+#include "ltlo/core/settings_file.h"
+
+namespace ltlo {
+namespace {
+
+namespace fs = std::filesystem;
+
+// ctest runs with the source root as working directory and LTLO_SOURCE_DIR set; either works.
+fs::path sourceDir() {
+  const char* env = std::getenv("LTLO_SOURCE_DIR");
+  return env != nullptr ? fs::path(env) : fs::current_path();
+}
+
+fs::path configDir() { return sourceDir() / "config_yaml"; }
+
+std::string readText(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void writeText(const fs::path& path, const std::string& text) {
+  std::ofstream out(path);
+  out << text;
+}
+
+// A scratch directory per test, emptied first.
+fs::path scratchDir() {
+  const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::path(::testing::TempDir()) /
+                       (std::string("ltlo_settings_") + info->test_suite_name() + "_" + info->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Copy of config_yaml/<name> with the line starting "<key>:" replaced by `replacement` (removed
+// when empty) and `appended` added at the end; returns its path.
+std::string editedConfig(const std::string& name, const std::string& key, const std::string& replacement,
+                         const std::string& appended = "") {
+  std::istringstream in(readText(configDir() / name));
+  std::string out, line;
+  bool found = key.empty();
+  while (std::getline(in, line)) {
+    if (!key.empty() && line.rfind(key + ":", 0) == 0) {
+      found = true;
+      if (!replacement.empty()) out += replacement + "\n";
+      continue;
+    }
+    out += line + "\n";
+  }
+  EXPECT_TRUE(found) << key << " not in " << name;
+  out += appended;
+  const fs::path path = scratchDir() / name;
+  writeText(path, out);
+  return path.string();
+}
+
+std::string loadError(const std::string& config, const std::string& calib = "") {
+  try {
+    Settings::load(config, calib);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::vector<fs::path> configFiles() {
+  std::vector<fs::path> files;
+  for (const fs::directory_entry& entry : fs::directory_iterator(configDir())) {
+    if (entry.path().extension() == ".yaml") files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// ---- config_yaml/*.yaml ---------------------------------------------------------------------
+
+TEST(ConfigYaml, EveryFileLoadsAndValidatesWithoutUnknownKeys) {
+  const std::vector<fs::path> files = configFiles();
+  ASSERT_GE(files.size(), 4u) << "config_yaml/ under " << sourceDir();
+  for (const fs::path& file : files) {
+    SCOPED_TRACE(file.string());
+    const Settings settings = Settings::load(file.string());
+    EXPECT_TRUE(settings.unknown_keys.empty()) << settings.unknown_keys.front();
+    EXPECT_NO_THROW(settings.validate());
+    EXPECT_EQ(settings.calib_path, file.string());
+    // DESIGN.md defaults hold in every shipped file.
+    EXPECT_EQ(settings.segmentation.num_clusters, 24);
+    EXPECT_DOUBLE_EQ(settings.segmentation.alpha_intensity, 0.15);
+    EXPECT_DOUBLE_EQ(settings.segmentation.lambda_phi, 0.5);
+    EXPECT_DOUBLE_EQ(settings.keyframe.max_overlap, 0.75);
+    EXPECT_DOUBLE_EQ(settings.loop.min_static_ratio, 0.80);
+    EXPECT_EQ(settings.dense.height, 240);
+    EXPECT_EQ(settings.orb.num_features, 1000);
+  }
+}
+
+TEST(ConfigYaml, SensorSpecificValues) {
+  const Settings tum = Settings::load((configDir() / "tum_rgbd.yaml").string());
+  EXPECT_FALSE(tum.calib.has_imu);
+  EXPECT_DOUBLE_EQ(tum.calib.camera.depth_map_factor, 5000.0);
+  EXPECT_DOUBLE_EQ(tum.calib.camera.camera.fx(), 517.306408);
+  EXPECT_EQ(tum.calib.camera.camera.width(), 640);
+
+  const Settings loris = Settings::load((configDir() / "openloris_d400.yaml").string());
+  ASSERT_TRUE(loris.calib.has_imu);
+  EXPECT_DOUBLE_EQ(loris.calib.camera.camera.fx(), 611.45);
+  EXPECT_EQ(loris.calib.camera.camera.width(), 848);
+  EXPECT_DOUBLE_EQ(loris.calib.camera.depth_map_factor, 1000.0);
+  EXPECT_EQ(loris.dense.width, 424);
+  EXPECT_NEAR(loris.calib.imu.T_b_c.translation().x(), 0.0203, 1e-12);
+
+  const Settings azure = Settings::load((configDir() / "azure_kinect.yaml").string());
+  ASSERT_TRUE(azure.calib.has_imu);
+  EXPECT_DOUBLE_EQ(azure.calib.imu.rate_hz, 1600.0);
+  // The camera's optical axis points along -x of the IMU frame.
+  EXPECT_NEAR((azure.calib.imu.T_b_c.rotationMatrix() * Vec3::UnitZ() - Vec3(-0.99452190, 0.0, 0.10452846)).norm(),
+              0.0, 1e-6);
+  EXPECT_EQ(azure.sequence.imu_gap_policy, ImuGapPolicy::kWarn);
+  EXPECT_DOUBLE_EQ(azure.sequence.max_imu_gap_s, 0.02);
+}
+
+TEST(ConfigYaml, DescribeListsEverySetting) {
+  const Settings settings = Settings::load((configDir() / "synthetic.yaml").string());
+  const std::string text = settings.describe();
+  EXPECT_NE(text.find("\nSeg.Clusters = 24\n"), std::string::npos);
+  EXPECT_NE(text.find("\nDense.Resolution = 320x240\n"), std::string::npos);
+  EXPECT_NE(text.find("\nLoop.Enabled = 1\n"), std::string::npos);
+  EXPECT_NE(text.find("\nCamera.fx = 525\n"), std::string::npos);
+  EXPECT_NE(text.find("\nIMU.Frequency = 200\n"), std::string::npos);
+  EXPECT_NE(text.find("\nSequence.ImuGapPolicy = warn"), std::string::npos);
+  // Every key of the file appears once in the description (calibration matrix as IMU.T_b_c1).
+  SettingsFile file((configDir() / "synthetic.yaml").string());
+  for (const std::string& key : file.unreadKeys()) {
+    if (key == "Camera.type") continue;  // fixed to PinHole, not worth a line
+    EXPECT_NE(text.find("\n" + key + " = "), std::string::npos) << key;
+  }
+}
+
+// ---- Error messages -------------------------------------------------------------------------
+
+TEST(SettingsErrors, OutOfRangeNamesFileKeyRangeAndValue) {
+  const std::string path = editedConfig("tum_rgbd.yaml", "Seg.Clusters", "Seg.Clusters: 1");
+  EXPECT_EQ(loadError(path), path + ": Seg.Clusters = 1, expected an integer in [2, 256]");
+  const std::string path2 = editedConfig("tum_rgbd.yaml", "Seg.AlphaIntensity", "Seg.AlphaIntensity: 12.5");
+  EXPECT_EQ(loadError(path2), path2 + ": Seg.AlphaIntensity = 12.5, expected a number in [0.001, 10]");
+}
+
+TEST(SettingsErrors, MissingKeyNamesExpectedRange) {
+  const std::string path = editedConfig("synthetic.yaml", "KF.MaxOverlap", "");
+  EXPECT_EQ(loadError(path), path + ": missing key KF.MaxOverlap, expected a number in [0.05, 0.99]");
+  const std::string path2 = editedConfig("synthetic.yaml", "Dense.Resolution", "");
+  EXPECT_EQ(loadError(path2), path2 +
+                                  ": missing key Dense.Resolution, expected \"<width>x<height>\" with "
+                                  "each side in [16, 4096]");
+  const std::string path3 = editedConfig("tum_rgbd.yaml", "Camera.fx", "");
+  EXPECT_EQ(loadError(path3), path3 + ": missing key Camera.fx, expected a number in [0.001, inf]");
+}
+
+TEST(SettingsErrors, WrongTypeQuotesTheValue) {
+  const std::string path = editedConfig("tum_rgbd.yaml", "Seg.Clusters", "Seg.Clusters: \"many\"");
+  EXPECT_EQ(loadError(path), path + ": Seg.Clusters = \"many\", expected an integer in [2, 256]");
+  const std::string path2 = editedConfig("tum_rgbd.yaml", "Seg.Clusters", "Seg.Clusters: 24.5");
+  EXPECT_EQ(loadError(path2), path2 + ": Seg.Clusters = 24.5, expected an integer in [2, 256]");
+  const std::string path3 = editedConfig("tum_rgbd.yaml", "Loop.Enabled", "Loop.Enabled: 2");
+  EXPECT_EQ(loadError(path3), path3 + ": Loop.Enabled = 2, expected a boolean (0/1 or true/false)");
+  const std::string path4 = editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: 320");
+  EXPECT_EQ(loadError(path4), path4 +
+                                  ": Dense.Resolution = 320, expected \"<width>x<height>\" with each "
+                                  "side in [16, 4096]");
+  const std::string path5 =
+      editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: \"320x240px\"");
+  EXPECT_EQ(loadError(path5), path5 +
+                                  ": Dense.Resolution = \"320x240px\", expected \"<width>x<height>\" "
+                                  "with each side in [16, 4096]");
+  const std::string path6 = editedConfig("tum_rgbd.yaml", "Camera.type", "Camera.type: \"KannalaBrandt8\"");
+  EXPECT_EQ(loadError(path6), path6 + ": Camera.type = \"KannalaBrandt8\", expected \"PinHole\"");
+}
+
+TEST(SettingsErrors, CrossFieldRules) {
+  const std::string path = editedConfig("tum_rgbd.yaml", "ORBextractor.minThFAST", "ORBextractor.minThFAST: 25");
+  EXPECT_EQ(loadError(path),
+            path + ": ORBextractor.minThFAST = 25, expected an integer in [1, ORBextractor.iniThFAST = 20]");
+  const std::string path2 = editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: \"1280x960\"");
+  EXPECT_EQ(loadError(path2), path2 +
+                                  ": Dense.Resolution = \"1280x960\", expected at most the camera "
+                                  "resolution 640x480 (Camera.width/height of " + path2 + ")");
+  const std::string path3 = editedConfig("tum_rgbd.yaml", "Dense.PyramidLevels", "Dense.PyramidLevels: 6");
+  EXPECT_EQ(loadError(path3), path3 +
+                                  ": Dense.PyramidLevels = 6, expected an integer in [1, 5] for "
+                                  "Dense.Resolution 320x240 (coarsest level at least 8 px)");
+}
+
+TEST(SettingsErrors, UnknownKeyIsReportedNotFatal) {
+  const std::string path = editedConfig("tum_rgbd.yaml", "", "", "Seg.Clustres: 24\n");
+  const Settings settings = Settings::load(path);
+  ASSERT_EQ(settings.unknown_keys.size(), 1u);
+  EXPECT_EQ(settings.unknown_keys[0], path + ": Seg.Clustres");
+
+  // SettingsFile itself: keys nobody asked for.
+  SettingsFile file(path);
+  EXPECT_EQ(file.getInt("Seg.Clusters", 2, 256), 24);
+  const std::vector<std::string> unread = file.unreadKeys();
+  EXPECT_EQ(std::count(unread.begin(), unread.end(), "Seg.Clustres"), 1);
+  EXPECT_EQ(std::count(unread.begin(), unread.end(), "Seg.Clusters"), 0);
+}
+
+TEST(SettingsErrors, ValidateChecksValuesBuiltInCode) {
+  Settings settings = Settings::load((configDir() / "synthetic.yaml").string());
+  settings.segmentation.num_clusters = 1;
+  try {
+    settings.validate();
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(), "settings: Seg.Clusters = 1, expected an integer in [2, 256]");
+  }
+  settings.segmentation.num_clusters = 24;
+  settings.loop.min_static_ratio = 1.5;
+  EXPECT_THROW(settings.validate(), ConfigError);
+  settings.loop.min_static_ratio = 0.8;
+  settings.dense.width = 641;
+  try {
+    settings.validate();
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(), "settings: Dense.Resolution = \"641x240\", expected at most the camera "
+                           "resolution 640x480 (camera calibration)");
+  }
+}
+
+// ---- Calibration from calib.yaml ------------------------------------------------------------
+
+SensorCalib exampleCalib() {
+  SensorCalib calib;
+  calib.camera.camera = PinholeCamera(520.125, 519.75, 321.5, 243.25, 640, 480);
+  calib.camera.fps = 15.0;
+  calib.camera.depth_map_factor = 5000.0;
+  calib.has_imu = true;
+  calib.imu.T_b_c = SE3(so3ExpQuat(Vec3(0.3, -1.2, 2.0)), Vec3(0.01, -0.02, 0.125));
+  calib.imu.noise_gyro = 1.5e-4;
+  calib.imu.noise_acc = 2.5e-3;
+  calib.imu.gyro_walk = 2.2e-5;
+  calib.imu.acc_walk = 3.3e-3;
+  calib.imu.rate_hz = 250.0;
+  return calib;
+}
+
+void expectSameCalib(const SensorCalib& a, const SensorCalib& b) {
+  EXPECT_DOUBLE_EQ(a.camera.camera.fx(), b.camera.camera.fx());
+  EXPECT_DOUBLE_EQ(a.camera.camera.fy(), b.camera.camera.fy());
+  EXPECT_DOUBLE_EQ(a.camera.camera.cx(), b.camera.camera.cx());
+  EXPECT_DOUBLE_EQ(a.camera.camera.cy(), b.camera.camera.cy());
+  EXPECT_EQ(a.camera.camera.width(), b.camera.camera.width());
+  EXPECT_EQ(a.camera.camera.height(), b.camera.camera.height());
+  EXPECT_DOUBLE_EQ(a.camera.fps, b.camera.fps);
+  EXPECT_DOUBLE_EQ(a.camera.depth_map_factor, b.camera.depth_map_factor);
+  ASSERT_EQ(a.has_imu, b.has_imu);
+  if (!a.has_imu) return;
+  EXPECT_LT((a.imu.T_b_c.matrix() - b.imu.T_b_c.matrix()).norm(), 1e-14);
+  EXPECT_DOUBLE_EQ(a.imu.noise_gyro, b.imu.noise_gyro);
+  EXPECT_DOUBLE_EQ(a.imu.noise_acc, b.imu.noise_acc);
+  EXPECT_DOUBLE_EQ(a.imu.gyro_walk, b.imu.gyro_walk);
+  EXPECT_DOUBLE_EQ(a.imu.acc_walk, b.imu.acc_walk);
+  EXPECT_DOUBLE_EQ(a.imu.rate_hz, b.imu.rate_hz);
+}
+
+TEST(SensorCalib, WriteLoadRoundTrip) {
+  const fs::path dir = scratchDir();
+  const SensorCalib with_imu = exampleCalib();
+  with_imu.write((dir / "calib.yaml").string());
+  expectSameCalib(SensorCalib::load((dir / "calib.yaml").string()), with_imu);
+  // Everything written is read back: no unknown keys.
+  SettingsFile file((dir / "calib.yaml").string());
+  SensorCalib::load(file);
+  EXPECT_TRUE(file.unreadKeys().empty());
+
+  SensorCalib no_imu = exampleCalib();
+  no_imu.has_imu = false;
+  no_imu.write((dir / "calib_no_imu.yaml").string());
+  expectSameCalib(SensorCalib::load((dir / "calib_no_imu.yaml").string()), no_imu);
+}
+
+TEST(SensorCalib, CalibYamlOverridesConfigCalibration) {
+  const fs::path dir = scratchDir();
+  const SensorCalib calib = exampleCalib();
+  calib.write((dir / "calib.yaml").string());
+  const std::string config = (configDir() / "tum_rgbd.yaml").string();
+  const Settings settings = Settings::load(config, (dir / "calib.yaml").string());
+  expectSameCalib(settings.calib, calib);
+  EXPECT_EQ(settings.calib_path, (dir / "calib.yaml").string());
+  EXPECT_TRUE(settings.unknown_keys.empty());  // the config's Camera.* keys are expected, not typos
+
+  // Dense resolution is checked against the calibration actually used.
+  SensorCalib small = calib;
+  small.camera.camera = PinholeCamera(260.0, 260.0, 159.5, 119.5, 300, 200);
+  small.write((dir / "small.yaml").string());
+  EXPECT_EQ(loadError(config, (dir / "small.yaml").string()),
+            config + ": Dense.Resolution = \"320x240\", expected at most the camera resolution 300x200 "
+                     "(Camera.width/height of " + (dir / "small.yaml").string() + ")");
+}
+
+TEST(SensorCalib, RejectsNonRigidExtrinsic) {
+  const fs::path dir = scratchDir();
+  std::string text = readText(configDir() / "openloris_d400.yaml");
+  const std::string row = "data: [ 1.0, 0.0, 0.0, 0.0203,";
+  ASSERT_NE(text.find(row), std::string::npos);
+  text.replace(text.find(row), row.size(), "data: [ 2.0, 0.0, 0.0, 0.0203,");
+  writeText(dir / "bad.yaml", text);
+  EXPECT_EQ(loadError((dir / "bad.yaml").string()),
+            (dir / "bad.yaml").string() +
+                ": IMU.T_b_c1 = a matrix whose 3x3 block is not a rotation, expected a rigid 4x4 "
+                "transform [R t; 0 0 0 1]");
+}
+
+// ---- SettingsFile ---------------------------------------------------------------------------
+
+TEST(SettingsFile, OpenErrors) {
+  const fs::path dir = scratchDir();
+  try {
+    SettingsFile((dir / "absent.yaml").string());
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "absent.yaml").string() + ": cannot open settings file");
+  }
+  writeText(dir / "broken.yaml", "%YAML:1.0\n---\nCamera.fx: [1, 2\n  : : :\n");
+  try {
+    SettingsFile((dir / "broken.yaml").string());
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind((dir / "broken.yaml").string() + ": cannot ", 0), 0u) << e.what();
+  }
+}
+
+TEST(SettingsFile, TypedGettersAndDefaults) {
+  const fs::path dir = scratchDir();
+  const std::string path = (dir / "s.yaml").string();
+  writeText(path,
+            "%YAML:1.0\n---\n"
+            "A.int: 7\nA.real: 2.5\nA.flag: true\nA.bit: 0\nA.text: \"hello\"\n"
+            "A.mat: !!opencv-matrix\n   rows: 2\n   cols: 3\n   dt: f\n   data: [ 1, 2, 3, 4, 5, 6 ]\n"
+            "A.list: [ 1, 2 ]\n");
+  SettingsFile file(path);
+  EXPECT_TRUE(file.has("A.int"));
+  EXPECT_FALSE(file.has("A.none"));
+  EXPECT_EQ(file.getInt("A.int"), 7);
+  EXPECT_DOUBLE_EQ(file.getDouble("A.int"), 7.0);  // an integer is a valid number
+  EXPECT_DOUBLE_EQ(file.getDouble("A.real", 0.0, 10.0), 2.5);
+  EXPECT_TRUE(file.getBool("A.flag"));
+  EXPECT_FALSE(file.getBool("A.bit"));
+  EXPECT_EQ(file.getString("A.text"), "hello");
+  const MatX m = file.getMatrix("A.mat", 2, 3);
+  EXPECT_DOUBLE_EQ(m(1, 2), 6.0);
+  EXPECT_DOUBLE_EQ(file.getDouble("A.none", 4.5, 0.0, 10.0), 4.5);
+  EXPECT_EQ(file.getInt("A.none", 3, 0, 10), 3);
+  EXPECT_EQ(file.getString("A.none", "x"), "x");
+  EXPECT_TRUE(file.getBool("A.none", true));
+  EXPECT_EQ(file.unreadKeys(), std::vector<std::string>{"A.list"});
+
+  auto message = [&](auto&& call) {
+    try {
+      call();
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_EQ(message([&] { file.getInt("A.real", 0, 10); }),
+            path + ": A.real = 2.5, expected an integer in [0, 10]");
+  EXPECT_EQ(message([&] { file.getDouble("A.real", 3.0, 10.0); }),
+            path + ": A.real = 2.5, expected a number in [3, 10]");
+  EXPECT_EQ(message([&] { file.getDouble("A.text"); }),
+            path + ": A.text = \"hello\", expected a number in [-inf, inf]");
+  EXPECT_EQ(message([&] { file.getString("A.int"); }), path + ": A.int = 7, expected a string");
+  EXPECT_EQ(message([&] { file.getBool("A.text"); }),
+            path + ": A.text = \"hello\", expected a boolean (0/1 or true/false)");
+  EXPECT_EQ(message([&] { file.getMatrix("A.mat", 3, 3); }),
+            path + ": A.mat = 2x3 matrix, expected a 3x3 !!opencv-matrix of finite numbers");
+  EXPECT_EQ(message([&] { file.getMatrix("A.missing", 4, 4); }),
+            path + ": missing key A.missing, expected a 4x4 !!opencv-matrix of finite numbers");
+  EXPECT_EQ(message([&] { file.getInt("A.list", 0, 1, 5); }),
+            path + ": A.list = a sequence, expected an integer in [1, 5]");
+  EXPECT_EQ(message([&] { file.getInt("A.int", 0, 1, 5); }),
+            path + ": A.int = 7, expected an integer in [1, 5]");  // optional but present: validated
+}
+
+}  // namespace
+}  // namespace ltlo
