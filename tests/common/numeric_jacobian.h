@@ -13,6 +13,9 @@
 /// A manifold-valued output is differentiated by returning a vector from f, e.g.
 /// so3Log(R0.transpose() * g(x)) for a right-perturbed rotation output.
 ///
+/// Lambdas that build Eigen products from temporaries must name their return type (`-> Vec3`):
+/// an `auto` return would hand back a lazy view of a destroyed temporary (STYLE.md section 6).
+///
 /// Accuracy: the truncation error is O(eps^2 |f'''|) and the round-off O(1e-16 |f| / eps); the
 /// default eps = 1e-6 gives ~1e-9 relative accuracy on smooth functions of order-one inputs.
 #include <type_traits>
@@ -72,8 +75,12 @@ auto numericJacobian(const F& f, const Eigen::MatrixBase<Derived>& x_in, double 
 template <int kDim, typename F, typename X, typename Plus>
 auto numericJacobianOnManifold(const F& f, const X& x, const Plus& plus, double eps = 1e-6) {
   using Delta = Eigen::Matrix<double, kDim, 1>;
-  return numericJacobian([&](const Delta& delta) { return f(plus(x, delta)); }, Delta::Zero().eval(),
-                         eps);
+  return numericJacobian(
+      [&](const Delta& delta) {
+        const X perturbed = plus(x, delta);       // a named value: f may return a view of it
+        return detail::asColumn(f(perturbed));  // evaluated while `perturbed` lives
+      },
+      Delta::Zero().eval(), eps);
 }
 
 }  // namespace ltlo::test
