@@ -96,7 +96,8 @@ void ProgressReporter::frameDone(long frames) {
     }
     case Style::kLines: {
       const long every = std::max(1L, options_.log_every_n_frames);
-      if (frames_done_ / every != before / every) writer_(formatStatus(options_.label, statusLocked()), false);
+      if (frames_done_ / every != before / every)
+        writer_(formatStatus(options_.label, statusLocked()), false);
       break;
     }
     case Style::kAuto:  // resolved in the constructor

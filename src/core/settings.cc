@@ -109,7 +109,9 @@ std::string numberText(double value) {
   return os.str();
 }
 
-std::string rangeText(double min, double max) { return "[" + numberText(min) + ", " + numberText(max) + "]"; }
+std::string rangeText(double min, double max) {
+  return "[" + numberText(min) + ", " + numberText(max) + "]";
+}
 
 const char kResolutionExpected[] = "\"<width>x<height>\" with each side in ";
 
@@ -117,7 +119,9 @@ const char kResolutionExpected[] = "\"<width>x<height>\" with each side in ";
 struct Loader {
   const SettingsFile& file;
 
-  void integer(const char* key, int& value, int min, int max) { value = file.getInt(key, min, max); }
+  void integer(const char* key, int& value, int min, int max) {
+    value = file.getInt(key, min, max);
+  }
   void real(const char* key, double& value, double min, double max) {
     value = file.getDouble(key, min, max);
   }
@@ -133,8 +137,8 @@ struct Loader {
     }
     int w = 0, h = 0;
     char extra = 0;
-    if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &extra) != 2 || w < min || w > max || h < min ||
-        h > max) {
+    if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &extra) != 2 || w < min || w > max ||
+        h < min || h > max) {
       file.fail(key, "\"" + text + "\"", expected);
     }
     width = w;
@@ -204,23 +208,54 @@ bool isCalibrationKey(const std::string& key) {
 
 }  // namespace
 
-#define LTLO_OPTIONS_LOAD(Type, visit) \
-  Type Type::load(const SettingsFile& file) { \
-    Type options;                             \
-    Loader loader{file};                      \
-    visit(options, loader);                   \
-    return options;                           \
-  }
+OrbOptions OrbOptions::load(const SettingsFile& file) {
+  OrbOptions options;
+  Loader loader{file};
+  visitOrb(options, loader);
+  return options;
+}
 
-LTLO_OPTIONS_LOAD(OrbOptions, visitOrb)
-LTLO_OPTIONS_LOAD(SegmentationOptions, visitSegmentation)
-LTLO_OPTIONS_LOAD(KeyFrameOptions, visitKeyFrame)
-LTLO_OPTIONS_LOAD(LocalMappingOptions, visitLocalMapping)
-LTLO_OPTIONS_LOAD(LoopOptions, visitLoop)
-LTLO_OPTIONS_LOAD(DenseOptions, visitDense)
-LTLO_OPTIONS_LOAD(ImuInitOptions, visitImuInit)
+SegmentationOptions SegmentationOptions::load(const SettingsFile& file) {
+  SegmentationOptions options;
+  Loader loader{file};
+  visitSegmentation(options, loader);
+  return options;
+}
 
-#undef LTLO_OPTIONS_LOAD
+KeyFrameOptions KeyFrameOptions::load(const SettingsFile& file) {
+  KeyFrameOptions options;
+  Loader loader{file};
+  visitKeyFrame(options, loader);
+  return options;
+}
+
+LocalMappingOptions LocalMappingOptions::load(const SettingsFile& file) {
+  LocalMappingOptions options;
+  Loader loader{file};
+  visitLocalMapping(options, loader);
+  return options;
+}
+
+LoopOptions LoopOptions::load(const SettingsFile& file) {
+  LoopOptions options;
+  Loader loader{file};
+  visitLoop(options, loader);
+  return options;
+}
+
+DenseOptions DenseOptions::load(const SettingsFile& file) {
+  DenseOptions options;
+  Loader loader{file};
+  visitDense(options, loader);
+  return options;
+}
+
+ImuInitOptions ImuInitOptions::load(const SettingsFile& file) {
+  ImuInitOptions options;
+  Loader loader{file};
+  visitImuInit(options, loader);
+  return options;
+}
 
 Settings Settings::load(const std::string& config_path, const std::string& calib_path) {
   const SettingsFile config(config_path);
@@ -276,9 +311,11 @@ void Settings::validate() const {
   visitLoop(loop, validator);
   visitDense(dense, validator);
   visitImuInit(imu_init, validator);
-  checkDenseAgainstCamera(dense, calib.camera.camera, "camera calibration",
-                          [&](const std::string& key, const std::string& value,
-                              const std::string& expected) { validator.fail(key, value, expected); });
+  checkDenseAgainstCamera(
+      dense, calib.camera.camera, "camera calibration",
+      [&](const std::string& key, const std::string& value, const std::string& expected) {
+        validator.fail(key, value, expected);
+      });
 }
 
 std::string Settings::describe() const {
@@ -293,8 +330,8 @@ std::string Settings::describe() const {
   if (calib.has_imu) {
     const SE3& T = calib.imu.T_b_c;
     const Quat& q = T.quaternion();
-    d.os << "IMU.T_b_c1 = t [" << T.translation().transpose() << "] m, q (x y z w) [" << q.x() << " "
-         << q.y() << " " << q.z() << " " << q.w() << "]\n";
+    d.os << "IMU.T_b_c1 = t [" << T.translation().transpose() << "] m, q (x y z w) [" << q.x()
+         << " " << q.y() << " " << q.z() << " " << q.w() << "]\n";
     d.os << "IMU.NoiseGyro = " << calib.imu.noise_gyro << "\nIMU.NoiseAcc = " << calib.imu.noise_acc
          << "\nIMU.GyroWalk = " << calib.imu.gyro_walk << "\nIMU.AccWalk = " << calib.imu.acc_walk
          << "\nIMU.Frequency = " << calib.imu.rate_hz << "\n";

@@ -10,7 +10,8 @@
 namespace ltlo {
 
 double percentile(std::vector<double> values, double fraction) {
-  LTLO_ASSERT(fraction >= 0.0 && fraction <= 1.0, "percentile fraction " << fraction << " not in [0, 1]");
+  LTLO_ASSERT(fraction >= 0.0 && fraction <= 1.0,
+              "percentile fraction " << fraction << " not in [0, 1]");
   if (values.empty()) return 0.0;
   std::sort(values.begin(), values.end());
   const double position = fraction * static_cast<double>(values.size() - 1);
@@ -50,8 +51,9 @@ std::string jsonString(const std::string& text) {
 }  // namespace
 
 void TimingStats::add(const std::string& stage, double duration_s) {
-  LTLO_ASSERT(duration_s >= 0.0 && std::isfinite(duration_s),
-              "stage " << stage << ": duration " << duration_s << " s is not a finite non-negative time");
+  LTLO_ASSERT(
+      duration_s >= 0.0 && std::isfinite(duration_s),
+      "stage " << stage << ": duration " << duration_s << " s is not a finite non-negative time");
   std::lock_guard<std::mutex> lock(mutex_);
   durations_s_[stage].push_back(duration_s);
 }
@@ -77,8 +79,9 @@ std::string TimingStats::summary() const {
   for (const StageTiming& t : stages()) {
     if (!first) os << "\n";
     first = false;
-    os << t.stage << " n=" << t.count << " mean=" << 1e3 * t.mean_s << " median=" << 1e3 * t.median_s
-       << " p95=" << 1e3 * t.p95_s << " max=" << 1e3 * t.max_s << " ms";
+    os << t.stage << " n=" << t.count << " mean=" << 1e3 * t.mean_s
+       << " median=" << 1e3 * t.median_s << " p95=" << 1e3 * t.p95_s << " max=" << 1e3 * t.max_s
+       << " ms";
   }
   return os.str();
 }

@@ -3,12 +3,14 @@
 /// uses (STYLE.md section 9). Header-only, Eigen only; CMake target `ltlo_test_common`.
 ///
 ///   // f: R^n -> R^m on Eigen vectors (fixed or dynamic size)
-///   const Mat23 J = test::numericJacobian([&](const Vec3& p_c) { return camera.project(p_c); }, p_c);
+///   const Mat23 J = test::numericJacobian([&](const Vec3& p_c) { return camera.project(p_c); },
+///   p_c);
 ///
 ///   // manifold input: derivative with respect to a perturbation delta in R^n at delta = 0
 ///   const Mat36 J = test::numericJacobianOnManifold<6>(
 ///       [&](const SE3& T_c_w) { return camera.project(T_c_w * p_w); }, T_c_w,
-///       [](const SE3& T, const Vec6& delta) { return T * SE3::exp(delta); });  // right perturbation
+///       [](const SE3& T, const Vec6& delta) { return T * SE3::exp(delta); });  // right
+///       perturbation
 ///
 /// A manifold-valued output is differentiated by returning a vector from f, e.g.
 /// so3Log(R0.transpose() * g(x)) for a right-perturbed rotation output.
@@ -18,10 +20,9 @@
 ///
 /// Accuracy: the truncation error is O(eps^2 |f'''|) and the round-off O(1e-16 |f| / eps); the
 /// default eps = 1e-6 gives ~1e-9 relative accuracy on smooth functions of order-one inputs.
+#include <Eigen/Core>
 #include <type_traits>
 #include <utility>
-
-#include <Eigen/Core>
 
 namespace ltlo::test {
 
@@ -33,9 +34,10 @@ auto asColumn(const Out& value) {
   if constexpr (std::is_arithmetic_v<Out>) {
     return Eigen::Matrix<double, 1, 1>::Constant(static_cast<double>(value));
   } else {
-    using Plain = Eigen::Matrix<double, Out::RowsAtCompileTime == Eigen::Dynamic
-                                            ? Eigen::Dynamic
-                                            : Out::RowsAtCompileTime * Out::ColsAtCompileTime,
+    using Plain = Eigen::Matrix<double,
+                                Out::RowsAtCompileTime == Eigen::Dynamic
+                                    ? Eigen::Dynamic
+                                    : Out::RowsAtCompileTime * Out::ColsAtCompileTime,
                                 1>;
     const typename Out::PlainObject plain = value;
     return Plain(Eigen::Map<const Plain>(plain.data(), plain.size()));
@@ -77,7 +79,7 @@ auto numericJacobianOnManifold(const F& f, const X& x, const Plus& plus, double 
   using Delta = Eigen::Matrix<double, kDim, 1>;
   return numericJacobian(
       [&](const Delta& delta) {
-        const X perturbed = plus(x, delta);       // a named value: f may return a view of it
+        const X perturbed = plus(x, delta);     // a named value: f may return a view of it
         return detail::asColumn(f(perturbed));  // evaluated while `perturbed` lives
       },
       Delta::Zero().eval(), eps);

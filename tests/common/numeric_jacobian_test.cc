@@ -1,12 +1,11 @@
 // The shared numeric-Jacobian helper on functions with known derivatives: fixed and dynamic
 // sizes, scalar output, and the manifold variant with a perturbation function.
+#include "common/numeric_jacobian.h"
+
 #include <gtest/gtest.h>
 
-#include <cmath>
-
 #include <Eigen/Geometry>
-
-#include "common/numeric_jacobian.h"
+#include <cmath>
 
 namespace ltlo::test {
 namespace {
@@ -19,7 +18,7 @@ TEST(NumericJacobian, FixedSizeMatchesAnalytic) {
   };
   Eigen::Matrix3d expected;
   expected << x(1) * x(1), 2.0 * x(0) * x(1), 0.0,  //
-      1.0, 0.0, std::cos(x(2)),                      //
+      1.0, 0.0, std::cos(x(2)),                     //
       0.0, std::exp(x(1)), 0.0;
   const Eigen::Matrix3d J = numericJacobian(f, x);
   EXPECT_LT((J - expected).cwiseAbs().maxCoeff(), 1e-9);
@@ -43,7 +42,8 @@ TEST(NumericJacobian, NonSquareDynamicAndScalar) {
 
   // Scalar output gives a 1 x n row: the gradient of x . x is 2 x.
   const Eigen::Vector2d y(0.3, -2.0);
-  const Eigen::Matrix<double, 1, 2> g = numericJacobian([](const Eigen::Vector2d& v) { return v.dot(v); }, y);
+  const Eigen::Matrix<double, 1, 2> g =
+      numericJacobian([](const Eigen::Vector2d& v) { return v.dot(v); }, y);
   EXPECT_LT((g.transpose() - 2.0 * y).norm(), 1e-9);
 }
 
@@ -52,12 +52,13 @@ TEST(NumericJacobian, ManifoldVariantUsesThePerturbation) {
   // y coordinate, so df/ddelta = cos(theta).
   const double theta = 0.8;
   const Eigen::Vector2d point(std::cos(theta), std::sin(theta));
-  const auto plus = [](const Eigen::Vector2d& p, const Eigen::Matrix<double, 1, 1>& delta) -> Eigen::Vector2d {
+  const auto plus = [](const Eigen::Vector2d& p,
+                       const Eigen::Matrix<double, 1, 1>& delta) -> Eigen::Vector2d {
     // Explicit return type: an `auto` lambda would return a product view of a dead temporary.
     return Eigen::Rotation2Dd(delta(0)).toRotationMatrix() * p;
   };
-  const Eigen::Matrix<double, 1, 1> J = numericJacobianOnManifold<1>(
-      [](const Eigen::Vector2d& p) { return p.y(); }, point, plus);
+  const Eigen::Matrix<double, 1, 1> J =
+      numericJacobianOnManifold<1>([](const Eigen::Vector2d& p) { return p.y(); }, point, plus);
   EXPECT_NEAR(J(0, 0), std::cos(theta), 1e-9);
 }
 

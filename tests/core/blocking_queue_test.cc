@@ -1,5 +1,7 @@
 // BlockingQueue: FIFO order, capacity, close semantics, and many threads synchronised only by
 // the queues themselves (no sleeps, no timing; run under TSan with LTLO_SANITIZE_THREAD).
+#include "ltlo/core/blocking_queue.h"
+
 #include <gtest/gtest.h>
 
 #include <memory>
@@ -7,8 +9,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include "ltlo/core/blocking_queue.h"
 
 namespace ltlo {
 namespace {

@@ -1,9 +1,10 @@
 // Pinhole camera with depth (include/ltlo/core/camera.h): projection round trips and Jacobians
 // against central differences.
+#include "ltlo/core/camera.h"
+
 #include <gtest/gtest.h>
 
 #include "common/numeric_jacobian.h"
-#include "ltlo/core/camera.h"
 #include "ltlo/core/lie.h"
 
 namespace ltlo {
@@ -41,7 +42,8 @@ TEST(PinholeCamera, ProjectJacobianMatchesNumeric) {
 
 TEST(PinholeCamera, BackProjectJacobianMatchesNumeric) {
   const PinholeCamera cam = vgaCamera();
-  for (const Vec3& u_depth : {Vec3(100.0, 200.0, 1.5), Vec3(600.0, 30.0, 4.0), Vec3(318.6, 255.3, 0.5)}) {
+  for (const Vec3& u_depth :
+       {Vec3(100.0, 200.0, 1.5), Vec3(600.0, 30.0, 4.0), Vec3(318.6, 255.3, 0.5)}) {
     const Mat3 J = test::numericJacobian(
         [&](const Vec3& x) { return cam.backProject(Vec2(x.x(), x.y()), x.z()); }, u_depth);
     EXPECT_LT((cam.backProjectJacobian(u_depth.head<2>(), u_depth.z()) - J).cwiseAbs().maxCoeff(),
@@ -50,7 +52,8 @@ TEST(PinholeCamera, BackProjectJacobianMatchesNumeric) {
 }
 
 TEST(PinholeCamera, ProjectionOfTransformedPointUnderPosePerturbation) {
-  // The chain used by every reprojection edge: d project(T_c_w exp(d) p_w) / dd, right perturbation.
+  // The chain used by every reprojection edge: d project(T_c_w exp(d) p_w) / dd, right
+  // perturbation.
   const PinholeCamera cam = vgaCamera();
   const SE3 T_c_w(so3ExpQuat(Vec3(0.1, -0.2, 0.05)), Vec3(0.2, -0.1, 0.5));
   const Vec3 p_w(0.3, 0.2, 3.0);

@@ -1,18 +1,18 @@
 // ProgressReporter with a fed clock and a recording writer: FPS, ETA, when lines are written and
 // their exact text. No real time is measured.
+#include "ltlo/core/progress.h"
+
 #include <gtest/gtest.h>
 
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "ltlo/core/progress.h"
-
 namespace ltlo {
 namespace {
 
 struct Recorder {
-  double now_s = 100.0;  // arbitrary epoch: only differences matter
+  double now_s = 100.0;                             // arbitrary epoch: only differences matter
   std::vector<std::pair<std::string, bool>> lines;  // (text, in_place)
 
   ProgressReporter make(ProgressReporter::Options options) {
@@ -116,7 +116,8 @@ TEST(ProgressReporter, FormatsDurationsAndUnknownEta) {
   ProgressStatus s;
   s.frames_done = 0;
   s.total_frames = 100;
-  EXPECT_EQ(ProgressReporter::formatStatus("kf", s), "kf 0/100 (0.0%) | 0.0 fps | elapsed 0.0 s | ETA ?");
+  EXPECT_EQ(ProgressReporter::formatStatus("kf", s),
+            "kf 0/100 (0.0%) | 0.0 fps | elapsed 0.0 s | ETA ?");
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 // Settings, SettingsFile and SensorCalib: every config_yaml/*.yaml loads and validates; missing,
 // mistyped, out-of-range and unknown keys give their exact messages; calib.yaml round trips.
+#include "ltlo/core/settings.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -11,7 +13,6 @@
 
 #include "ltlo/core/calib.h"
 #include "ltlo/core/errors.h"
-#include "ltlo/core/settings.h"
 #include "ltlo/core/settings_file.h"
 
 namespace ltlo {
@@ -42,8 +43,9 @@ void writeText(const fs::path& path, const std::string& text) {
 // A scratch directory per test, emptied first.
 fs::path scratchDir() {
   const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(::testing::TempDir()) /
-                       (std::string("ltlo_settings_") + info->test_suite_name() + "_" + info->name());
+  const fs::path dir =
+      fs::path(::testing::TempDir()) /
+      (std::string("ltlo_settings_") + info->test_suite_name() + "_" + info->name());
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -51,8 +53,8 @@ fs::path scratchDir() {
 
 // Copy of config_yaml/<name> with the line starting "<key>:" replaced by `replacement` (removed
 // when empty) and `appended` added at the end; returns its path.
-std::string editedConfig(const std::string& name, const std::string& key, const std::string& replacement,
-                         const std::string& appended = "") {
+std::string editedConfig(const std::string& name, const std::string& key,
+                         const std::string& replacement, const std::string& appended = "") {
   std::istringstream in(readText(configDir() / name));
   std::string out, line;
   bool found = key.empty();
@@ -130,8 +132,10 @@ TEST(ConfigYaml, SensorSpecificValues) {
   ASSERT_TRUE(azure.calib.has_imu);
   EXPECT_DOUBLE_EQ(azure.calib.imu.rate_hz, 1600.0);
   // The camera's optical axis points along -x of the IMU frame.
-  EXPECT_NEAR((azure.calib.imu.T_b_c.rotationMatrix() * Vec3::UnitZ() - Vec3(-0.99452190, 0.0, 0.10452846)).norm(),
-              0.0, 1e-6);
+  EXPECT_NEAR(
+      (azure.calib.imu.T_b_c.rotationMatrix() * Vec3::UnitZ() - Vec3(-0.99452190, 0.0, 0.10452846))
+          .norm(),
+      0.0, 1e-6);
   EXPECT_EQ(azure.sequence.imu_gap_policy, ImuGapPolicy::kWarn);
   EXPECT_DOUBLE_EQ(azure.sequence.max_imu_gap_s, 0.02);
 }
@@ -158,17 +162,21 @@ TEST(ConfigYaml, DescribeListsEverySetting) {
 TEST(SettingsErrors, OutOfRangeNamesFileKeyRangeAndValue) {
   const std::string path = editedConfig("tum_rgbd.yaml", "Seg.Clusters", "Seg.Clusters: 1");
   EXPECT_EQ(loadError(path), path + ": Seg.Clusters = 1, expected an integer in [2, 256]");
-  const std::string path2 = editedConfig("tum_rgbd.yaml", "Seg.AlphaIntensity", "Seg.AlphaIntensity: 12.5");
-  EXPECT_EQ(loadError(path2), path2 + ": Seg.AlphaIntensity = 12.5, expected a number in [0.001, 10]");
+  const std::string path2 =
+      editedConfig("tum_rgbd.yaml", "Seg.AlphaIntensity", "Seg.AlphaIntensity: 12.5");
+  EXPECT_EQ(loadError(path2),
+            path2 + ": Seg.AlphaIntensity = 12.5, expected a number in [0.001, 10]");
 }
 
 TEST(SettingsErrors, MissingKeyNamesExpectedRange) {
   const std::string path = editedConfig("synthetic.yaml", "KF.MaxOverlap", "");
-  EXPECT_EQ(loadError(path), path + ": missing key KF.MaxOverlap, expected a number in [0.05, 0.99]");
+  EXPECT_EQ(loadError(path),
+            path + ": missing key KF.MaxOverlap, expected a number in [0.05, 0.99]");
   const std::string path2 = editedConfig("synthetic.yaml", "Dense.Resolution", "");
-  EXPECT_EQ(loadError(path2), path2 +
-                                  ": missing key Dense.Resolution, expected \"<width>x<height>\" with "
-                                  "each side in [16, 4096]");
+  EXPECT_EQ(loadError(path2),
+            path2 +
+                ": missing key Dense.Resolution, expected \"<width>x<height>\" with "
+                "each side in [16, 4096]");
   const std::string path3 = editedConfig("tum_rgbd.yaml", "Camera.fx", "");
   EXPECT_EQ(loadError(path3), path3 + ": missing key Camera.fx, expected a number in [0.001, inf]");
 }
@@ -180,28 +188,38 @@ TEST(SettingsErrors, WrongTypeQuotesTheValue) {
   EXPECT_EQ(loadError(path2), path2 + ": Seg.Clusters = 24.5, expected an integer in [2, 256]");
   const std::string path3 = editedConfig("tum_rgbd.yaml", "Loop.Enabled", "Loop.Enabled: 2");
   EXPECT_EQ(loadError(path3), path3 + ": Loop.Enabled = 2, expected a boolean (0/1 or true/false)");
-  const std::string path4 = editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: 320");
-  EXPECT_EQ(loadError(path4), path4 +
-                                  ": Dense.Resolution = 320, expected \"<width>x<height>\" with each "
-                                  "side in [16, 4096]");
+  const std::string path4 =
+      editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: 320");
+  EXPECT_EQ(loadError(path4),
+            path4 +
+                ": Dense.Resolution = 320, expected \"<width>x<height>\" with each "
+                "side in [16, 4096]");
   const std::string path5 =
       editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: \"320x240px\"");
-  EXPECT_EQ(loadError(path5), path5 +
-                                  ": Dense.Resolution = \"320x240px\", expected \"<width>x<height>\" "
-                                  "with each side in [16, 4096]");
-  const std::string path6 = editedConfig("tum_rgbd.yaml", "Camera.type", "Camera.type: \"KannalaBrandt8\"");
+  EXPECT_EQ(loadError(path5),
+            path5 +
+                ": Dense.Resolution = \"320x240px\", expected \"<width>x<height>\" "
+                "with each side in [16, 4096]");
+  const std::string path6 =
+      editedConfig("tum_rgbd.yaml", "Camera.type", "Camera.type: \"KannalaBrandt8\"");
   EXPECT_EQ(loadError(path6), path6 + ": Camera.type = \"KannalaBrandt8\", expected \"PinHole\"");
 }
 
 TEST(SettingsErrors, CrossFieldRules) {
-  const std::string path = editedConfig("tum_rgbd.yaml", "ORBextractor.minThFAST", "ORBextractor.minThFAST: 25");
-  EXPECT_EQ(loadError(path),
-            path + ": ORBextractor.minThFAST = 25, expected an integer in [1, ORBextractor.iniThFAST = 20]");
-  const std::string path2 = editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: \"1280x960\"");
+  const std::string path =
+      editedConfig("tum_rgbd.yaml", "ORBextractor.minThFAST", "ORBextractor.minThFAST: 25");
+  EXPECT_EQ(
+      loadError(path),
+      path +
+          ": ORBextractor.minThFAST = 25, expected an integer in [1, ORBextractor.iniThFAST = 20]");
+  const std::string path2 =
+      editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: \"1280x960\"");
   EXPECT_EQ(loadError(path2), path2 +
                                   ": Dense.Resolution = \"1280x960\", expected at most the camera "
-                                  "resolution 640x480 (Camera.width/height of " + path2 + ")");
-  const std::string path3 = editedConfig("tum_rgbd.yaml", "Dense.PyramidLevels", "Dense.PyramidLevels: 6");
+                                  "resolution 640x480 (Camera.width/height of " +
+                                  path2 + ")");
+  const std::string path3 =
+      editedConfig("tum_rgbd.yaml", "Dense.PyramidLevels", "Dense.PyramidLevels: 6");
   EXPECT_EQ(loadError(path3), path3 +
                                   ": Dense.PyramidLevels = 6, expected an integer in [1, 5] for "
                                   "Dense.Resolution 320x240 (coarsest level at least 8 px)");
@@ -239,8 +257,9 @@ TEST(SettingsErrors, ValidateChecksValuesBuiltInCode) {
     settings.validate();
     FAIL() << "no error";
   } catch (const ConfigError& e) {
-    EXPECT_STREQ(e.what(), "settings: Dense.Resolution = \"641x240\", expected at most the camera "
-                           "resolution 640x480 (camera calibration)");
+    EXPECT_STREQ(e.what(),
+                 "settings: Dense.Resolution = \"641x240\", expected at most the camera "
+                 "resolution 640x480 (camera calibration)");
   }
 }
 
@@ -311,8 +330,10 @@ TEST(SensorCalib, CalibYamlOverridesConfigCalibration) {
   small.camera.camera = PinholeCamera(260.0, 260.0, 159.5, 119.5, 300, 200);
   small.write((dir / "small.yaml").string());
   EXPECT_EQ(loadError(config, (dir / "small.yaml").string()),
-            config + ": Dense.Resolution = \"320x240\", expected at most the camera resolution 300x200 "
-                     "(Camera.width/height of " + (dir / "small.yaml").string() + ")");
+            config +
+                ": Dense.Resolution = \"320x240\", expected at most the camera resolution 300x200 "
+                "(Camera.width/height of " +
+                (dir / "small.yaml").string() + ")");
 }
 
 TEST(SensorCalib, RejectsNonRigidExtrinsic) {
@@ -336,25 +357,28 @@ TEST(SettingsFile, OpenErrors) {
     SettingsFile((dir / "absent.yaml").string());
     FAIL() << "no error";
   } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()), (dir / "absent.yaml").string() + ": cannot open settings file");
+    EXPECT_EQ(std::string(e.what()),
+              (dir / "absent.yaml").string() + ": cannot open settings file");
   }
   writeText(dir / "broken.yaml", "%YAML:1.0\n---\nCamera.fx: [1, 2\n  : : :\n");
   try {
     SettingsFile((dir / "broken.yaml").string());
     FAIL() << "no error";
   } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()).rfind((dir / "broken.yaml").string() + ": cannot ", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind((dir / "broken.yaml").string() + ": cannot ", 0), 0u)
+        << e.what();
   }
 }
 
 TEST(SettingsFile, TypedGettersAndDefaults) {
   const fs::path dir = scratchDir();
   const std::string path = (dir / "s.yaml").string();
-  writeText(path,
-            "%YAML:1.0\n---\n"
-            "A.int: 7\nA.real: 2.5\nA.flag: true\nA.bit: 0\nA.text: \"hello\"\n"
-            "A.mat: !!opencv-matrix\n   rows: 2\n   cols: 3\n   dt: f\n   data: [ 1, 2, 3, 4, 5, 6 ]\n"
-            "A.list: [ 1, 2 ]\n");
+  writeText(
+      path,
+      "%YAML:1.0\n---\n"
+      "A.int: 7\nA.real: 2.5\nA.flag: true\nA.bit: 0\nA.text: \"hello\"\n"
+      "A.mat: !!opencv-matrix\n   rows: 2\n   cols: 3\n   dt: f\n   data: [ 1, 2, 3, 4, 5, 6 ]\n"
+      "A.list: [ 1, 2 ]\n");
   SettingsFile file(path);
   EXPECT_TRUE(file.has("A.int"));
   EXPECT_FALSE(file.has("A.none"));
@@ -395,8 +419,9 @@ TEST(SettingsFile, TypedGettersAndDefaults) {
             path + ": missing key A.missing, expected a 4x4 !!opencv-matrix of finite numbers");
   EXPECT_EQ(message([&] { file.getInt("A.list", 0, 1, 5); }),
             path + ": A.list = a sequence, expected an integer in [1, 5]");
-  EXPECT_EQ(message([&] { file.getInt("A.int", 0, 1, 5); }),
-            path + ": A.int = 7, expected an integer in [1, 5]");  // optional but present: validated
+  EXPECT_EQ(
+      message([&] { file.getInt("A.int", 0, 1, 5); }),
+      path + ": A.int = 7, expected an integer in [1, 5]");  // optional but present: validated
 }
 
 }  // namespace

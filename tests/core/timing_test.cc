@@ -1,4 +1,6 @@
 // TimingStats statistics on fed durations (the clock itself is never asserted on).
+#include "ltlo/core/timing.h"
+
 #include <gtest/gtest.h>
 
 #include <string>
@@ -6,7 +8,6 @@
 #include <vector>
 
 #include "ltlo/core/assert.h"
-#include "ltlo/core/timing.h"
 
 namespace ltlo {
 namespace {
@@ -14,7 +15,7 @@ namespace {
 TEST(Percentile, InterpolatesBetweenOrderStatistics) {
   EXPECT_DOUBLE_EQ(percentile({}, 0.5), 0.0);
   EXPECT_DOUBLE_EQ(percentile({4.0}, 0.95), 4.0);
-  EXPECT_DOUBLE_EQ(percentile({3.0, 1.0, 2.0}, 0.5), 2.0);   // unsorted input
+  EXPECT_DOUBLE_EQ(percentile({3.0, 1.0, 2.0}, 0.5), 2.0);  // unsorted input
   EXPECT_DOUBLE_EQ(percentile({1.0, 2.0, 3.0, 4.0}, 0.5), 2.5);
   EXPECT_DOUBLE_EQ(percentile({1.0, 2.0, 3.0, 4.0}, 0.0), 1.0);
   EXPECT_DOUBLE_EQ(percentile({1.0, 2.0, 3.0, 4.0}, 1.0), 4.0);
@@ -25,7 +26,8 @@ TEST(Percentile, InterpolatesBetweenOrderStatistics) {
 TEST(TimingStats, SummarisesFedDurations) {
   TimingStats stats;
   // 1..100 ms in a scrambled order: median 50.5 ms, p95 at position 94.05 -> 95.05 ms.
-  for (int i = 0; i < 100; ++i) stats.add("tracking.orb", 1e-3 * static_cast<double>((i * 37) % 100 + 1));
+  for (int i = 0; i < 100; ++i)
+    stats.add("tracking.orb", 1e-3 * static_cast<double>((i * 37) % 100 + 1));
   stats.add("mapping.ba", 0.25);
   const StageTiming orb = stats.stage("tracking.orb");
   EXPECT_EQ(orb.count, 100u);
@@ -45,10 +47,11 @@ TEST(TimingStats, SummarisesFedDurations) {
   EXPECT_EQ(stats.summary(),
             "mapping.ba n=1 mean=250.000 median=250.000 p95=250.000 max=250.000 ms\n"
             "tracking.orb n=100 mean=50.500 median=50.500 p95=95.050 max=100.000 ms");
-  EXPECT_EQ(stats.toJson(),
-            "{\"mapping.ba\": {\"count\": 1, \"mean_ms\": 250, \"median_ms\": 250, \"p95_ms\": 250, "
-            "\"max_ms\": 250, \"total_s\": 0.25}, \"tracking.orb\": {\"count\": 100, \"mean_ms\": "
-            "50.5, \"median_ms\": 50.5, \"p95_ms\": 95.05, \"max_ms\": 100, \"total_s\": 5.05}}");
+  EXPECT_EQ(
+      stats.toJson(),
+      "{\"mapping.ba\": {\"count\": 1, \"mean_ms\": 250, \"median_ms\": 250, \"p95_ms\": 250, "
+      "\"max_ms\": 250, \"total_s\": 0.25}, \"tracking.orb\": {\"count\": 100, \"mean_ms\": "
+      "50.5, \"median_ms\": 50.5, \"p95_ms\": 95.05, \"max_ms\": 100, \"total_s\": 5.05}}");
   stats.clear();
   EXPECT_TRUE(stats.stages().empty());
   EXPECT_EQ(stats.toJson(), "{}");
@@ -75,7 +78,7 @@ TEST(ScopedTimer, RecordsExactlyOnce) {
     const double d = timer.stop();
     EXPECT_GE(d, 0.0);
     EXPECT_DOUBLE_EQ(timer.stop(), 0.0);  // already recorded
-  }  // destructor after stop(): no second record
+  }                                       // destructor after stop(): no second record
   { ScopedTimer timer(stats, "stage"); }
   EXPECT_EQ(stats.stage("stage").count, 2u);
 }

@@ -3,7 +3,7 @@
 /// On a terminal (stderr is a tty) one line is redrawn in place with '\r'; otherwise (CI logs,
 /// files) a plain log line is written every N frames. finish() writes a one-line summary.
 ///
-///   ProgressReporter progress({"frames", sequence.size()});
+///   ProgressReporter progress({"frames", static_cast<long>(sequence.size())});
 ///   for (...) { track(frame); progress.frameDone(); }
 ///   progress.finish();              // "frames: 500 in 27.3 s (18.3 fps)"
 ///
@@ -32,11 +32,11 @@ class ProgressReporter {
     kSilent,    ///< nothing until finish()'s summary
   };
   struct Options {
-    std::string label = "frames";    ///< what is counted, first word of every line
-    long total_frames = 0;           ///< <= 0 when unknown
+    std::string label = "frames";  ///< what is counted, first word of every line
+    long total_frames = 0;         ///< <= 0 when unknown
     Style style = Style::kAuto;
-    long log_every_n_frames = 100;   ///< kLines: one line per this many frames
-    double terminal_refresh_s = 0.2; ///< kTerminal: minimum time between redraws (s)
+    long log_every_n_frames = 100;    ///< kLines: one line per this many frames
+    double terminal_refresh_s = 0.2;  ///< kTerminal: minimum time between redraws (s)
   };
   /// Monotonic time source in seconds (steady_clock by default; tests feed their own).
   using Clock = std::function<double()>;

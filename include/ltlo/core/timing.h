@@ -44,8 +44,8 @@ class TimingStats {
   std::vector<StageTiming> stages() const;
   /// Multi-line table, one line per stage: "<stage> n=<count> mean=.. median=.. p95=.. max=.. ms".
   std::string summary() const;
-  /// JSON object {"<stage>": {"count": n, "mean_ms": .., "median_ms": .., "p95_ms": .., "max_ms": ..,
-  /// "total_s": ..}, ...} for metrics.json.
+  /// JSON object {"<stage>": {"count": n, "mean_ms": .., "median_ms": .., "p95_ms": .., "max_ms":
+  /// .., "total_s": ..}, ...} for metrics.json.
   std::string toJson() const;
   void clear();
 
