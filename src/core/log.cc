@@ -4,12 +4,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <mutex>
+#include <utility>
 
 namespace ltlo::log {
 namespace {
 
 std::atomic<Level> g_level{Level::kInfo};
-std::mutex g_sink_mutex;  // guards stderr writes so lines do not interleave
+std::mutex g_sink_mutex;  // guards g_sink and stderr writes so lines do not interleave
+Sink g_sink;              // empty: stderr
 
 std::string& threadNameStorage() {
   thread_local std::string name = "main";
@@ -58,8 +60,18 @@ const std::string& threadName() { return threadNameStorage(); }
 void write(Level level, const std::string& message) {
   const std::string line = "[" + threadName() + "] " + levelName(level) + " " + message + "\n";
   std::lock_guard<std::mutex> lock(g_sink_mutex);
+  if (g_sink) {
+    g_sink(level, line.substr(0, line.size() - 1));
+    return;
+  }
   std::fwrite(line.data(), 1, line.size(), stderr);
   std::fflush(stderr);
+}
+
+Sink setSink(Sink sink) {
+  std::lock_guard<std::mutex> lock(g_sink_mutex);
+  std::swap(sink, g_sink);
+  return sink;
 }
 
 }  // namespace ltlo::log

@@ -3,6 +3,7 @@
 #include <opencv2/core.hpp>
 
 #include <cmath>
+#include <fstream>
 #include <sstream>
 
 #include "ltlo/core/errors.h"
@@ -20,6 +21,8 @@ std::string rangeText(double min, double max) {
 }  // namespace
 
 SettingsFile::SettingsFile(const std::string& path) : path_(path) {
+  // Checked first so that a missing file gives our message only (OpenCV would also log one).
+  if (!std::ifstream(path).good()) throw ConfigError(path + ": cannot open settings file");
   try {
     if (!storage_.open(path, cv::FileStorage::READ)) {
       throw ConfigError(path + ": cannot open settings file");

@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "common/log_capture.h"
+
 namespace ltlo {
 namespace {
 
@@ -105,6 +107,24 @@ TEST(ProgressReporter, InjectedWriterResolvesAutoToLines) {
   Recorder rec;
   ProgressReporter progress = rec.make({});
   EXPECT_EQ(progress.style(), ProgressReporter::Style::kLines);
+}
+
+TEST(ProgressReporter, DefaultWriterLogsLinesAndSummary) {
+  // Real clock: only the frame counts in the text are asserted, never the times.
+  test::LogCapture capture;
+  {
+    ProgressReporter::Options options;
+    options.total_frames = 10;
+    options.style = ProgressReporter::Style::kLines;
+    options.log_every_n_frames = 5;
+    ProgressReporter progress(options);
+    for (int i = 0; i < 10; ++i) progress.frameDone();
+  }
+  const std::vector<std::string> lines = capture.lines();
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(lines[0].rfind("[main] info frames 5/10 (50.0%) | ", 0), 0u) << lines[0];
+  EXPECT_EQ(lines[1].rfind("[main] info frames 10/10 (100.0%) | ", 0), 0u) << lines[1];
+  EXPECT_EQ(lines[2].rfind("[main] info frames: 10 in ", 0), 0u) << lines[2];
 }
 
 TEST(ProgressReporter, FormatsDurationsAndUnknownEta) {

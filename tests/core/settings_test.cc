@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "common/log_capture.h"
 #include "ltlo/core/calib.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/settings_file.h"
@@ -140,6 +141,18 @@ TEST(ConfigYaml, SensorSpecificValues) {
   EXPECT_DOUBLE_EQ(azure.sequence.max_imu_gap_s, 0.02);
 }
 
+TEST(ConfigYaml, LogWritesOneLinePerSetting) {
+  const Settings settings = Settings::load((configDir() / "tum_rgbd.yaml").string());
+  test::LogCapture capture;
+  settings.log();
+  const std::vector<std::string> lines = capture.lines();
+  const std::string text = settings.describe();
+  EXPECT_EQ(lines.size(), static_cast<size_t>(std::count(text.begin(), text.end(), '\n') + 1));
+  EXPECT_GT(lines.size(), 50u);
+  EXPECT_TRUE(capture.contains("[main] info settings: Seg.Clusters = 24"));
+  EXPECT_TRUE(capture.contains("[main] info settings: IMU = none"));
+}
+
 TEST(ConfigYaml, DescribeListsEverySetting) {
   const Settings settings = Settings::load((configDir() / "synthetic.yaml").string());
   const std::string text = settings.describe();
@@ -227,7 +240,11 @@ TEST(SettingsErrors, CrossFieldRules) {
 
 TEST(SettingsErrors, UnknownKeyIsReportedNotFatal) {
   const std::string path = editedConfig("tum_rgbd.yaml", "", "", "Seg.Clustres: 24\n");
+  test::LogCapture capture;
   const Settings settings = Settings::load(path);
+  EXPECT_EQ(capture.lines(),
+            std::vector<std::string>{"[main] warn " + path +
+                                     ": unknown key Seg.Clustres (ignored; a typo?)"});
   ASSERT_EQ(settings.unknown_keys.size(), 1u);
   EXPECT_EQ(settings.unknown_keys[0], path + ": Seg.Clustres");
 
@@ -320,7 +337,12 @@ TEST(SensorCalib, CalibYamlOverridesConfigCalibration) {
   const SensorCalib calib = exampleCalib();
   calib.write((dir / "calib.yaml").string());
   const std::string config = (configDir() / "tum_rgbd.yaml").string();
+  test::LogCapture capture;
   const Settings settings = Settings::load(config, (dir / "calib.yaml").string());
+  EXPECT_EQ(capture.lines(), std::vector<std::string>{
+                                 "[main] info " + config +
+                                 ": Camera.*/DepthMapFactor/IMU.* keys ignored; calibration from " +
+                                 (dir / "calib.yaml").string()});
   expectSameCalib(settings.calib, calib);
   EXPECT_EQ(settings.calib_path, (dir / "calib.yaml").string());
   EXPECT_TRUE(settings.unknown_keys.empty());  // the config's Camera.* keys are expected, not typos

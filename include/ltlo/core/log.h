@@ -3,6 +3,7 @@
 ///   [tracking] warn imu.txt:812: gap of 0.120 s before t = 3.200000 s, integrating across it
 /// Thread-safe: lines from different threads never interleave. The sink (stderr by default) is
 /// the project's only mutable global.
+#include <functional>
 #include <sstream>
 #include <string>
 
@@ -23,6 +24,13 @@ void setThreadName(const std::string& name);
 const std::string& threadName();
 
 void write(Level level, const std::string& message);
+
+/// Receives every finished line ("[thread] level message", no newline) instead of stderr.
+/// Called under the logger's lock, one line at a time: it must not log itself.
+using Sink = std::function<void(Level level, const std::string& line)>;
+/// Installs `sink` (an empty function restores stderr) and returns the previous one. For tests
+/// (tests/common/log_capture.h) and front ends; thread-safe.
+Sink setSink(Sink sink);
 
 namespace detail {
 template <typename... Args>
