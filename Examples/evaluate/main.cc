@@ -1,10 +1,9 @@
 // evaluate: ATE / RPE of an estimated trajectory against ground truth, and the static-background
 // IoU of predicted masks. Prints one "name value" line per metric and writes the same keys to
 // JSON. Bad input exits 2 with a message naming the file, line and value.
+#include <CLI/CLI.hpp>
 #include <iostream>
 #include <string>
-
-#include <CLI/CLI.hpp>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -73,9 +72,9 @@ int main(int argc, char** argv) {
     if (num_matched < 3) {
       throw ltlo::InputError(est_path, 0,
                              "only " + std::to_string(num_matched) + " of " +
-                                 std::to_string(est.size()) + " poses have a ground-truth pose in " +
-                                 gt_path + " within " + std::to_string(max_dt_s) +
-                                 " s, need at least 3");
+                                 std::to_string(est.size()) +
+                                 " poses have a ground-truth pose in " + gt_path + " within " +
+                                 std::to_string(max_dt_s) + " s, need at least 3");
     }
     const ltlo::eval::AteResult ate = ltlo::eval::computeAte(matched, with_scale);
     const ltlo::eval::RpeResult rpe = ltlo::eval::computeRpe(matched, ate.S_gt_est);

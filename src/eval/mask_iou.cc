@@ -5,11 +5,10 @@
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <utility>
 #include <vector>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
@@ -103,8 +102,8 @@ MaskIouResult evaluateMaskFolders(const std::string& gt_dir, const std::string& 
     const cv::Mat est_mask = loadMask(est[j].second);
     if (gt_mask.size() != est_mask.size()) {
       std::ostringstream os;
-      os << "size " << est_mask.cols << "x" << est_mask.rows << " differs from "
-         << gt_mask.cols << "x" << gt_mask.rows << " of " << gt[i].second;
+      os << "size " << est_mask.cols << "x" << est_mask.rows << " differs from " << gt_mask.cols
+         << "x" << gt_mask.rows << " of " << gt[i].second;
       throw InputError(est[j].second, 0, os.str());
     }
     sum_iou += staticIou(gt_mask, est_mask);

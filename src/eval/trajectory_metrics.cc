@@ -1,9 +1,8 @@
 #include "ltlo/eval/trajectory_metrics.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
-
-#include <Eigen/SVD>
 
 #include "ltlo/core/assert.h"
 #include "ltlo/io/associate.h"
@@ -53,8 +52,8 @@ MatchedTrajectories associateTrajectories(const io::Trajectory& gt, const io::Tr
 // PAMI 1991, Eqs. 38-42 with x = estimate, y = ground truth.
 Sim3 umeyamaAlignment(const std::vector<Vec3>& p_est, const std::vector<Vec3>& p_gt,
                       bool with_scale) {
-  LTLO_ASSERT(p_est.size() == p_gt.size(), "point counts differ: " << p_est.size() << " vs "
-                                                                    << p_gt.size());
+  LTLO_ASSERT(p_est.size() == p_gt.size(),
+              "point counts differ: " << p_est.size() << " vs " << p_gt.size());
   LTLO_ASSERT(!p_est.empty(), "no points to align");
   const double n = static_cast<double>(p_est.size());
   Vec3 mu_est = Vec3::Zero();
@@ -65,8 +64,8 @@ Sim3 umeyamaAlignment(const std::vector<Vec3>& p_est, const std::vector<Vec3>& p
   }
   mu_est /= n;
   mu_gt /= n;
-  double variance_est = 0.0;                 // sigma_x^2, Eq. 36
-  Mat3 covariance_gt_est = Mat3::Zero();     // Sigma_xy, Eq. 38
+  double variance_est = 0.0;              // sigma_x^2, Eq. 36
+  Mat3 covariance_gt_est = Mat3::Zero();  // Sigma_xy, Eq. 38
   for (size_t k = 0; k < p_est.size(); ++k) {
     const Vec3 d_est = p_est[k] - mu_est;
     const Vec3 d_gt = p_gt[k] - mu_gt;
@@ -84,7 +83,7 @@ Sim3 umeyamaAlignment(const std::vector<Vec3>& p_est, const std::vector<Vec3>& p
   if (with_scale && variance_est > 0.0) {
     scale = (svd.singularValues().asDiagonal() * S).trace() / variance_est;  // Eq. 42
   }
-  const Vec3 t_gt_est = mu_gt - scale * R_gt_est * mu_est;                      // Eq. 41
+  const Vec3 t_gt_est = mu_gt - scale * R_gt_est * mu_est;  // Eq. 41
   return Sim3(Quat(normalizeRotation(R_gt_est)), t_gt_est, scale);
 }
 

@@ -20,8 +20,7 @@ std::vector<std::pair<int, int>> associateTimestamps(const std::vector<double>& 
   for (size_t i = 0; i < a_s.size(); ++i) {
     while (window_begin < b_s.size() && b_s[window_begin] < a_s[i] - max_dt_s) ++window_begin;
     for (size_t j = window_begin; j < b_s.size() && b_s[j] <= a_s[i] + max_dt_s; ++j) {
-      candidates.emplace_back(std::abs(a_s[i] - b_s[j]), static_cast<int>(i),
-                              static_cast<int>(j));
+      candidates.emplace_back(std::abs(a_s[i] - b_s[j]), static_cast<int>(i), static_cast<int>(j));
     }
   }
   std::sort(candidates.begin(), candidates.end());  // closest first; ties by index, deterministic

@@ -58,8 +58,7 @@ std::vector<StampedRow> readStampedRows(const std::string& path, char separator,
     if (!rows.empty()) {
       const double previous_s = rows.back().t_s;
       if (row.t_s == previous_s) {
-        throw InputError(path, line_number,
-                         "duplicated timestamp " + detail::formatTime(row.t_s));
+        throw InputError(path, line_number, "duplicated timestamp " + detail::formatTime(row.t_s));
       }
       if (row.t_s < previous_s) {
         throw InputError(path, line_number,
@@ -68,8 +67,8 @@ std::vector<StampedRow> readStampedRows(const std::string& path, char separator,
       }
       const double gap_s = row.t_s - previous_s;
       if (gap_s > options.max_imu_gap_s) {
-        const std::string message = "gap of " + secondsText(gap_s) + " s before t = " +
-                                    detail::formatTime(row.t_s) + " s (limit " +
+        const std::string message = "gap of " + secondsText(gap_s) +
+                                    " s before t = " + detail::formatTime(row.t_s) + " s (limit " +
                                     secondsText(options.max_imu_gap_s) + " s)";
         if (options.imu_gap_policy == ImuGapPolicy::kFail) {
           throw InputError(path, line_number, message);
@@ -119,7 +118,8 @@ ImuSamples readOpenLorisImu(const std::string& accel_path, const std::string& gy
                             const SequenceOptions& options) {
   const std::vector<StampedRow> accel =
       readStampedRows(accel_path, ' ', 3, TimeUnit::kSeconds, options);
-  const std::vector<StampedRow> gyro = readStampedRows(gyro_path, ' ', 3, TimeUnit::kSeconds, options);
+  const std::vector<StampedRow> gyro =
+      readStampedRows(gyro_path, ' ', 3, TimeUnit::kSeconds, options);
   if (accel.empty()) throw InputError(accel_path, 0, "no accelerometer samples");
   if (gyro.empty()) throw InputError(gyro_path, 0, "no gyroscope samples");
   const double t_begin_s = std::max(accel.front().t_s, gyro.front().t_s);

@@ -15,11 +15,21 @@ std::string jsonEscape(const std::string& text) {
   std::ostringstream os;
   for (const char c : text) {
     switch (c) {
-      case '"': os << "\\\""; break;
-      case '\\': os << "\\\\"; break;
-      case '\n': os << "\\n"; break;
-      case '\t': os << "\\t"; break;
-      case '\r': os << "\\r"; break;
+      case '"':
+        os << "\\\"";
+        break;
+      case '\\':
+        os << "\\\\";
+        break;
+      case '\n':
+        os << "\\n";
+        break;
+      case '\t':
+        os << "\\t";
+        break;
+      case '\r':
+        os << "\\r";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
           os << "\\u" << std::hex << std::setw(4) << std::setfill('0') << static_cast<int>(c)

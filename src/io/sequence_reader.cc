@@ -3,9 +3,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-
 #include <opencv2/imgcodecs.hpp>
+#include <sstream>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -45,9 +44,9 @@ void checkImageExists(const std::string& image_path, const std::string& list_pat
 void checkFrameTimeIncreases(double t_s, double previous_s, bool has_previous,
                              const std::string& list_path, int line) {
   if (has_previous && t_s <= previous_s) {
-    throw InputError(list_path, line,
-                     "timestamp " + formatTime(t_s) + " is not after the previous " +
-                         formatTime(previous_s));
+    throw InputError(
+        list_path, line,
+        "timestamp " + formatTime(t_s) + " is not after the previous " + formatTime(previous_s));
   }
 }
 
@@ -62,8 +61,7 @@ std::vector<ListedImage> readImageList(const std::string& dir, const std::string
     if (detail::isCommentOrBlank(line)) continue;
     const std::vector<std::string> fields = detail::splitFields(line);
     if (fields.size() != 2) {
-      throw InputError(list_path, line_number,
-                       "expected 'timestamp path', found '" + line + "'");
+      throw InputError(list_path, line_number, "expected 'timestamp path', found '" + line + "'");
     }
     ListedImage image;
     image.t_s = detail::parseFinite(fields[0], "timestamp", list_path, line_number);
@@ -145,8 +143,9 @@ void attachMasks(const std::string& masks_dir, double max_dt_s, std::vector<Fram
   for (const fs::directory_entry& entry : fs::directory_iterator(masks_dir)) {
     if (!entry.is_regular_file() || entry.path().extension() != ".png") continue;
     const std::string stem = entry.path().stem().string();
-    masks.emplace_back(detail::parseFinite(stem, "mask file name timestamp", entry.path().string(), 0),
-                       entry.path().string());
+    masks.emplace_back(
+        detail::parseFinite(stem, "mask file name timestamp", entry.path().string(), 0),
+        entry.path().string());
   }
   std::sort(masks.begin(), masks.end());
   std::vector<double> mask_times_s;
@@ -183,8 +182,8 @@ void checkSize(const cv::Mat& image, int width, int height, const std::string& w
                const std::string& image_path, const std::string& list_path, int list_line) {
   if (image.cols != width || image.rows != height) {
     std::ostringstream os;
-    os << image_path << ": size " << image.cols << "x" << image.rows << " differs from the "
-       << what << " " << width << "x" << height;
+    os << image_path << ": size " << image.cols << "x" << image.rows << " differs from the " << what
+       << " " << width << "x" << height;
     throw InputError(list_path, list_line, os.str());
   }
 }
@@ -299,14 +298,14 @@ std::optional<RgbdImuFrame> SequenceReader::next() {
             files.color_list_path, files.color_list_line);
   const cv::Mat depth_raw = loadImage(files.depth_path, CV_16UC1, "16-bit 1-channel depth",
                                       files.depth_list_path, files.depth_list_line);
-  checkSize(depth_raw, frame.color_bgr.cols, frame.color_bgr.rows, "colour image",
-            files.depth_path, files.depth_list_path, files.depth_list_line);
+  checkSize(depth_raw, frame.color_bgr.cols, frame.color_bgr.rows, "colour image", files.depth_path,
+            files.depth_list_path, files.depth_list_line);
   depth_raw.convertTo(frame.depth_m, CV_32F, 1.0 / calib_.camera.depth_map_factor);
 
   if (!files.mask_path.empty()) {
     // Messages name the frame's colour index line: the mask belongs to that frame.
-    frame.mask = loadImage(files.mask_path, CV_8UC1, "8-bit 1-channel mask",
-                           files.color_list_path, files.color_list_line);
+    frame.mask = loadImage(files.mask_path, CV_8UC1, "8-bit 1-channel mask", files.color_list_path,
+                           files.color_list_line);
     checkSize(frame.mask, frame.color_bgr.cols, frame.color_bgr.rows, "colour image",
               files.mask_path, files.color_list_path, files.color_list_line);
   }

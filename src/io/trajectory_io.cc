@@ -99,9 +99,9 @@ Trajectory readEurocTrajectory(const std::string& path) {
     if (isCommentOrBlank(line)) continue;
     const std::vector<std::string> fields = detail::splitFields(line, ',');
     if (fields.size() < 8) {
-      throw InputError(path, line_number,
-                       "expected 8 values, found " + std::to_string(fields.size()) + " in '" +
-                           line + "'");
+      throw InputError(
+          path, line_number,
+          "expected 8 values, found " + std::to_string(fields.size()) + " in '" + line + "'");
     }
     const double t_s = detail::parseNanosecondsAsSeconds(fields[0], path, line_number);
     std::vector<double> v(8, 0.0);

@@ -5,9 +5,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
-#include <sstream>
-
 #include <opencv2/imgcodecs.hpp>
+#include <sstream>
 
 #include "ltlo/io/trajectory_io.h"
 #include "test_sequence_writer.h"
@@ -16,8 +15,8 @@ namespace ltlo {
 namespace {
 
 namespace fs = std::filesystem;
-using io::test::TempDir;
 using io::test::readText;
+using io::test::TempDir;
 using io::test::writeText;
 
 struct RunResult {
@@ -106,8 +105,8 @@ TEST(EvaluateCli, BadInputExitsTwoNamingFileLineAndValue) {
   EXPECT_EQ(run.exit_code, 2);
   EXPECT_NE(run.err.find(tmp.file("missing.txt") + ": cannot open"), std::string::npos) << run.err;
 
-  run = runEvaluate(tmp, "--gt " + tmp.file("gt.txt") + " --est " + tmp.file("gt.txt") +
-                             " --max-dt 0");
+  run = runEvaluate(tmp,
+                    "--gt " + tmp.file("gt.txt") + " --est " + tmp.file("gt.txt") + " --max-dt 0");
   EXPECT_EQ(run.exit_code, 2);  // a usage error is bad input too
 
   writeTrajectories(tmp, 0.0);

@@ -4,9 +4,9 @@
 
 #include <filesystem>
 #include <functional>
-
 #include <opencv2/imgcodecs.hpp>
 
+#include "expect_input_error.h"
 #include "ltlo/core/errors.h"
 #include "test_sequence_writer.h"
 
@@ -15,6 +15,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using io::test::TempDir;
+using ltlo::test::inputErrorOf;
 
 // 4x4 masks: ground truth has a 2x2 dynamic block, the estimate a 2x3 block overlapping it in
 // one column (numbers in StaticIou.HandMadeMasks).
@@ -27,16 +28,6 @@ cv::Mat estMask() {
   cv::Mat mask(4, 4, CV_8UC1, cv::Scalar(0));
   mask(cv::Rect(1, 0, 3, 2)) = 255;  // columns 1..3 of rows 0..1
   return mask;
-}
-
-std::string inputErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an InputError";
-  return "";
 }
 
 TEST(StaticIou, HandMadeMasks) {
@@ -57,8 +48,8 @@ TEST(StaticIou, FolderAverageOverCommonTimestamps) {
   cv::imwrite(tmp.file("gt/1.100000.png"), gtMask());
   cv::imwrite(tmp.file("gt/1.200000.png"), gtMask());  // no estimate: not counted
   cv::imwrite(tmp.file("est/1.000000.png"), estMask());
-  cv::imwrite(tmp.file("est/1.1.png"), gtMask());      // same time, other spelling
-  cv::imwrite(tmp.file("est/5.000000.png"), gtMask()); // no ground truth: not counted
+  cv::imwrite(tmp.file("est/1.1.png"), gtMask());       // same time, other spelling
+  cv::imwrite(tmp.file("est/5.000000.png"), gtMask());  // no ground truth: not counted
   const MaskIouResult result = evaluateMaskFolders(tmp.file("gt"), tmp.file("est"));
   EXPECT_EQ(result.num_frames, 2);
   EXPECT_EQ(result.num_gt, 3);
@@ -71,25 +62,21 @@ TEST(StaticIouErrors, MessagesNameTheFile) {
   fs::create_directories(tmp.file("gt"));
   fs::create_directories(tmp.file("est"));
   cv::imwrite(tmp.file("gt/1.000000.png"), gtMask());
-  EXPECT_NE(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("none")); })
-                .find(tmp.file("none") + ": mask folder does not exist"),
-            std::string::npos);
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("none")); }),
+                       tmp.file("none") + ": mask folder does not exist");
   cv::imwrite(tmp.file("est/2.000000.png"), gtMask());
-  EXPECT_NE(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); })
-                .find("no mask file name matches"),
-            std::string::npos);
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); }),
+                       "no mask file name matches");
   cv::imwrite(tmp.file("est/1.000000.png"), cv::Mat(4, 5, CV_8UC1, cv::Scalar(0)));
-  EXPECT_NE(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); })
-                .find(tmp.file("est/1.000000.png") + ": size 5x4 differs from 4x4"),
-            std::string::npos);
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); }),
+                       tmp.file("est/1.000000.png") + ": size 5x4 differs from 4x4");
   cv::imwrite(tmp.file("est/1.000000.png"), cv::Mat(4, 4, CV_8UC3, cv::Scalar(0, 0, 0)));
-  EXPECT_NE(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); })
-                .find(tmp.file("est/1.000000.png") + ": expected an 8-bit 1-channel mask, found 3"),
-            std::string::npos);
+  LTLO_EXPECT_CONTAINS(
+      inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); }),
+      tmp.file("est/1.000000.png") + ": expected an 8-bit 1-channel mask, found 3");
   cv::imwrite(tmp.file("est/frame.png"), gtMask());
-  EXPECT_NE(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); })
-                .find(tmp.file("est/frame.png") + ": mask file name is not a timestamp: 'frame'"),
-            std::string::npos);
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { evaluateMaskFolders(tmp.file("gt"), tmp.file("est")); }),
+                       tmp.file("est/frame.png") + ": mask file name is not a timestamp: 'frame'");
 }
 
 }  // namespace

@@ -116,8 +116,8 @@ TEST(Rpe, ConstantRotationDriftPerFrame) {
   for (int k = 0; k < 20; ++k) {
     matched.gt.push_back({k * dt_s, SE3(so3ExpQuat(Vec3(0.0, 0.0, 0.1 * k)), Vec3::Zero())});
     matched.est.push_back(
-        {k * dt_s, SE3(so3ExpQuat(Vec3(0.0, 0.0, 0.1 * k + drift_deg * kDegToRad * k)),
-                       Vec3::Zero())});
+        {k * dt_s,
+         SE3(so3ExpQuat(Vec3(0.0, 0.0, 0.1 * k + drift_deg * kDegToRad * k)), Vec3::Zero())});
   }
   const RpeResult rpe = computeRpe(matched);
   EXPECT_NEAR(rpe.rot_deg_frame.rmse, drift_deg, 1e-9);
@@ -132,15 +132,17 @@ TEST(Association, JitteredTimestampsPairWithinTolerance) {
   io::Trajectory est;
   for (int k = 0; k < 100; ++k) gt.push_back({1.0 + 0.05 * k, SE3()});
   for (int k = 0; k < 100; ++k) {
-    if (k % 10 == 3) continue;                   // dropped frames
+    if (k % 10 == 3) continue;  // dropped frames
     est.push_back({1.0 + 0.05 * k + jitter_s(rng), SE3()});
   }
-  est.push_back({100.0, SE3()});                 // no ground truth near it
+  est.push_back({100.0, SE3()});  // no ground truth near it
   const MatchedTrajectories matched = associateTrajectories(gt, est, 0.02);
   ASSERT_EQ(matched.gt.size(), 90u);
   for (size_t k = 0; k < matched.gt.size(); ++k) {
     EXPECT_LE(std::abs(matched.gt[k].t_s - matched.est[k].t_s), 0.008 + 1e-12);
-    if (k > 0) EXPECT_GT(matched.gt[k].t_s, matched.gt[k - 1].t_s);
+    if (k > 0) {
+      EXPECT_GT(matched.gt[k].t_s, matched.gt[k - 1].t_s);
+    }
   }
   EXPECT_LT(associateTrajectories(gt, est, 0.001).gt.size(), 90u);  // tighter: fewer pairs
 }

@@ -4,9 +4,9 @@
 
 #include <filesystem>
 #include <functional>
-
 #include <opencv2/imgcodecs.hpp>
 
+#include "expect_input_error.h"
 #include "ltlo/core/errors.h"
 #include "test_sequence_writer.h"
 
@@ -14,22 +14,9 @@ namespace ltlo::io {
 namespace {
 
 namespace fs = std::filesystem;
+using ltlo::test::inputErrorOf;
 using test::TempDir;
 using test::TestSequenceSpec;
-
-// The InputError text thrown by f (a failure when none is thrown).
-std::string inputErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an InputError";
-  return "";
-}
-
-#define EXPECT_CONTAINS(text, part) \
-  EXPECT_NE(std::string(text).find(part), std::string::npos) << "'" << (text) << "' lacks '" << (part) << "'"
 
 void readAllFrames(const std::string& dir, const SequenceReaderOptions& options = {}) {
   SequenceReader reader = SequenceReader::open(dir, options);
@@ -93,7 +80,9 @@ TEST(SequenceReader, ImuIntervalsTileTheTimeAxisWithInterpolatedEnds) {
     EXPECT_EQ(frame->imu.back().t_s, frame->t_s);
     for (size_t i = 0; i < frame->imu.size(); ++i) {
       const ImuSample& s = frame->imu[i];
-      if (i > 0) EXPECT_GT(s.t_s, frame->imu[i - 1].t_s);
+      if (i > 0) {
+        EXPECT_GT(s.t_s, frame->imu[i - 1].t_s);
+      }
       // The signals are linear in t, so interpolated boundary samples are exact.
       EXPECT_LT((s.gyro_rad_s - test::testGyro(s.t_s)).norm(), 1e-12);
       EXPECT_LT((s.acc_m_s2 - test::testAcc(s.t_s)).norm(), 1e-12);
@@ -124,7 +113,8 @@ TEST(SequenceReader, DropsColourImagesWithoutDepthWithinTolerance) {
   spec.with_associations = false;
   spec.depth_offset_s = 0.03;  // beyond the default 0.02 s
   test::writeDataFormatSequence(sequenceDir(tmp), spec);
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }), "no RGB-D frames");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
+                       "no RGB-D frames");
   SequenceReaderOptions options;
   options.max_rgb_depth_dt_s = 0.04;
   EXPECT_EQ(SequenceReader::open(sequenceDir(tmp), options).frameCount(), spec.num_frames);
@@ -170,7 +160,7 @@ TEST(SequenceReader, ReadsOpenLorisWithAccelAndGyroMerged) {
                                /*gyro_rate_hz=*/200.0);
   EXPECT_EQ(detectLayout(sequenceDir(tmp)), SequenceLayout::kOpenLoris);
   // No calib.yaml: the settings file must provide calibration.
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }), "calib.yaml");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }), "calib.yaml");
   SequenceReaderOptions options;
   options.calib_override = test::testCalib(spec);
   SequenceReader reader = SequenceReader::open(sequenceDir(tmp), options);
@@ -195,10 +185,10 @@ TEST(SequenceReader, ReadsOpenLorisWithAccelAndGyroMerged) {
 
 TEST(SequenceReaderErrors, MissingFolderAndUnknownLayout) {
   TempDir tmp("seq_err_layout");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(tmp.file("nope")); }),
-                  tmp.file("nope") + ": sequence folder does not exist");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(tmp.path()); }),
-                  "unknown sequence layout");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(tmp.file("nope")); }),
+                       tmp.file("nope") + ": sequence folder does not exist");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(tmp.path()); }),
+                       "unknown sequence layout");
 }
 
 TEST(SequenceReaderErrors, MissingCalibDepthListAndImage) {
@@ -206,18 +196,18 @@ TEST(SequenceReaderErrors, MissingCalibDepthListAndImage) {
   TestSequenceSpec spec;
   spec.with_calib = false;
   test::writeDataFormatSequence(sequenceDir(tmp), spec);
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
-                  sequenceDir(tmp) + "/calib.yaml: missing");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
+                       sequenceDir(tmp) + "/calib.yaml: missing");
 
   test::testCalib(spec).write(sequenceDir(tmp) + "/calib.yaml");
   fs::remove(sequenceDir(tmp) + "/rgb/" + test::timeText(test::frameTime(spec, 2)) + ".png");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
-                  "associations.txt:3: image file does not exist: ");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
+                       "associations.txt:3: image file does not exist: ");
 
   fs::remove(sequenceDir(tmp) + "/associations.txt");
   fs::remove(sequenceDir(tmp) + "/depth.txt");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
-                  sequenceDir(tmp) + "/depth.txt: missing");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
+                       sequenceDir(tmp) + "/depth.txt: missing");
 }
 
 TEST(SequenceReaderErrors, MalformedAndNonIncreasingIndexLines) {
@@ -228,18 +218,18 @@ TEST(SequenceReaderErrors, MalformedAndNonIncreasingIndexLines) {
   const std::string original = test::readText(associations);
   test::replaceLine(associations, 2, "1.100000 rgb/1.100000.png");
   std::string message = inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); });
-  EXPECT_CONTAINS(message, associations + ":2:");
-  EXPECT_CONTAINS(message, "'1.100000 rgb/1.100000.png'");
+  LTLO_EXPECT_CONTAINS(message, associations + ":2:");
+  LTLO_EXPECT_CONTAINS(message, "'1.100000 rgb/1.100000.png'");
 
   test::writeText(associations, original);
   test::replaceLine(associations, 4, "abc rgb/1.300000.png 1.300000 depth/1.300000.png");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
-                  associations + ":4: colour timestamp is not a number: 'abc'");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
+                       associations + ":4: colour timestamp is not a number: 'abc'");
 
   test::writeText(associations, original);
   test::replaceLine(associations, 3, "1.000000 rgb/1.000000.png 1.000000 depth/1.000000.png");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
-                  associations + ":3: timestamp 1.000000 is not after the previous 1.100000");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }),
+                       associations + ":3: timestamp 1.000000 is not after the previous 1.100000");
 }
 
 TEST(SequenceReaderErrors, UnreadableAndWrongTypePngs) {
@@ -254,18 +244,18 @@ TEST(SequenceReaderErrors, UnreadableAndWrongTypePngs) {
 
   test::writeText(color_2, "this is not a PNG");
   std::string message = inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); });
-  EXPECT_CONTAINS(message, associations + ":3: " + color_2 + ": cannot read image");
+  LTLO_EXPECT_CONTAINS(message, associations + ":3: " + color_2 + ": cannot read image");
 
   cv::imwrite(color_2, cv::Mat(spec.height, spec.width, CV_8UC1, cv::Scalar(7)));  // grey
   message = inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); });
-  EXPECT_CONTAINS(message, associations + ":3: " + color_2);
-  EXPECT_CONTAINS(message, "expected 8-bit 3-channel colour, found 1 channel(s) of 8-bit");
+  LTLO_EXPECT_CONTAINS(message, associations + ":3: " + color_2);
+  LTLO_EXPECT_CONTAINS(message, "expected 8-bit 3-channel colour, found 1 channel(s) of 8-bit");
 
   cv::imwrite(color_2, cv::Mat(spec.height, spec.width, CV_8UC3, cv::Scalar(1, 2, 3)));
   cv::imwrite(depth_1, cv::Mat(spec.height, spec.width, CV_8UC1, cv::Scalar(9)));  // 8-bit depth
   message = inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); });
-  EXPECT_CONTAINS(message, associations + ":2: " + depth_1);
-  EXPECT_CONTAINS(message, "expected 16-bit 1-channel depth, found 1 channel(s) of 8-bit");
+  LTLO_EXPECT_CONTAINS(message, associations + ":2: " + depth_1);
+  LTLO_EXPECT_CONTAINS(message, "expected 16-bit 1-channel depth, found 1 channel(s) of 8-bit");
 }
 
 TEST(SequenceReaderErrors, MismatchedImageSizes) {
@@ -280,17 +270,19 @@ TEST(SequenceReaderErrors, MismatchedImageSizes) {
   const std::string mask_1 = sequenceDir(tmp) + "/masks/" + t1 + ".png";
 
   cv::imwrite(mask_1, cv::Mat(spec.height, spec.width + 1, CV_8UC1, cv::Scalar(0)));
-  EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
-                  associations + ":2: " + mask_1 + ": size 17x12 differs from the colour image 16x12");
+  LTLO_EXPECT_CONTAINS(
+      inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
+      associations + ":2: " + mask_1 + ": size 17x12 differs from the colour image 16x12");
 
   cv::imwrite(depth_1, cv::Mat(spec.height - 2, spec.width, CV_16UC1, cv::Scalar(1000)));
-  EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
-                  associations + ":2: " + depth_1 + ": size 16x10 differs from the colour image 16x12");
+  LTLO_EXPECT_CONTAINS(
+      inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
+      associations + ":2: " + depth_1 + ": size 16x10 differs from the colour image 16x12");
 
   cv::imwrite(color_1, cv::Mat(spec.height, spec.width * 2, CV_8UC3, cv::Scalar(0, 0, 0)));
-  EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
-                  associations + ":2: " + color_1 +
-                      ": size 32x12 differs from the calibrated image size 16x12");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
+                       associations + ":2: " + color_1 +
+                           ": size 32x12 differs from the calibrated image size 16x12");
 }
 
 // imu.txt: line 1 is a comment, sample k is on line k + 2.
@@ -310,25 +302,25 @@ class ImuFileErrors : public ::testing::Test {
 
 TEST_F(ImuFileErrors, DuplicatedTimestamp) {
   test::replaceLine(imu_path_, 6, "0.983000 0 0 0 0 0 9.81");  // line 5 is 0.983000
-  EXPECT_CONTAINS(openError(), imu_path_ + ":6: duplicated timestamp 0.983000");
+  LTLO_EXPECT_CONTAINS(openError(), imu_path_ + ":6: duplicated timestamp 0.983000");
 }
 
 TEST_F(ImuFileErrors, DecreasingTimestamp) {
   test::replaceLine(imu_path_, 6, "0.970000 0 0 0 0 0 9.81");
-  EXPECT_CONTAINS(openError(),
-                  imu_path_ + ":6: timestamp 0.970000 is not after the previous 0.983000");
+  LTLO_EXPECT_CONTAINS(openError(),
+                       imu_path_ + ":6: timestamp 0.970000 is not after the previous 0.983000");
 }
 
 TEST_F(ImuFileErrors, NanValue) {
   test::replaceLine(imu_path_, 7, "1.003000 0 nan 0 0 0 9.81");
-  EXPECT_CONTAINS(openError(), imu_path_ + ":7: value 3 is not finite: 'nan'");
+  LTLO_EXPECT_CONTAINS(openError(), imu_path_ + ":7: value 3 is not finite: 'nan'");
 }
 
 TEST_F(ImuFileErrors, MalformedLines) {
   test::replaceLine(imu_path_, 8, "1.013000 0 0 0 0 9.81");
-  EXPECT_CONTAINS(openError(), imu_path_ + ":8: expected 7 values, found 6");
+  LTLO_EXPECT_CONTAINS(openError(), imu_path_ + ":8: expected 7 values, found 6");
   test::replaceLine(imu_path_, 8, "1.013000 0 0 0 0 x 9.81");
-  EXPECT_CONTAINS(openError(), imu_path_ + ":8: value 6 is not a number: 'x'");
+  LTLO_EXPECT_CONTAINS(openError(), imu_path_ + ":8: value 6 is not a number: 'x'");
 }
 
 TEST_F(ImuFileErrors, GapFailsOrWarnsByPolicy) {
@@ -343,14 +335,14 @@ TEST_F(ImuFileErrors, GapFailsOrWarnsByPolicy) {
   SequenceReaderOptions options;
   options.sequence.max_imu_gap_s = 0.05;
   options.sequence.imu_gap_policy = ImuGapPolicy::kFail;
-  EXPECT_CONTAINS(openError(options),
-                  imu_path_ + ":12: gap of 0.110 s before t = 1.153000 s (limit 0.050 s)");
+  LTLO_EXPECT_CONTAINS(openError(options),
+                       imu_path_ + ":12: gap of 0.110 s before t = 1.153000 s (limit 0.050 s)");
 
   options.sequence.imu_gap_policy = ImuGapPolicy::kWarn;
   ::testing::internal::CaptureStderr();
   SequenceReader reader = SequenceReader::open(sequenceDir(tmp_), options);
   const std::string log_text = ::testing::internal::GetCapturedStderr();
-  EXPECT_CONTAINS(log_text, imu_path_ + ":12: gap of 0.110 s");
+  LTLO_EXPECT_CONTAINS(log_text, imu_path_ + ":12: gap of 0.110 s");
   EXPECT_TRUE(reader.hasImu());
 
   options.sequence.max_imu_gap_s = 0.2;  // the same gap under a looser limit is fine
@@ -366,11 +358,11 @@ TEST(SequenceReaderErrors, OpenLorisAccelNanAndMissingGyro) {
   options.calib_override = test::testCalib(spec);
   const std::string accel = sequenceDir(tmp) + "/accel.txt";
   test::replaceLine(accel, 3, "0.961000 0.1 -nan 9.8");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp), options); }),
-                  accel + ":3: value 3 is not finite: '-nan'");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp), options); }),
+                       accel + ":3: value 3 is not finite: '-nan'");
   fs::remove(sequenceDir(tmp) + "/gyro.txt");
-  EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp), options); }),
-                  sequenceDir(tmp) + "/gyro.txt: missing");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp), options); }),
+                       sequenceDir(tmp) + "/gyro.txt: missing");
 }
 
 TEST(SequenceReaderErrors, MaskWithWrongType) {
@@ -381,8 +373,8 @@ TEST(SequenceReaderErrors, MaskWithWrongType) {
   const std::string mask_0 =
       sequenceDir(tmp) + "/masks/" + test::timeText(test::frameTime(spec, 0)) + ".png";
   cv::imwrite(mask_0, cv::Mat(spec.height, spec.width, CV_16UC1, cv::Scalar(0)));
-  EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
-                  "associations.txt:1: " + mask_0 + ": expected 8-bit 1-channel mask");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
+                       "associations.txt:1: " + mask_0 + ": expected 8-bit 1-channel mask");
 }
 
 }  // namespace

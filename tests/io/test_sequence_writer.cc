@@ -6,11 +6,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include "ltlo/io/trajectory_io.h"
 
@@ -18,9 +17,8 @@ namespace ltlo::io::test {
 namespace fs = std::filesystem;
 
 TempDir::TempDir(const std::string& name) {
-  path_ = (fs::temp_directory_path() /
-           ("ltlo_" + name + "_" + std::to_string(::getpid())))
-              .string();
+  path_ =
+      (fs::temp_directory_path() / ("ltlo_" + name + "_" + std::to_string(::getpid()))).string();
   fs::remove_all(path_);
   fs::create_directories(path_);
 }

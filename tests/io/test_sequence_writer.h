@@ -28,12 +28,12 @@ struct TestSequenceSpec {
   int width = 16;
   int height = 12;
   double fps = 10.0;
-  double t0_s = 1.0;             ///< first frame time
-  double depth_offset_s = 0.0;   ///< depth timestamps = colour + offset (rgb.txt/depth.txt only)
+  double t0_s = 1.0;            ///< first frame time
+  double depth_offset_s = 0.0;  ///< depth timestamps = colour + offset (rgb.txt/depth.txt only)
   double imu_rate_hz = 100.0;
-  double imu_offset_s = 0.003;   ///< IMU times = t0 - 0.05 + offset + k / rate: never on a frame
-  bool with_associations = true; ///< associations.txt (else only rgb.txt + depth.txt)
-  bool with_imu = true;          ///< imu.txt and IMU keys in calib.yaml
+  double imu_offset_s = 0.003;    ///< IMU times = t0 - 0.05 + offset + k / rate: never on a frame
+  bool with_associations = true;  ///< associations.txt (else only rgb.txt + depth.txt)
+  bool with_imu = true;           ///< imu.txt and IMU keys in calib.yaml
   bool with_calib = true;
   bool with_groundtruth = true;
   bool with_masks = false;

@@ -4,12 +4,14 @@
 
 #include <random>
 
+#include "expect_input_error.h"
 #include "ltlo/core/errors.h"
 #include "test_sequence_writer.h"
 
 namespace ltlo::io {
 namespace {
 
+using ltlo::test::inputErrorOf;
 using test::TempDir;
 
 Trajectory randomTrajectory(double t0_s, double dt_s, int count, unsigned seed) {
@@ -33,19 +35,6 @@ void expectSameTrajectory(const Trajectory& a, const Trajectory& b, double toler
   }
 }
 
-std::string inputErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an InputError";
-  return "";
-}
-
-#define EXPECT_CONTAINS(text, part) \
-  EXPECT_NE(std::string(text).find(part), std::string::npos) << "'" << (text) << "' lacks '" << (part) << "'"
-
 TEST(TrajectoryIo, TumRoundTripKeepsNanosecondsAndFullPosePrecision) {
   TempDir tmp("traj_tum");
   for (const double t0_s : {0.0, 12.345678901, 1305031102.175304}) {
@@ -54,7 +43,9 @@ TEST(TrajectoryIo, TumRoundTripKeepsNanosecondsAndFullPosePrecision) {
     const Trajectory read = readTumTrajectory(tmp.file("t.txt"));
     expectSameTrajectory(original, read, 1e-9);
     // Epoch times (spacing of doubles ~2e-7 s): 9 decimals give back the very same double.
-    if (t0_s > 1e9) EXPECT_EQ(read.back().t_s, original.back().t_s);
+    if (t0_s > 1e9) {
+      EXPECT_EQ(read.back().t_s, original.back().t_s);
+    }
   }
 }
 
@@ -96,27 +87,27 @@ TEST(TrajectoryIo, EurocIgnoresExtraColumnsAndReadsSeconds) {
 TEST(TrajectoryIoErrors, TumMessagesNameFileLineAndValue) {
   TempDir tmp("traj_tum_err");
   const std::string path = tmp.file("t.txt");
-  EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(tmp.file("missing.txt")); }),
-                  tmp.file("missing.txt") + ": cannot open trajectory file");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(tmp.file("missing.txt")); }),
+                       tmp.file("missing.txt") + ": cannot open trajectory file");
   const std::string good = "# header\n1.0 0 0 0 0 0 0 1\n";
   test::writeText(path, good + "2.0 0 0 0 0 0 1\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
-                  path + ":3: expected 8 values, found 7");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
+                       path + ":3: expected 8 values, found 7");
   test::writeText(path, good + "2.0 0 0 0 0 0 0 1 5\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
-                  path + ":3: expected 8 values, found 9");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
+                       path + ":3: expected 8 values, found 9");
   test::writeText(path, good + "2.0 0 zero 0 0 0 0 1\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
-                  path + ":3: value 3 is not a number: 'zero'");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
+                       path + ":3: value 3 is not a number: 'zero'");
   test::writeText(path, good + "2.0 0 0 nan 0 0 0 1\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
-                  path + ":3: value 4 is not finite: 'nan'");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
+                       path + ":3: value 4 is not finite: 'nan'");
   test::writeText(path, good + "1.0 0 0 0 0 0 0 1\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
-                  path + ":3: timestamp 1 does not increase (previous 1)");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
+                       path + ":3: timestamp 1 does not increase (previous 1)");
   test::writeText(path, good + "2.0 0 0 0 0 0 0 2\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
-                  path + ":3: quaternion norm 2 is not 1");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
+                       path + ":3: quaternion norm 2 is not 1");
 }
 
 TEST(TrajectoryIoErrors, EurocMessagesNameFileLineAndValue) {
@@ -124,18 +115,19 @@ TEST(TrajectoryIoErrors, EurocMessagesNameFileLineAndValue) {
   const std::string path = tmp.file("t.csv");
   const std::string good = "#timestamp\n1000,0,0,0,1,0,0,0\n";
   test::writeText(path, good + "1.5e9,0,0,0,1,0,0,0\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readEurocTrajectory(path); }),
-                  path + ":3: timestamp is not a non-negative integer of nanoseconds: '1.5e9'");
+  LTLO_EXPECT_CONTAINS(
+      inputErrorOf([&] { readEurocTrajectory(path); }),
+      path + ":3: timestamp is not a non-negative integer of nanoseconds: '1.5e9'");
   test::writeText(path, good + "2000,0,0,0,1,0,0\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readEurocTrajectory(path); }),
-                  path + ":3: expected 8 values, found 7");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readEurocTrajectory(path); }),
+                       path + ":3: expected 8 values, found 7");
   test::writeText(path, good + "500,0,0,0,1,0,0,0\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readEurocTrajectory(path); }), path + ":3: timestamp");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readEurocTrajectory(path); }), path + ":3: timestamp");
   test::writeText(path, good + "2000,0,0,0,1,inf,0,0\n");
-  EXPECT_CONTAINS(inputErrorOf([&] { readEurocTrajectory(path); }),
-                  path + ":3: value 6 is not finite: 'inf'");
-  EXPECT_CONTAINS(inputErrorOf([&] { writeEurocTrajectory(tmp.file("no/such/dir.csv"), {}); }),
-                  tmp.file("no/such/dir.csv") + ": cannot open for writing");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readEurocTrajectory(path); }),
+                       path + ":3: value 6 is not finite: 'inf'");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { writeEurocTrajectory(tmp.file("no/such/dir.csv"), {}); }),
+                       tmp.file("no/such/dir.csv") + ": cannot open for writing");
 }
 
 }  // namespace

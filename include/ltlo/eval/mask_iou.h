@@ -1,9 +1,8 @@
 #pragma once
 /// Static-background IoU of predicted dynamic masks against ground truth (DATA_FORMAT.md
 /// masks/: 8-bit, 255 = dynamic, 0 = static).
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 namespace ltlo::eval {
 

@@ -40,8 +40,8 @@ Sim3 umeyamaAlignment(const std::vector<Vec3>& p_est, const std::vector<Vec3>& p
 
 /// Absolute trajectory error: translation error |t_gt - t(S_gt_est T_est)| per matched pose.
 struct AteResult {
-  Sim3 S_gt_est;         ///< alignment applied to the estimate
-  ErrorStats error_m;    ///< per-pose translation errors (m)
+  Sim3 S_gt_est;       ///< alignment applied to the estimate
+  ErrorStats error_m;  ///< per-pose translation errors (m)
 };
 AteResult computeAte(const MatchedTrajectories& matched, bool with_scale);
 

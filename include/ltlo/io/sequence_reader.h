@@ -4,11 +4,10 @@
 /// IMU and ground truth are read and checked when the reader is opened; images are loaded one
 /// frame at a time by next(). Bad input throws InputError naming the file, the line and the value.
 #include <memory>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "ltlo/core/calib.h"
 #include "ltlo/core/sequence_options.h"
@@ -19,15 +18,15 @@ namespace ltlo::io {
 
 /// One RGB-D pair with the IMU samples since the previous frame.
 struct RgbdImuFrame {
-  int index = 0;             ///< 0-based position in the sequence
-  double t_s = 0.0;          ///< colour image timestamp
-  double depth_t_s = 0.0;    ///< depth image timestamp (associated to t_s)
-  cv::Mat color_bgr;         ///< CV_8UC3, BGR as OpenCV reads it
-  cv::Mat depth_m;           ///< CV_32F metres, 0 = no reading (png value / DepthMapFactor)
+  int index = 0;           ///< 0-based position in the sequence
+  double t_s = 0.0;        ///< colour image timestamp
+  double depth_t_s = 0.0;  ///< depth image timestamp (associated to t_s)
+  cv::Mat color_bgr;       ///< CV_8UC3, BGR as OpenCV reads it
+  cv::Mat depth_m;         ///< CV_32F metres, 0 = no reading (png value / DepthMapFactor)
   std::string color_path;
   std::string depth_path;
-  std::string mask_path;     ///< ground-truth mask file (masks/), empty when absent
-  cv::Mat mask;              ///< CV_8UC1, 255 = dynamic, 0 = static; empty when absent
+  std::string mask_path;  ///< ground-truth mask file (masks/), empty when absent
+  cv::Mat mask;           ///< CV_8UC1, 255 = dynamic, 0 = static; empty when absent
   /// Samples in [t of the previous frame, t_s] with interpolated samples at both ends (the
   /// boundary sample is shared by consecutive frames). The first frame holds the single sample
   /// at t_s. Empty without IMU or where the IMU stream does not reach.
@@ -40,7 +39,7 @@ struct FrameFiles {
   double depth_t_s = 0.0;  ///< depth timestamp
   std::string color_path;
   std::string depth_path;
-  std::string mask_path;   ///< empty when the sequence has no mask for this frame
+  std::string mask_path;        ///< empty when the sequence has no mask for this frame
   std::string color_list_path;  ///< index file that named the colour image, and its line
   int color_list_line = 0;
   std::string depth_list_path;  ///< index file that named the depth image, and its line
@@ -58,11 +57,11 @@ SequenceLayout detectLayout(const std::string& sequence_dir);
 
 /// Reading choices beyond SequenceOptions.
 struct SequenceReaderOptions {
-  SequenceOptions sequence;            ///< IMU gap limit and policy
+  SequenceOptions sequence;  ///< IMU gap limit and policy
   /// Replaces SEQ/calib.yaml (required for OpenLORIS, whose folders have no calib.yaml).
   std::optional<SensorCalib> calib_override;
-  double max_rgb_depth_dt_s = 0.02;    ///< association tolerance without associations.txt
-  double max_mask_dt_s = 1e-4;         ///< mask file name vs frame timestamp tolerance
+  double max_rgb_depth_dt_s = 0.02;  ///< association tolerance without associations.txt
+  double max_mask_dt_s = 1e-4;       ///< mask file name vs frame timestamp tolerance
 };
 
 /// Not thread-safe: one consumer calls next().
