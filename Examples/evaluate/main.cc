@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
     metrics.set("rpe_trans_rmse_m_frame", rpe.trans_m_frame.rmse);
     metrics.set("rpe_trans_mean_m_frame", rpe.trans_m_frame.mean);
     metrics.set("rpe_rot_rmse_deg_frame", rpe.rot_deg_frame.rmse);
-    metrics.set("alignment", with_scale ? "sim3" : "se3");
+    metrics.set("alignment_sim3", with_scale ? 1 : 0);  // numbers only: scripts parse floats
     metrics.set("alignment_scale", ate.S_gt_est.scale());
     metrics.set("num_gt", static_cast<int>(gt.size()));
     metrics.set("num_est", static_cast<int>(est.size()));

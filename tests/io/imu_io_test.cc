@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include "expect_input_error.h"
 #include "ltlo/io/associate.h"
 #include "ltlo/io/metrics_json.h"
+#include "test_sequence_writer.h"
 
 namespace ltlo::io {
 namespace {
@@ -81,6 +83,37 @@ TEST(Metrics, TextAndJsonHaveTheSameKeysInOrder) {
   Metrics quoted;
   quoted.set("path", "a\"b\\c");
   EXPECT_EQ(quoted.toJson(), "{\n  \"path\": \"a\\\"b\\\\c\"\n}\n");
+}
+
+TEST(ImuFiles, EurocCsvReadsNanosecondsAndRejectsOtherTimestamps) {
+  test::TempDir tmp("imu_euroc_csv");
+  const std::string path = tmp.file("data.csv");
+  test::writeText(path,
+                  "#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n"
+                  "1403636579758555392,0.1,0.2,0.3,1,2,9.8\n"
+                  "1403636579763555584,0.1,0.2,0.3,1,2,9.8\n");
+  const ImuSamples imu = readEurocImuCsv(path, SequenceOptions{});
+  ASSERT_EQ(imu.size(), 2u);
+  // Seconds as doubles near 1.4e9 are spaced 2.4e-7 s apart: that is the resolution left.
+  EXPECT_NEAR(imu[0].t_s, 1403636579.758555392, 2.4e-7);
+  EXPECT_NEAR(imu[1].t_s - imu[0].t_s, 0.005000192, 2.4e-7);
+  EXPECT_EQ(imu[0].acc_m_s2, Vec3(1, 2, 9.8));
+  test::writeText(path, "1403636579.758,0.1,0.2,0.3,1,2,9.8\n");
+  LTLO_EXPECT_CONTAINS(
+      ltlo::test::inputErrorOf([&] { readEurocImuCsv(path, SequenceOptions{}); }),
+      path + ":1: timestamp is not a non-negative integer of nanoseconds: '1403636579.758'");
+}
+
+TEST(ImuFiles, OpenLorisStreamsMustOverlap) {
+  test::TempDir tmp("imu_openloris_overlap");
+  test::writeText(tmp.file("accel.txt"), "1.00 0 0 9.8\n1.01 0 0 9.8\n");
+  test::writeText(tmp.file("gyro.txt"), "2.00 0 0 0\n2.01 0 0 0\n");
+  SequenceOptions options;
+  options.max_imu_gap_s = 1.0;
+  LTLO_EXPECT_CONTAINS(
+      ltlo::test::inputErrorOf(
+          [&] { readOpenLorisImu(tmp.file("accel.txt"), tmp.file("gyro.txt"), options); }),
+      tmp.file("gyro.txt") + ": gyroscope times [2.000000, 2.010000] do not overlap");
 }
 
 }  // namespace
