@@ -3,7 +3,6 @@
 /// RGB-D without IMU), the OpenLORIS-Scene layout, and EuRoC-style imu0/data.csv. Index files,
 /// IMU and ground truth are read and checked when the reader is opened; images are loaded one
 /// frame at a time by next(). Bad input throws InputError naming the file, the line and the value.
-#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
