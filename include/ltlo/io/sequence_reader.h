@@ -1,0 +1,104 @@
+#pragma once
+/// Streaming reader of RGB-D(-inertial) sequences: the DATA_FORMAT.md layout (also plain TUM
+/// RGB-D without IMU), the OpenLORIS-Scene layout, and EuRoC-style imu0/data.csv. Index files,
+/// IMU and ground truth are read and checked when the reader is opened; images are loaded one
+/// frame at a time by next(). Bad input throws InputError naming the file, the line and the value.
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ltlo/core/calib.h"
+#include "ltlo/core/sequence_options.h"
+#include "ltlo/io/imu_io.h"
+#include "ltlo/io/trajectory_io.h"
+
+namespace ltlo::io {
+
+/// One RGB-D pair with the IMU samples since the previous frame.
+struct RgbdImuFrame {
+  int index = 0;           ///< 0-based position in the sequence
+  double t_s = 0.0;        ///< colour image timestamp
+  double depth_t_s = 0.0;  ///< depth image timestamp (associated to t_s)
+  cv::Mat color_bgr;       ///< CV_8UC3, BGR as OpenCV reads it
+  cv::Mat depth_m;         ///< CV_32F metres, 0 = no reading (png value / DepthMapFactor)
+  std::string color_path;
+  std::string depth_path;
+  std::string mask_path;  ///< ground-truth mask file (masks/), empty when absent
+  cv::Mat mask;           ///< CV_8UC1, 255 = dynamic, 0 = static; empty when absent
+  /// Samples in [t of the previous frame, t_s] with interpolated samples at both ends (the
+  /// boundary sample is shared by consecutive frames). The first frame holds the single sample
+  /// at t_s. Empty without IMU or where the IMU stream does not reach.
+  ImuSamples imu;
+};
+
+/// Where one frame's files are and which index lines named them (for messages).
+struct FrameFiles {
+  double t_s = 0.0;        ///< colour timestamp
+  double depth_t_s = 0.0;  ///< depth timestamp
+  std::string color_path;
+  std::string depth_path;
+  std::string mask_path;        ///< empty when the sequence has no mask for this frame
+  std::string color_list_path;  ///< index file that named the colour image, and its line
+  int color_list_line = 0;
+  std::string depth_list_path;  ///< index file that named the depth image, and its line
+  int depth_list_line = 0;
+};
+
+enum class SequenceLayout {
+  kDataFormat,  ///< rgb/, depth/, associations.txt or rgb.txt + depth.txt, imu.txt, calib.yaml
+  kOpenLoris,   ///< color/, aligned_depth/, color.txt, aligned_depth.txt, accel.txt, gyro.txt
+};
+
+/// Looks at the folder's files: color.txt -> kOpenLoris; associations.txt or rgb.txt ->
+/// kDataFormat; otherwise throws InputError listing what was expected.
+SequenceLayout detectLayout(const std::string& sequence_dir);
+
+/// Reading choices beyond SequenceOptions.
+struct SequenceReaderOptions {
+  SequenceOptions sequence;  ///< IMU gap limit and policy
+  /// Replaces SEQ/calib.yaml (required for OpenLORIS, whose folders have no calib.yaml).
+  std::optional<SensorCalib> calib_override;
+  double max_rgb_depth_dt_s = 0.02;  ///< association tolerance without associations.txt
+  double max_mask_dt_s = 1e-4;       ///< mask file name vs frame timestamp tolerance
+};
+
+/// Not thread-safe: one consumer calls next().
+class SequenceReader {
+ public:
+  /// Detects the layout and reads the index, calibration, IMU and ground truth; throws InputError
+  /// (or ConfigError from a bad calib.yaml).
+  static SequenceReader open(const std::string& sequence_dir,
+                             const SequenceReaderOptions& options = {});
+
+  /// Next frame (images loaded now), or nullopt after the last one.
+  std::optional<RgbdImuFrame> next();
+  /// Back to the first frame.
+  void rewind() { next_index_ = 0; }
+
+  int frameCount() const { return static_cast<int>(entries_.size()); }
+  double frameTime(int index) const { return entries_.at(index).t_s; }
+  const FrameFiles& frameFiles(int index) const { return entries_.at(index); }
+  const SensorCalib& calib() const { return calib_; }
+  SequenceLayout layout() const { return layout_; }
+  const std::string& directory() const { return dir_; }
+  bool hasImu() const { return !imu_.empty(); }
+  /// The whole IMU stream (small: seven doubles per sample).
+  const ImuSamples& imu() const { return imu_; }
+  bool hasGroundTruth() const { return !ground_truth_.empty(); }
+  /// T_world_camera from groundtruth.txt; empty when the sequence has none.
+  const Trajectory& groundTruth() const { return ground_truth_; }
+
+ private:
+  SequenceReader() = default;
+
+  std::string dir_;
+  SequenceLayout layout_ = SequenceLayout::kDataFormat;
+  SensorCalib calib_;
+  std::vector<FrameFiles> entries_;
+  ImuSamples imu_;
+  Trajectory ground_truth_;
+  int next_index_ = 0;
+};
+
+}  // namespace ltlo::io
