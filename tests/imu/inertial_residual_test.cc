@@ -28,7 +28,7 @@ double jacobianError(const Mat93& analytic, const Mat93& numeric) {
   return (analytic - numeric).cwiseAbs().maxCoeff() / std::max(1.0, numeric.cwiseAbs().maxCoeff());
 }
 
-class InertialResidualTest : public ::testing::Test {
+class ImuInertialResidualTest : public ::testing::Test {
  protected:
   void SetUp() override {
     const AnalyticTrajectory traj;
@@ -43,7 +43,7 @@ class InertialResidualTest : public ::testing::Test {
   NavState state_i_, state_j_;
 };
 
-TEST_F(InertialResidualTest, GroundTruthStatesGiveNearZeroResidual) {
+TEST_F(ImuInertialResidualTest, GroundTruthStatesGiveNearZeroResidual) {
   const Vec9 r = inertialResidual(state_i_, state_j_, linearisation_bias_, *pim_, gravityWorld());
   EXPECT_LT(r.head<3>().norm(), 1e-6);  // rad
   EXPECT_LT(r.segment<3>(3).norm(), 1e-5);  // m/s
@@ -56,7 +56,7 @@ TEST_F(InertialResidualTest, GroundTruthStatesGiveNearZeroResidual) {
 
 // Every Jacobian against central differences, at states away from the solution (residual rotation
 // ~0.2 rad so J_r^-1 matters) and a bias away from the linearisation bias (correction active).
-TEST_F(InertialResidualTest, JacobiansMatchNumericDifferentiation) {
+TEST_F(ImuInertialResidualTest, JacobiansMatchNumericDifferentiation) {
   NavState s_i = state_i_;
   NavState s_j = state_j_;
   s_i.R_w_b = s_i.R_w_b * so3Exp(Vec3(0.05, -0.1, 0.08));
@@ -126,7 +126,7 @@ TEST_F(InertialResidualTest, JacobiansMatchNumericDifferentiation) {
 }
 
 // SE3 chaining stated in the header: for T_w_b Exp([dphi; drho]), d_r_d_rho = d_r_d_p * R_w_b.
-TEST_F(InertialResidualTest, PositionJacobianChainsToSe3RightPerturbation) {
+TEST_F(ImuInertialResidualTest, PositionJacobianChainsToSe3RightPerturbation) {
   const Vec3 g_w = gravityWorld();
   const InertialResidualJacobians J =
       inertialResidualJacobians(state_i_, state_j_, linearisation_bias_, *pim_, g_w);
@@ -140,7 +140,7 @@ TEST_F(InertialResidualTest, PositionJacobianChainsToSe3RightPerturbation) {
   EXPECT_LT(jacobianError(Mat93(J.d_r_d_p_i * state_i_.R_w_b), numeric), 1e-7);
 }
 
-TEST(Gravity, RotationFromDirectionAndTwoDofJacobian) {
+TEST(ImuGravity, RotationFromDirectionAndTwoDofJacobian) {
   for (const Vec3& dir : {Vec3(0.0, 0.0, -9.81), Vec3(0.1, -0.2, -1.0), Vec3(1.0, 0.5, 0.2),
                           Vec3(0.0, 0.0, 3.0), Vec3(1e-14, 0.0, 1.0)}) {
     const Mat3 R_w_g = gravityRotationFromDirection(dir);

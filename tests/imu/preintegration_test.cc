@@ -68,7 +68,7 @@ TEST(ImuSamples, IntervalHasInterpolatedEndsAndKeepsGridSamples) {
 }
 
 // Noise-free IMU from the analytic trajectory reproduces the ground-truth relative motion.
-TEST(Preintegration, NoiseFreeReproducesGroundTruthRelativeMotion) {
+TEST(ImuPreintegration, NoiseFreeReproducesGroundTruthRelativeMotion) {
   const AnalyticTrajectory traj;
   const ImuBias bias{Vec3(0.01, -0.02, 0.015), Vec3(0.1, -0.05, 0.08)};
   const std::vector<ImuSample> grid = traj.samples(0.0, 2.0, kRateHz, bias);
@@ -103,7 +103,7 @@ TEST(Preintegration, NoiseFreeReproducesGroundTruthRelativeMotion) {
 
 // Bias Jacobians against re-preintegration with a perturbed bias (central differences; the
 // rotation is compared through the right-perturbation log Log(dR0^T dR(b))).
-TEST(Preintegration, BiasJacobiansMatchNumericDifferentiation) {
+TEST(ImuPreintegration, BiasJacobiansMatchNumericDifferentiation) {
   const AnalyticTrajectory traj;
   const ImuBias bias{Vec3(0.01, -0.02, 0.015), Vec3(0.1, -0.05, 0.08)};
   const std::vector<ImuSample> samples = samplesInInterval(traj.samples(0.0, 2.0, kRateHz), 0.3, 1.2);
@@ -144,7 +144,7 @@ TEST(Preintegration, BiasJacobiansMatchNumericDifferentiation) {
 
 // First-order correction for a small bias change is much closer to re-integration than the
 // uncorrected deltas.
-TEST(Preintegration, FirstOrderBiasCorrectionApproximatesReintegration) {
+TEST(ImuPreintegration, FirstOrderBiasCorrectionApproximatesReintegration) {
   const AnalyticTrajectory traj;
   const ImuBias bias0{Vec3(0.01, -0.02, 0.015), Vec3(0.1, -0.05, 0.08)};
   const std::vector<ImuSample> samples = samplesInInterval(traj.samples(0.0, 2.0, kRateHz), 0.3, 1.3);
@@ -173,7 +173,7 @@ TEST(Preintegration, FirstOrderBiasCorrectionApproximatesReintegration) {
 }
 
 // Merge of two consecutive preintegrations equals the preintegration over the union.
-TEST(Preintegration, MergeEqualsPreintegrationOverUnion) {
+TEST(ImuPreintegration, MergeEqualsPreintegrationOverUnion) {
   const AnalyticTrajectory traj;
   const ImuBias bias{Vec3(0.01, -0.02, 0.015), Vec3(0.1, -0.05, 0.08)};
   std::mt19937 rng(7);
@@ -215,7 +215,7 @@ TEST(Preintegration, MergeEqualsPreintegrationOverUnion) {
 // noise of the discrete per-sample covariance, densities 10x the defaults). Tolerance: whitened by
 // the predicted covariance, the sample covariance is the identity within 0.2 per element (the
 // standard error of one element is ~0.032 off the diagonal, ~0.045 on it, for 1000 runs).
-TEST(Preintegration, CovarianceMatchesMonteCarlo) {
+TEST(ImuPreintegration, CovarianceMatchesMonteCarlo) {
   const AnalyticTrajectory traj;
   ImuCalib calib;
   calib.rate_hz = kRateHz;
@@ -257,7 +257,7 @@ TEST(Preintegration, CovarianceMatchesMonteCarlo) {
   EXPECT_NEAR(predicted(0, 0), calib.noise_gyro * calib.noise_gyro * 0.5, 1e-3 * predicted(0, 0));
 }
 
-TEST(Preintegration, ZeroStepIgnoredNegativeStepAsserts) {
+TEST(ImuPreintegration, ZeroStepIgnoredNegativeStepAsserts) {
   Preintegrated pim(ImuBias(), testNoise());
   pim.integrateStep(Vec3(0.1, 0.0, 0.0), Vec3(0.0, 0.0, 9.81), 0.0);
   EXPECT_EQ(pim.numSteps(), 0);
