@@ -66,7 +66,7 @@ InertialResidualJacobians inertialResidualJacobians(const NavState& state_i,
   InertialResidualJacobians out;
   out.residual << parts.r_R, parts.r_v, parts.r_p;
   for (Mat93* J : {&out.d_r_d_R_i, &out.d_r_d_p_i, &out.d_r_d_v_i, &out.d_r_d_R_j, &out.d_r_d_p_j,
-                   &out.d_r_d_v_j, &out.d_r_d_b_g, &out.d_r_d_b_a}) {
+                   &out.d_r_d_v_j, &out.d_r_d_b_g, &out.d_r_d_b_a, &out.d_r_d_g_w}) {
     J->setZero();
   }
 
@@ -92,6 +92,10 @@ InertialResidualJacobians inertialResidualJacobians(const NavState& state_i,
   out.d_r_d_p_j.block<3, 3>(6, 0) = R_i_T;
   out.d_r_d_b_g.block<3, 3>(6, 0) = -pim.d_p_d_b_g();
   out.d_r_d_b_a.block<3, 3>(6, 0) = -pim.d_p_d_b_a();
+
+  // Gravity.
+  out.d_r_d_g_w.block<3, 3>(3, 0) = -R_i_T * dt;
+  out.d_r_d_g_w.block<3, 3>(6, 0) = -R_i_T * (0.5 * dt * dt);
   return out;
 }
 

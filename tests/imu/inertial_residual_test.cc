@@ -125,6 +125,24 @@ TEST_F(ImuInertialResidualTest, JacobiansMatchNumericDifferentiation) {
             tol);
 }
 
+// Gravity: additive in g_w, and through the 2-DoF direction update R_w_g Exp([d_x, d_y, 0]).
+TEST_F(ImuInertialResidualTest, GravityJacobiansMatchNumericDifferentiation) {
+  const Mat3 R_w_g = gravityRotationFromDirection(Vec3(0.05, -0.08, -1.0));
+  const Vec3 g_w = gravityFromRotation(R_w_g);
+  const InertialResidualJacobians J =
+      inertialResidualJacobians(state_i_, state_j_, linearisation_bias_, *pim_, g_w);
+  const Mat93 numeric = numericJacobian<9, 3>([&](const Vec3& d) {
+    return Vec9(inertialResidual(state_i_, state_j_, linearisation_bias_, *pim_, g_w + d));
+  });
+  EXPECT_LT(jacobianError(J.d_r_d_g_w, numeric), 1e-7);
+  const Eigen::Matrix<double, 9, 2> numeric_dir = numericJacobian<9, 2>([&](const Vec2& d) {
+    const Vec3 g = gravityFromRotation(updateGravityRotation(R_w_g, d));
+    return Vec9(inertialResidual(state_i_, state_j_, linearisation_bias_, *pim_, g));
+  });
+  const Eigen::Matrix<double, 9, 2> analytic_dir = J.d_r_d_g_w * gravityJacobian(R_w_g);
+  EXPECT_LT((analytic_dir - numeric_dir).cwiseAbs().maxCoeff(), 1e-6);
+}
+
 // SE3 chaining stated in the header: for T_w_b Exp([dphi; drho]), d_r_d_rho = d_r_d_p * R_w_b.
 TEST_F(ImuInertialResidualTest, PositionJacobianChainsToSe3RightPerturbation) {
   const Vec3 g_w = gravityWorld();

@@ -45,6 +45,9 @@ struct InertialResidualJacobians {
   Mat93 d_r_d_R_i, d_r_d_p_i, d_r_d_v_i;
   Mat93 d_r_d_R_j, d_r_d_p_j, d_r_d_v_j;
   Mat93 d_r_d_b_g, d_r_d_b_a;
+  /// W.r.t. gravity g_w (additive); for the 2-DoF gravity direction of IMU initialisation chain
+  /// with gravityJacobian(R_w_g): d_r_d_g_dir = d_r_d_g_w * gravityJacobian(R_w_g).
+  Mat93 d_r_d_g_w;
 };
 InertialResidualJacobians inertialResidualJacobians(const NavState& state_i,
                                                     const NavState& state_j, const ImuBias& bias,
