@@ -35,43 +35,12 @@ Mat6 ImuNoise::biasWalkCovariance(double interval_s) const {
   return cov;
 }
 
-ImuSample interpolateSample(const ImuSample& a, const ImuSample& b, double t_s) {
-  LTLO_ASSERT(a.t_s <= t_s && t_s <= b.t_s,
-              "interpolation time " << t_s << " outside [" << a.t_s << ", " << b.t_s << "]");
-  const double span_s = b.t_s - a.t_s;
-  const double w = span_s > 0.0 ? (t_s - a.t_s) / span_s : 0.0;
-  ImuSample s;
-  s.t_s = t_s;
-  s.gyro_rad_s = (1.0 - w) * a.gyro_rad_s + w * b.gyro_rad_s;
-  s.acc_m_s2 = (1.0 - w) * a.acc_m_s2 + w * b.acc_m_s2;
-  return s;
-}
-
 std::vector<ImuSample> samplesInInterval(const std::vector<ImuSample>& samples, double t_begin_s,
                                          double t_end_s) {
   LTLO_ASSERT(t_begin_s <= t_end_s, "interval [" << t_begin_s << ", " << t_end_s << "] reversed");
   LTLO_ASSERT(!samples.empty() && samples.front().t_s <= t_begin_s && samples.back().t_s >= t_end_s,
               "samples do not cover [" << t_begin_s << ", " << t_end_s << "]");
-  std::vector<ImuSample> out;
-  // First sample at or after t_begin_s.
-  size_t k = 0;
-  while (samples[k].t_s < t_begin_s) ++k;
-  if (samples[k].t_s == t_begin_s) {
-    out.push_back(samples[k]);
-  } else {
-    out.push_back(interpolateSample(samples[k - 1], samples[k], t_begin_s));
-  }
-  for (; k < samples.size() && samples[k].t_s < t_end_s; ++k) {
-    if (samples[k].t_s > t_begin_s) out.push_back(samples[k]);
-  }
-  if (t_end_s > t_begin_s) {
-    if (samples[k].t_s == t_end_s) {
-      out.push_back(samples[k]);
-    } else {
-      out.push_back(interpolateSample(samples[k - 1], samples[k], t_end_s));
-    }
-  }
-  return out;
+  return imuSamplesBetween(samples, t_begin_s, t_end_s);
 }
 
 }  // namespace ltlo::imu

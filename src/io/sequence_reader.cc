@@ -311,7 +311,7 @@ std::optional<RgbdImuFrame> SequenceReader::next() {
   }
 
   const double previous_t_s = index > 0 ? entries_[index - 1].t_s : files.t_s;
-  frame.imu = imuBetween(imu_, previous_t_s, files.t_s);
+  frame.imu = imuSamplesBetween(imu_, previous_t_s, files.t_s);
   return frame;
 }
 

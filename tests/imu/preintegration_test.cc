@@ -59,7 +59,7 @@ TEST(ImuSamples, IntervalHasInterpolatedEndsAndKeepsGridSamples) {
   // 0.125 .. 0.565 on the 5 ms grid = 89 samples, plus the two ends.
   EXPECT_EQ(inside.size(), 91u);
   // Interpolated gyro reading at 0.1234 lies between its neighbours (linear in time).
-  const ImuSample expected = interpolateSample(grid[24], grid[25], 0.1234);
+  const ImuSample expected = interpolateImuSample(grid[24], grid[25], 0.1234);
   EXPECT_LT((inside.front().gyro_rad_s - expected.gyro_rad_s).norm(), 1e-15);
   // Ends on the grid are not duplicated.
   const std::vector<ImuSample> on_grid = samplesInInterval(grid, 0.1, 0.2);

@@ -21,7 +21,7 @@ ImuSamples rampSamples(double t0_s, double dt_s, int count) {
 
 TEST(ImuBetween, InterpolatesBothEndsAndKeepsInteriorSamples) {
   const ImuSamples imu = rampSamples(0.0, 0.01, 101);  // 0 .. 1 s
-  const ImuSamples slice = imuBetween(imu, 0.105, 0.1325);
+  const ImuSamples slice = imuSamplesBetween(imu, 0.105, 0.1325);
   ASSERT_EQ(slice.size(), 5u);  // 0.105, 0.11, 0.12, 0.13, 0.1325
   EXPECT_DOUBLE_EQ(slice.front().t_s, 0.105);
   EXPECT_DOUBLE_EQ(slice.back().t_s, 0.1325);
@@ -32,22 +32,22 @@ TEST(ImuBetween, InterpolatesBothEndsAndKeepsInteriorSamples) {
 
 TEST(ImuBetween, EndsOnSamplesAreNotDuplicatedAndIntervalsTile) {
   const ImuSamples imu = rampSamples(0.0, 0.01, 101);
-  const ImuSamples a = imuBetween(imu, imu[10].t_s, imu[20].t_s);
+  const ImuSamples a = imuSamplesBetween(imu, imu[10].t_s, imu[20].t_s);
   EXPECT_EQ(a.size(), 11u);
-  const ImuSamples b = imuBetween(imu, imu[20].t_s, 0.255);
+  const ImuSamples b = imuSamplesBetween(imu, imu[20].t_s, 0.255);
   EXPECT_EQ(a.back().t_s, b.front().t_s);  // shared boundary sample
   EXPECT_EQ(b.size(), 7u);                 // 0.20 .. 0.25 and 0.255
 }
 
 TEST(ImuBetween, ClipsToCoverageAndIsEmptyOutsideIt) {
   const ImuSamples imu = rampSamples(1.0, 0.01, 11);  // 1.0 .. 1.1 s
-  EXPECT_TRUE(imuBetween(imu, 0.5, 0.9).empty());
-  EXPECT_TRUE(imuBetween(imu, 1.2, 1.3).empty());
-  EXPECT_TRUE(imuBetween({}, 0.0, 1.0).empty());
-  const ImuSamples clipped = imuBetween(imu, 0.95, 1.025);
+  EXPECT_TRUE(imuSamplesBetween(imu, 0.5, 0.9).empty());
+  EXPECT_TRUE(imuSamplesBetween(imu, 1.2, 1.3).empty());
+  EXPECT_TRUE(imuSamplesBetween({}, 0.0, 1.0).empty());
+  const ImuSamples clipped = imuSamplesBetween(imu, 0.95, 1.025);
   ASSERT_EQ(clipped.size(), 4u);
   EXPECT_DOUBLE_EQ(clipped.front().t_s, 1.0);
-  const ImuSamples single = imuBetween(imu, 1.055, 1.055);
+  const ImuSamples single = imuSamplesBetween(imu, 1.055, 1.055);
   ASSERT_EQ(single.size(), 1u);
   EXPECT_NEAR(single[0].gyro_rad_s.x(), 1.055, 1e-12);
 }

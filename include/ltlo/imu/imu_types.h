@@ -4,15 +4,11 @@
 
 #include "ltlo/core/calib.h"
 #include "ltlo/core/eigen_types.h"
+#include "ltlo/core/imu_sample.h"
 
 namespace ltlo::imu {
 
-/// One IMU reading in the body (IMU) frame b.
-struct ImuSample {
-  double t_s = 0.0;                   ///< timestamp (s)
-  Vec3 gyro_rad_s = Vec3::Zero();     ///< angular rate of b w.r.t. the world, in b (rad/s)
-  Vec3 acc_m_s2 = Vec3::Zero();       ///< specific force a - g, in b (m/s^2); at rest ~ (0, 0, +9.81) when z is up
-};
+using ltlo::ImuSample;
 
 /// Gyroscope and accelerometer biases: measurement = true value + bias + noise.
 struct ImuBias {
@@ -44,9 +40,6 @@ struct ImuNoise {
   /// Covariance of the bias change over an interval of interval_s, order [b_g; b_a].
   Mat6 biasWalkCovariance(double interval_s) const;
 };
-
-/// Linear interpolation between two samples at t_s (a.t_s <= t_s <= b.t_s).
-ImuSample interpolateSample(const ImuSample& a, const ImuSample& b, double t_s);
 
 /// The samples covering exactly [t_begin_s, t_end_s]: the samples strictly inside plus interpolated
 /// samples at both ends (an existing sample at an end is kept as is). `samples` must be sorted by
