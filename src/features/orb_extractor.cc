@@ -76,8 +76,8 @@ Descriptor describe(const cv::Mat& blurred, int x, int y, float angle_deg, const
   const std::uint8_t* centre = blurred.ptr<std::uint8_t>(y) + x;
   const int step = static_cast<int>(blurred.step1());
   const auto sample = [&](const cv::Point& p) {
-    const int rx = static_cast<int>(std::lround(p.x * c - p.y * s));
-    const int ry = static_cast<int>(std::lround(p.x * s + p.y * c));
+    const int rx = cvRound(static_cast<float>(p.x) * c - static_cast<float>(p.y) * s);
+    const int ry = cvRound(static_cast<float>(p.x) * s + static_cast<float>(p.y) * c);
     return centre[ry * step + rx];
   };
   Descriptor d{};
@@ -87,7 +87,8 @@ Descriptor describe(const cv::Mat& blurred, int x, int y, float angle_deg, const
   return d;
 }
 
-/// FAST corners of one level, cell by cell: iniThFAST first, minThFAST where a cell has none.
+/// FAST corners of one level with an adaptive threshold per cell: one pass at iniThFAST over the
+/// whole level, then cells left without a corner are searched again at minThFAST.
 std::vector<cv::KeyPoint> detectCorners(const cv::Mat& level, int ini_threshold, int min_threshold) {
   std::vector<cv::KeyPoint> corners;
   const int x_min = kEdge - kFastMargin;
@@ -95,25 +96,36 @@ std::vector<cv::KeyPoint> detectCorners(const cv::Mat& level, int ini_threshold,
   const int x_max = level.cols - kEdge + kFastMargin;  // exclusive
   const int y_max = level.rows - kEdge + kFastMargin;
   if (x_max - x_min < 2 * kFastMargin + 1 || y_max - y_min < 2 * kFastMargin + 1) return corners;
+  cv::FAST(level(cv::Range(y_min, y_max), cv::Range(x_min, x_max)), corners, ini_threshold, true);
+  for (cv::KeyPoint& kp : corners) {
+    kp.pt.x += static_cast<float>(x_min);
+    kp.pt.y += static_cast<float>(y_min);
+  }
+
+  // Cells over the keypoint area [kEdge, size - kEdge).
   const int inner_w = x_max - x_min - 2 * kFastMargin;
   const int inner_h = y_max - y_min - 2 * kFastMargin;
   const int cols = std::max(1, inner_w / kCellSize);
   const int rows = std::max(1, inner_h / kCellSize);
   const int cell_w = (inner_w + cols - 1) / cols;
   const int cell_h = (inner_h + rows - 1) / rows;
+  std::vector<char> occupied(static_cast<std::size_t>(cols) * rows, 0);
+  for (const cv::KeyPoint& kp : corners) {
+    const int c = std::min(cols - 1, (static_cast<int>(kp.pt.x) - kEdge) / cell_w);
+    const int r = std::min(rows - 1, (static_cast<int>(kp.pt.y) - kEdge) / cell_h);
+    occupied[static_cast<std::size_t>(r) * cols + c] = 1;
+  }
   std::vector<cv::KeyPoint> cell_corners;
   for (int r = 0; r < rows; ++r) {
-    const int y0 = y_min + r * cell_h;
-    const int y1 = std::min(y0 + cell_h + 2 * kFastMargin, y_max);
-    if (y1 - y0 <= 2 * kFastMargin) continue;
     for (int c = 0; c < cols; ++c) {
-      const int x0 = x_min + c * cell_w;
+      if (occupied[static_cast<std::size_t>(r) * cols + c]) continue;
+      const int x0 = kEdge + c * cell_w - kFastMargin;
+      const int y0 = kEdge + r * cell_h - kFastMargin;
       const int x1 = std::min(x0 + cell_w + 2 * kFastMargin, x_max);
-      if (x1 - x0 <= 2 * kFastMargin) continue;
-      const cv::Mat cell = level(cv::Range(y0, y1), cv::Range(x0, x1));
+      const int y1 = std::min(y0 + cell_h + 2 * kFastMargin, y_max);
+      if (x1 - x0 <= 2 * kFastMargin || y1 - y0 <= 2 * kFastMargin) continue;
       cell_corners.clear();
-      cv::FAST(cell, cell_corners, ini_threshold, true);
-      if (cell_corners.empty()) cv::FAST(cell, cell_corners, min_threshold, true);
+      cv::FAST(level(cv::Range(y0, y1), cv::Range(x0, x1)), cell_corners, min_threshold, true);
       for (cv::KeyPoint& kp : cell_corners) {
         kp.pt.x += static_cast<float>(x0);
         kp.pt.y += static_cast<float>(y0);
