@@ -69,20 +69,29 @@ float centroidAngleDeg(const cv::Mat& level, int x, int y, const std::vector<int
   return cv::fastAtan2(static_cast<float>(m01), static_cast<float>(m10));
 }
 
-Descriptor describe(const cv::Mat& blurred, int x, int y, float angle_deg, const std::vector<cv::Point>& pattern) {
+Descriptor describe(const cv::Mat& blurred, int x, int y, float angle_deg, const std::vector<float>& pattern_x,
+                    const std::vector<float>& pattern_y) {
   const float angle_rad = angle_deg * static_cast<float>(CV_PI / 180.0);
   const float c = std::cos(angle_rad);
   const float s = std::sin(angle_rad);
   const std::uint8_t* centre = blurred.ptr<std::uint8_t>(y) + x;
   const int step = static_cast<int>(blurred.step1());
-  const auto sample = [&](const cv::Point& p) {
-    const int rx = cvRound(static_cast<float>(p.x) * c - static_cast<float>(p.y) * s);
-    const int ry = cvRound(static_cast<float>(p.x) * s + static_cast<float>(p.y) * c);
-    return centre[ry * step + rx];
-  };
+  // Rotated sample offsets, rounded to the nearest pixel: adding 64.5 makes the value positive so
+  // truncation is floor(v + 0.5); a plain loop the compiler vectorises.
+  int offsets[512];
+  for (int i = 0; i < 512; ++i) {
+    const int rx = static_cast<int>(pattern_x[i] * c - pattern_y[i] * s + 64.5f) - 64;
+    const int ry = static_cast<int>(pattern_x[i] * s + pattern_y[i] * c + 64.5f) - 64;
+    offsets[i] = ry * step + rx;
+  }
   Descriptor d{};
-  for (int i = 0; i < 256; ++i) {
-    if (sample(pattern[2 * i]) < sample(pattern[2 * i + 1])) d[i / 64] |= std::uint64_t{1} << (i % 64);
+  for (int w = 0; w < 4; ++w) {
+    std::uint64_t bits = 0;
+    for (int b = 0; b < 64; ++b) {
+      const int i = w * 64 + b;
+      bits |= static_cast<std::uint64_t>(centre[offsets[2 * i]] < centre[offsets[2 * i + 1]]) << b;
+    }
+    d[w] = bits;
   }
   return d;
 }
@@ -181,7 +190,10 @@ OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
   for (int v = 0; v <= kPatchRadius; ++v) {
     circle_half_width_[v] = static_cast<int>(std::floor(std::sqrt(kPatchRadius * kPatchRadius - v * v)));
   }
-  pattern_ = makePattern();
+  for (const cv::Point& p : makePattern()) {
+    pattern_x_.push_back(static_cast<float>(p.x));
+    pattern_y_.push_back(static_cast<float>(p.y));
+  }
 }
 
 OrbFeatures OrbExtractor::extract(const cv::Mat& image_gray) const {
@@ -221,7 +233,7 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image_gray) const {
       kp.y_px = (static_cast<float>(y) + 0.5f) * scale - 0.5f;
       kp.response = corners[index].response;
       kp.octave = l;
-      features.descriptors.push_back(describe(blurred, x, y, kp.angle_deg, pattern_));
+      features.descriptors.push_back(describe(blurred, x, y, kp.angle_deg, pattern_x_, pattern_y_));
       features.keypoints.push_back(kp);
     }
   }

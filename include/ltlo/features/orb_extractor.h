@@ -60,7 +60,9 @@ class OrbExtractor {
   std::vector<float> inv_level_sigma2_;
   std::vector<int> features_per_level_;
   std::vector<int> circle_half_width_;  ///< half-width of the orientation disc per row offset 0..15
-  std::vector<cv::Point> pattern_;      ///< 512 points: test i compares pattern_[2i] with pattern_[2i + 1]
+  /// BRIEF sampling pattern, 512 points (level pixels): test i compares point 2i with point 2i + 1.
+  std::vector<float> pattern_x_;
+  std::vector<float> pattern_y_;
 };
 
 }  // namespace ltlo::features
