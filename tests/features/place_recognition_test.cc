@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <type_traits>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -84,7 +85,9 @@ struct Dataset {
 
 constexpr std::size_t kMinDatabaseFeatures = 300;
 
-std::vector<bow::Descriptor> asBow(const OrbFeatures& f) { return {f.descriptors.begin(), f.descriptors.end()}; }
+// ORB descriptors feed the vocabulary without conversion.
+static_assert(std::is_same_v<Descriptor, bow::Descriptor>, "features::Descriptor must stay bow::Descriptor");
+const std::vector<bow::Descriptor>& asBow(const OrbFeatures& f) { return f.descriptors; }
 
 const Dataset* dataset() {
   static const std::unique_ptr<Dataset> data = []() -> std::unique_ptr<Dataset> {
@@ -121,7 +124,7 @@ const Dataset* dataset() {
         const int w = static_cast<int>(photo.cols * rng.uniform(0.3, 1.0));
         const int h = std::min(photo.rows, w * 3 / 4);
         const cv::Rect rect(rng.uniform(0, photo.cols - w + 1), rng.uniform(0, photo.rows - h + 1), w, h);
-        d->training.push_back(asBow(extractor.extract(vgaOf(photo, rect))));
+        d->training.push_back(extractor.extract(vgaOf(photo, rect)).descriptors);
       }
     }
     // A flat tree (40^3 leaves) quantises better than a deep one when trained on only ~80k

@@ -327,7 +327,7 @@ void Vocabulary::transform(const std::vector<Descriptor>& descriptors, BowVector
                            FeatureVector* features, int feature_depth) const {
   bow_vector->entries.clear();
   if (features) features->clear();
-  if (nodes_.empty() || descriptors.empty()) return;
+  if (word_nodes_.empty() || descriptors.empty()) return;
   feature_depth = std::clamp(feature_depth, 1, depth_);
   std::vector<WordId> words(descriptors.size());
   for (std::size_t i = 0; i < descriptors.size(); ++i) {

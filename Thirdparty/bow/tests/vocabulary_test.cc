@@ -140,6 +140,16 @@ TEST(VocabularyFile, TruncatedFileIsRejectedWithItsPath) {
   std::remove(path.c_str());
 }
 
+TEST(VocabularyTrain, IdenticalDescriptorsGiveOneWordWithoutWeight) {
+  const std::vector<std::vector<Descriptor>> images(3, std::vector<Descriptor>(50, Descriptor{1, 2, 3, 4}));
+  const Vocabulary vocabulary = Vocabulary::train(images, TrainOptions{});
+  ASSERT_EQ(vocabulary.numWords(), 1u);
+  EXPECT_EQ(vocabulary.wordWeight(0), 0.0f);  // in every image: idf = ln(3 / 3)
+  BowVector v;
+  vocabulary.transform(images[0], &v);
+  EXPECT_TRUE(v.empty());  // zero-weight words carry no information and are dropped
+}
+
 TEST(VocabularyTrain, RejectsBadOptions) {
   std::mt19937_64 rng(1);
   const std::vector<std::vector<Descriptor>> images{{test::randomDescriptor(rng)}};

@@ -54,7 +54,8 @@ class RotationHistogram {
 };
 
 /// Grid over keypoints for search by projection: the candidates near a predicted pixel.
-/// Built once per frame; const queries are thread-safe.
+/// Built once per frame; keeps a pointer to `keypoints`, which must outlive it (and not change).
+/// Const queries are thread-safe.
 class KeypointGrid {
  public:
   /// Image size in level-0 pixels; `cell_px` is the cell side.

@@ -9,7 +9,8 @@
 
 namespace ltlo::features {
 
-/// 256-bit binary descriptor (same layout as bow::Descriptor: test i is bit i % 64 of word i / 64).
+/// 256-bit binary descriptor; test i is bit i % 64 of word i / 64. The same type as bow::Descriptor,
+/// so OrbFeatures::descriptors goes straight into bow::Vocabulary::transform.
 using Descriptor = std::array<std::uint64_t, 4>;
 
 /// Extractor parameters; the caller builds them (from settings) and passes them by const&.

@@ -48,7 +48,7 @@ class Vocabulary {
   /// clamped to [1, depth()]). Feature indices are positions in `descriptors`.
   void transform(const std::vector<Descriptor>& descriptors, BowVector* bow_vector,
                  FeatureVector* features = nullptr, int feature_depth = 2) const;
-  /// Word (leaf) a single descriptor falls into, and the node at `node_depth` on its path.
+  /// Word (leaf) a single descriptor falls into; requires numWords() > 0.
   WordId wordOf(const Descriptor& descriptor) const;
 
   bool empty() const { return nodes_.empty(); }
