@@ -7,20 +7,16 @@
 
 #include <opencv2/core.hpp>
 
+#include "ltlo/core/settings.h"
+
 namespace ltlo::features {
 
 /// 256-bit binary descriptor; test i is bit i % 64 of word i / 64. The same type as bow::Descriptor,
 /// so OrbFeatures::descriptors goes straight into bow::Vocabulary::transform.
 using Descriptor = std::array<std::uint64_t, 4>;
 
-/// Extractor parameters; the caller builds them (from settings) and passes them by const&.
-struct OrbOptions {
-  int num_features = 1000;    ///< target number of features per image (ORBextractor.nFeatures)
-  double scale_factor = 1.2;  ///< scale between pyramid levels, > 1 (ORBextractor.scaleFactor)
-  int num_levels = 8;         ///< pyramid levels, in [1, 32] (ORBextractor.nLevels)
-  int ini_th_fast = 20;       ///< FAST threshold tried first in each cell (ORBextractor.iniThFAST)
-  int min_th_fast = 7;        ///< fallback FAST threshold for cells with no corner (ORBextractor.minThFAST)
-};
+/// Extractor parameters (ORBextractor.* keys), defined with the other typed settings in core.
+using OrbOptions = ::ltlo::OrbOptions;
 
 /// One ORB keypoint; coordinates in level-0 pixels.
 struct Keypoint {
