@@ -16,10 +16,10 @@ RobotTrajectory::RobotTrajectory(const TrajectoryParams& params, uint64_t seed) 
   std::mt19937_64 rng(seed * 7919 + 17);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
-  radius_x_m_ = uniform(2.3, 2.5);
-  radius_y_m_ = uniform(1.45, 1.65);
-  harmonic_x_m_ = uniform(-0.18, 0.18);
-  harmonic_y_m_ = uniform(-0.15, 0.15);
+  radius_x_m_ = uniform(2.3, 2.45);
+  radius_y_m_ = uniform(1.6, 1.75);
+  harmonic_x_m_ = uniform(-0.15, 0.15);
+  harmonic_y_m_ = uniform(-0.12, 0.12);
   harmonic_phase_ = uniform(0.0, 2.0 * M_PI);
   s0_ = uniform(0.0, 2.0 * M_PI);
   // Mean |dp/ds| over a lap gives the parameter rate for the requested mean speed.
@@ -33,7 +33,7 @@ RobotTrajectory::RobotTrajectory(const TrajectoryParams& params, uint64_t seed) 
   }
   omega0_ = params.mean_speed_mps / mean_dp_ds;
   speed_wobble_omega_ = 2.0 * M_PI / uniform(15.0, 25.0);
-  speed_wobble_ = 0.1 * omega0_ / speed_wobble_omega_;  // +-10 % of the parameter rate
+  speed_wobble_ = 0.05 * omega0_ / speed_wobble_omega_;  // +-5 % of the parameter rate
   for (std::vector<Sinusoid>* terms : {&roll_, &pitch_}) {
     for (double f_hz : {uniform(0.5, 1.2), uniform(1.8, 3.0)}) {
       terms->push_back({params.vibration_angle_rad * uniform(0.6, 1.0), 2.0 * M_PI * f_hz,

@@ -83,12 +83,18 @@ struct Profile {
 }  // namespace
 
 Scene Scene::build(const SimOptions& options) {
+  Scene scene = buildRoom(options.texture_dir);
+  scene.scheduleOcclusions(options);
+  return scene;
+}
+
+Scene Scene::buildRoom(const std::string& texture_dir) {
   Scene scene;
   std::mt19937_64 rng(kSceneSeed);
-  std::vector<cv::Mat> photos = loadPhotos(options.texture_dir, &scene.photo_paths);
+  std::vector<cv::Mat> photos = loadPhotos(texture_dir, &scene.photo_paths);
   scene.photo_textures = photos.size() >= 4;
   if (!scene.photo_textures) {
-    log::warn("no photographs readable under ", options.texture_dir,
+    log::warn("no photographs readable under ", texture_dir,
               "; using procedural multi-scale textures instead");
     photos = proceduralPhotos(12, rng);
     scene.photo_paths.clear();
@@ -124,7 +130,7 @@ Scene Scene::build(const SimOptions& options) {
   for (double x = -kRoomX; x < kRoomX - 1e-9; x += 4.0)
     for (double y = -kRoomY; y < kRoomY - 1e-9; y += 3.0) m.push_back(quad(Vec3(x, y, kRoomZ), Vec3(4, 0, 0), Vec3(0, 3, 0), kCeiling));
 
-  // Furniture along the walls, clear of the robot's path (|x| < 2.7, |y| < 1.85).
+  // Furniture along the walls, clear of the robot's path (|x| < 2.65, |y| < 1.9).
   addTable(&m, Vec2(3.3, -0.8), M_PI / 2, kFirstFurniture + 0);
   addTable(&m, Vec2(-3.3, 0.9), M_PI / 2, kFirstFurniture + 1);
   addShelf(&m, Vec2(-1.5, kRoomY - 0.19), 0.0, kFirstFurniture + 2, kFirstFurniture + 3, rng);
@@ -135,8 +141,12 @@ Scene Scene::build(const SimOptions& options) {
   m.push_back(box(Vec3(0.6, 2.7, 0.3), Vec3(0.7, 0.45, 0.6), 0.0, kFirstFurniture + 1));
   m.push_back(box(Vec3(-0.6, -2.7, 0.45), Vec3(0.9, 0.45, 0.9), 0.0, kFirstFurniture + 6));
   m.push_back(box(Vec3(3.5, 2.55, 0.35), Vec3(0.6, 0.6, 0.7), 0.4, kFirstFurniture + 0));
+  return scene;
+}
 
-  // Occlusion schedule.
+void Scene::scheduleOcclusions(const SimOptions& options) {
+  Scene& scene = *this;
+  scene.boxes.clear();
   std::mt19937_64 event_rng(options.seed * 6364136223846793005ULL + 1442695040888963407ULL);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(event_rng); };
@@ -153,6 +163,7 @@ Scene Scene::build(const SimOptions& options) {
     b.lateral_m = uniform(-0.15, 0.15);
     b.side = unit(event_rng) < 0.5 ? -1.0 : 1.0;
     b.carried = true;
+    b.enter_s = std::min(kEnterS, 0.25 * (b.t_out_s - b.t_in_s));
     scene.boxes.push_back(b);
   } else if (options.scenario != Scenario::kStatic) {
     const Profile profile = options.scenario == Scenario::kStlo   ? Profile{0.17, 2.0, 4.0, 1}
@@ -196,7 +207,6 @@ Scene Scene::build(const SimOptions& options) {
       t = t_out;
     }
   }
-  return scene;
 }
 
 std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s, const RobotTrajectory& trajectory) const {
@@ -205,8 +215,8 @@ std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s, const RobotTraj
   for (size_t i = 0; i < boxes.size(); ++i) {
     const DynamicBox& b = boxes[i];
     if (t_s < b.t_in_s || t_s >= b.t_out_s) continue;
-    const double slide = kSlideM * (1.0 - smoothstep((t_s - b.t_in_s) / kEnterS)) +
-                         kSlideM * smoothstep((t_s - (b.t_out_s - kEnterS)) / kEnterS);
+    const double slide = kSlideM * (1.0 - smoothstep((t_s - b.t_in_s) / b.enter_s)) +
+                         kSlideM * smoothstep((t_s - (b.t_out_s - b.enter_s)) / b.enter_s);
     const double x = t_b_c.x() + b.distance_m + 0.5 * b.size_m.x();
     const double y = b.lateral_m + b.side * slide;
     if (b.carried) {

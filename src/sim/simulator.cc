@@ -84,13 +84,16 @@ std::ofstream openText(const std::string& path) {
 
 }  // namespace
 
-Simulator::Simulator(const SimOptions& options)
+Simulator::Simulator(const SimOptions& options) : Simulator(options, Scene::buildRoom(options.texture_dir)) {}
+
+Simulator::Simulator(const SimOptions& options, Scene room)
     : options_(options),
       camera_(options.camera()),
       trajectory_(trajectoryParams(options), options.seed),
-      scene_(Scene::build(options)),
+      scene_(std::move(room)),
       imu_(simulateImu(trajectory_, options)),
       renderer_(std::make_unique<render::OffscreenRenderer>(options.width_px, options.height_px)) {
+  scene_.scheduleOcclusions(options_);
   for (const cv::Mat& texture : scene_.textures) renderer_->addTexture(texture);
   for (const render::Mesh& mesh : scene_.static_meshes) static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
   for (const DynamicBox& box : scene_.boxes) box_drawables_.push_back(renderer_->addMesh(render::makeBoxMesh(box.size_m, box.texture, 0.0)));
@@ -217,14 +220,23 @@ SimFrame Simulator::addSensorEffects(int index, const render::RenderResult& clea
 }
 
 SequenceStats writeSequence(const SimOptions& options, const std::string& out_dir, int progress_every) {
+  const auto start = std::chrono::steady_clock::now();
+  Simulator sim(options);
+  SequenceStats stats = writeSequence(sim, out_dir, progress_every);
+  stats.frames_per_s = stats.num_frames / std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  log::info("simulate: ", stats.frames_per_s, " frames/s including scene set-up");
+  return stats;
+}
+
+SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int progress_every) {
   namespace fs = std::filesystem;
+  const SimOptions& options = sim.options();
   const auto start = std::chrono::steady_clock::now();
   std::error_code error;
   for (const char* sub : {"rgb", "depth", "masks"}) {
     fs::create_directories(fs::path(out_dir) / sub, error);
     if (error) throw InputError(out_dir, 0, "cannot create directory " + std::string(sub) + ": " + error.message());
   }
-  Simulator sim(options);
   log::info("simulate: scenario ", scenarioName(options.scenario), ", seed ", options.seed, ", ",
             options.duration_s, " s at ", options.fps, " fps, ", options.width_px, "x", options.height_px,
             options.noise_free ? ", noise-free" : "", ", textures: ",
@@ -352,7 +364,7 @@ SequenceStats writeSequence(const SimOptions& options, const std::string& out_di
   for (const std::string& path : sim.scene().photo_paths) out << "texture_photo " << path << "\n";
   if (!out) throw InputError(dir + "stats.txt", 0, "write failed");
   log::info("simulate: wrote ", stats.num_frames, " frames to ", out_dir, " in ", elapsed_s, " s (",
-            stats.frames_per_s, " frames/s); path ", stats.path_length_m, " m; frames > 40 % dynamic: ",
+            stats.frames_per_s, " frames/s after set-up); path ", stats.path_length_m, " m; frames > 40 % dynamic: ",
             100.0 * stats.occluded_share, " % (mean ", 100.0 * stats.mean_fraction_when_present,
             " % of the image when present), longest ", stats.longest_occlusion_s, " s");
   log::info("simulate: per frame ", 1e3 * sim.renderTimeS() / stats.num_frames, " ms render, ",

@@ -68,18 +68,18 @@ std::vector<cv::Mat> loadPhotos(const std::string& dir, std::vector<std::string>
 std::vector<cv::Mat> proceduralPhotos(int count, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<cv::Mat> photos;
-  const cv::Size size(1024, 768);
+  const cv::Size size(512, 384);
   for (int i = 0; i < count; ++i) {
     cv::Mat acc(size, CV_32FC3, cv::Scalar::all(0));
     // Value noise at octaves 4 .. 256 cells, each octave half the amplitude of the previous.
     double amplitude = 1.0;
-    for (int cells = 4; cells <= 256; cells *= 2) {
+    for (int cells = 4; cells <= 128; cells *= 2) {
       cv::Mat coarse(cells * size.height / size.width + 1, cells, CV_32FC3);
       for (int r = 0; r < coarse.rows; ++r)
         for (int c = 0; c < coarse.cols; ++c)
           coarse.at<cv::Vec3f>(r, c) = cv::Vec3f(unit(rng), unit(rng), unit(rng));
       cv::Mat fine;
-      cv::resize(coarse, fine, size, 0, 0, cells >= 64 ? cv::INTER_NEAREST : cv::INTER_CUBIC);
+      cv::resize(coarse, fine, size, 0, 0, cells >= 32 ? cv::INTER_NEAREST : cv::INTER_CUBIC);
       acc += fine * amplitude;
       amplitude *= 0.6;
     }
@@ -88,7 +88,7 @@ std::vector<cv::Mat> proceduralPhotos(int count, std::mt19937_64& rng) {
     acc.convertTo(image, CV_8UC3);
     for (int k = 0; k < 40; ++k) {  // hard-edged shapes for corners
       const cv::Point p(static_cast<int>(unit(rng) * size.width), static_cast<int>(unit(rng) * size.height));
-      const int r = 5 + static_cast<int>(unit(rng) * 80);
+      const int r = 3 + static_cast<int>(unit(rng) * 40);
       const cv::Scalar colour(255 * unit(rng), 255 * unit(rng), 255 * unit(rng));
       if (k % 2) cv::circle(image, p, r, colour, cv::FILLED, cv::LINE_AA);
       else cv::rectangle(image, cv::Rect(p.x, p.y, r, r * 2 / 3), colour, cv::FILLED);

@@ -27,6 +27,7 @@ struct DynamicBox {
   int texture = -1;        ///< index into Scene::textures
   double t_in_s = 0.0;     ///< starts entering from the side
   double t_out_s = 0.0;    ///< has left at this time
+  double enter_s = 1.0;    ///< duration of the slide in (and of the slide out)
   double distance_m = 1.0; ///< camera-to-near-face distance along the heading while held
   double lateral_m = 0.0;  ///< lateral offset while held (+ = left)
   double side = 1.0;       ///< enters from +1 left / -1 right
@@ -44,6 +45,10 @@ struct Scene {
   /// Builds room, furniture and the scenario's occlusion schedule (scene layout fixed; schedule,
   /// box sizes and textures drawn from options.seed).
   static Scene build(const SimOptions& options);
+  /// The room and furniture only (the same for every seed and scenario; photos from texture_dir).
+  static Scene buildRoom(const std::string& texture_dir);
+  /// Replaces `boxes` with the scenario's occlusion schedule for options.seed and duration.
+  void scheduleOcclusions(const SimOptions& options);
 
   /// Poses of the boxes present at t_s: (index into boxes, T_w_o).
   std::vector<std::pair<int, SE3>> dynamicPoses(double t_s, const RobotTrajectory& trajectory) const;

@@ -41,6 +41,9 @@ struct SequenceStats {
 class Simulator {
  public:
   explicit Simulator(const SimOptions& options);
+  /// Reuses a room from Scene::buildRoom (loading photographs is the slow part of construction);
+  /// its dynamic boxes are rescheduled for `options`.
+  Simulator(const SimOptions& options, Scene room);
   ~Simulator();
 
   const SimOptions& options() const { return options_; }
@@ -85,5 +88,6 @@ class Simulator {
 /// plus stats.txt, scene.ply and imu_biases.txt; progress every `progress_every` frames.
 /// Throws InputError when out_dir cannot be written.
 SequenceStats writeSequence(const SimOptions& options, const std::string& out_dir, int progress_every = 100);
+SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int progress_every = 100);
 
 }  // namespace ltlo::sim
