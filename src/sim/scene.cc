@@ -155,11 +155,11 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   auto dynamicTexture = [&]() { return kFirstDynamic + static_cast<int>(unit(event_rng) * kDynamicTextures); };
   if (options.scenario == Scenario::kCarried) {
     DynamicBox b;
-    b.size_m = Vec3(uniform(0.5, 0.7), uniform(0.8, 1.1), uniform(0.8, 1.1));
+    b.size_m = Vec3(uniform(0.5, 0.7), uniform(0.7, 1.0), uniform(0.7, 1.0));
     b.texture = dynamicTexture();
     b.t_in_s = std::max(t_clear, 0.2 * duration);
     b.t_out_s = 0.85 * duration;
-    b.distance_m = uniform(0.55, 0.8);
+    b.distance_m = uniform(0.8, 1.2);
     b.lateral_m = uniform(-0.15, 0.15);
     b.side = unit(event_rng) < 0.5 ? -1.0 : 1.0;
     b.carried = true;
@@ -167,8 +167,8 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
     scene.boxes.push_back(b);
   } else if (options.scenario != Scenario::kStatic) {
     const Profile profile = options.scenario == Scenario::kStlo   ? Profile{0.17, 2.0, 4.0, 1}
-                            : options.scenario == Scenario::kMtlo ? Profile{0.31, 3.0, 6.0, 2}
-                                                                  : Profile{0.68, 8.0, 16.0, 3};
+                            : options.scenario == Scenario::kMtlo ? Profile{0.33, 3.0, 6.0, 2}
+                                                                  : Profile{0.72, 8.0, 16.0, 3};
     // Per event about hold + kEnterS seconds are largely occluded; gaps fill the rest.
     const double occluded_mean = 0.5 * (profile.hold_min_s + profile.hold_max_s) + kEnterS;
     const double gap_mean = std::max(0.5, occluded_mean * (1.0 - profile.share) / profile.share - kEnterS);
@@ -182,12 +182,12 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
       const double t_out = t_in + 2 * kEnterS + uniform(profile.hold_min_s, profile.hold_max_s);
       const int num_boxes = 1 + static_cast<int>(unit(event_rng) * profile.max_boxes);
       DynamicBox front;
-      front.size_m = Vec3(uniform(0.5, 0.8), uniform(0.8, 1.2), uniform(0.8, 1.2));
+      front.size_m = Vec3(uniform(0.5, 0.8), uniform(0.75, 1.1), uniform(0.75, 1.1));
       front.texture = dynamicTexture();
       front.t_in_s = t_in;
       front.t_out_s = t_out;
-      front.distance_m = uniform(0.5, 1.0);
-      front.lateral_m = uniform(-0.25, 0.25);
+      front.distance_m = uniform(0.55, 1.05);
+      front.lateral_m = uniform(-0.3, 0.3);
       front.side = unit(event_rng) < 0.5 ? -1.0 : 1.0;
       front.sway_phase = uniform(0.0, 2.0 * M_PI);
       scene.boxes.push_back(front);

@@ -218,6 +218,33 @@ TEST(Simulator, DepthNoiseGrowsWithDistanceSquared) {
   EXPECT_NEAR(std::sqrt(sum_sq / count), o.depth_noise_at_1m_m, 0.15 * o.depth_noise_at_1m_m);
 }
 
+// Over two minutes the ltlo scenario keeps more than 40 % of the image dynamic in 55-75 % of the
+// frames, with stretches of over 8 s (several metres of travel).
+TEST(Simulator, LtloScenarioOccludesMostFramesForLongStretches) {
+  SimOptions o = smallOptions(Scenario::kLtlo, 120.0, true);
+  o.width_px = 80;
+  o.height_px = 60;
+  o.fps = 5.0;
+  o.seed = 2;
+  Simulator sim(o, sharedRoom());
+  int occluded = 0, run = 0, longest = 0;
+  for (int i = 0; i < sim.numFrames(); ++i) {
+    const render::RenderResult dynamic = sim.renderDynamicOnly(i);
+    const double fraction = sim.renderFrame(i).dynamic_fraction;
+    ASSERT_LE(fraction, cv::countNonZero(dynamic.labels) / static_cast<double>(dynamic.labels.total()) + 1e-12);
+    if (fraction > 0.4) {
+      ++occluded;
+      longest = std::max(longest, ++run);
+    } else {
+      run = 0;
+    }
+  }
+  const double share = occluded / static_cast<double>(sim.numFrames());
+  EXPECT_GT(share, 0.55);
+  EXPECT_LT(share, 0.75);
+  EXPECT_GT(longest / o.fps, 8.0);
+}
+
 std::string readFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
