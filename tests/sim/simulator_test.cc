@@ -172,6 +172,8 @@ TEST_F(NoiseFreeSim, BackProjectionIntoNextFrameMatchesDepthAndIntensity) {
     }
   }
   ASSERT_GT(depth_err_m.size(), 3000u);
+  RecordProperty("median_depth_err_mm", std::to_string(1e3 * median(depth_err_m)));
+  RecordProperty("median_intensity_err", std::to_string(median(intensity_err)));
   EXPECT_LT(median(depth_err_m), 0.005);
   EXPECT_LT(median(intensity_err), 8.0);
 }
