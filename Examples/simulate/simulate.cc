@@ -14,12 +14,14 @@ int main(int argc, char** argv) {
   ltlo::log::initFromEnvironment();
   CLI::App app{"Generate a synthetic RGB-D-inertial sequence with dynamic occlusions"};
   std::string scenario_text, out_dir, config_path;
-  uint64_t seed = 1;
+  int64_t seed = 1;
   double seconds = 0.0, fps = 0.0;
   int width = 0, height = 0, progress_every = 100;
   bool noise_free = false;
   app.add_option("--scenario", scenario_text, "static|stlo|mtlo|ltlo|carried")->required();
-  app.add_option("--seed", seed, "random seed (trajectory details, occlusions, noise)")->required();
+  app.add_option("--seed", seed, "random seed (trajectory details, occlusions, noise)")
+      ->required()
+      ->check(CLI::Range(int64_t{0}, int64_t{1} << 40));
   app.add_option("--seconds", seconds, "sequence duration (s)")->required()->check(CLI::Range(0.1, 36000.0));
   app.add_option("--fps", fps, "frame rate (Hz, default from the config: 30)")->check(CLI::Range(1.0, 200.0));
   app.add_option("--out", out_dir, "output directory")->required();
@@ -41,7 +43,7 @@ int main(int argc, char** argv) {
       std::cerr << "--scenario " << scenario_text << ": expected static, stlo, mtlo, ltlo or carried\n";
       return 2;
     }
-    options.seed = seed;
+    options.seed = static_cast<uint64_t>(seed);
     options.duration_s = seconds;
     options.noise_free = noise_free;
     if (fps > 0) options.fps = fps;

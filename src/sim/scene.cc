@@ -155,11 +155,11 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   auto dynamicTexture = [&]() { return kFirstDynamic + static_cast<int>(unit(event_rng) * kDynamicTextures); };
   if (options.scenario == Scenario::kCarried) {
     DynamicBox b;
-    b.size_m = Vec3(uniform(0.5, 0.7), uniform(0.7, 1.0), uniform(0.7, 1.0));
+    b.size_m = Vec3(uniform(0.4, 0.6), uniform(0.75, 0.95), uniform(0.8, 0.95));
     b.texture = dynamicTexture();
     b.t_in_s = std::max(t_clear, 0.2 * duration);
     b.t_out_s = 0.85 * duration;
-    b.distance_m = uniform(0.8, 1.2);
+    b.distance_m = uniform(0.65, 0.9);
     b.lateral_m = uniform(-0.15, 0.15);
     b.side = unit(event_rng) < 0.5 ? -1.0 : 1.0;
     b.carried = true;
