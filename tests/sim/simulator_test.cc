@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -245,6 +246,30 @@ TEST(Simulator, LtloScenarioOccludesMostFramesForLongStretches) {
   EXPECT_GT(share, 0.55);
   EXPECT_LT(share, 0.75);
   EXPECT_GT(longest / o.fps, 8.0);
+}
+
+// The room is rich in corners everywhere: ORB finds its full budget of keypoints spread over the
+// image in static views around the loop.
+TEST(Simulator, StaticViewsAreRichInOrbFeatures) {
+  SimOptions o = smallOptions(Scenario::kStatic, 30.0, false);
+  o.width_px = 640;
+  o.height_px = 480;
+  Simulator sim(o, sharedRoom());
+  const cv::Ptr<cv::ORB> orb = cv::ORB::create(1000);
+  for (int i : {0, 200, 400, 600, 800}) {
+    cv::Mat gray;
+    cv::cvtColor(sim.renderFrame(i).bgr, gray, cv::COLOR_BGR2GRAY);
+    std::vector<cv::KeyPoint> keypoints;
+    orb->detect(gray, keypoints);
+    int occupied[4][4] = {};
+    for (const cv::KeyPoint& kp : keypoints) occupied[static_cast<int>(kp.pt.y * 4 / 480)][static_cast<int>(kp.pt.x * 4 / 640)] = 1;
+    int cells = 0;
+    for (const auto& row : occupied) for (int c : row) cells += c;
+    EXPECT_GE(keypoints.size(), 900u) << "frame " << i;
+    EXPECT_GE(cells, 12) << "frame " << i;
+    RecordProperty("orb_keypoints_frame_" + std::to_string(i), static_cast<int>(keypoints.size()));
+    RecordProperty("orb_cells_frame_" + std::to_string(i), cells);
+  }
 }
 
 std::string readFile(const std::string& path) {

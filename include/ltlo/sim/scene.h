@@ -3,7 +3,7 @@
 /// z up) with static furniture, and the scenario's dynamic boxes with their schedule.
 ///
 /// Textures are collages of real photographs from the installed wallpaper packages (licences in
-/// README of the sim area: CC-BY(-SA) 3.0/4.0 for lomiri-wallpapers, GPL-2+ for mate-backgrounds;
+/// Examples/simulate/README.md: CC-BY(-SA)-4.0 for lomiri-wallpapers, GPL-2+ for mate-backgrounds;
 /// they are read at run time, never copied into the repository): every wall panel, floor tile and
 /// furniture piece gets its own base photo with framed photo crops pasted at several scales, which
 /// gives dense corners at several scales and distinct places. When no photo can be read the same
