@@ -1,14 +1,13 @@
 // sim_preview: RGB | depth (colour-mapped, black = no reading) | mask side by side for frames of a
 // generated sequence, one row per frame, written to one PNG.
 //   sim_preview --sequence DIR --out FILE.png --frames 0,30,60 [--scale 0.5]
+#include <CLI/CLI.hpp>
 #include <fstream>
 #include <iostream>
-#include <sstream>
-#include <vector>
-
-#include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <vector>
 
 int main(int argc, char** argv) {
   CLI::App app{"Side-by-side preview of a generated sequence"};
@@ -33,7 +32,8 @@ int main(int argc, char** argv) {
   std::vector<cv::Mat> rows;
   for (int index : frames) {
     if (index < 0 || index >= static_cast<int>(stamps.size())) {
-      std::cerr << sequence << "/rgb.txt: no frame " << index << " (" << stamps.size() << " frames)\n";
+      std::cerr << sequence << "/rgb.txt: no frame " << index << " (" << stamps.size()
+                << " frames)\n";
       return 2;
     }
     const std::string name = stamps[index] + ".png";

@@ -1,9 +1,8 @@
 // simulate: writes a synthetic RGB-D-inertial sequence (DATA_FORMAT.md) for a scenario.
 //   simulate --scenario static|stlo|mtlo|ltlo|carried --seed N --seconds S [--fps F] --out DIR
 //            [--width 640 --height 480] [--config config_yaml/simulator.yaml] [--noise-free]
-#include <iostream>
-
 #include <CLI/CLI.hpp>
+#include <iostream>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -22,14 +21,18 @@ int main(int argc, char** argv) {
   app.add_option("--seed", seed, "random seed (trajectory details, occlusions, noise)")
       ->required()
       ->check(CLI::Range(int64_t{0}, int64_t{1} << 40));
-  app.add_option("--seconds", seconds, "sequence duration (s)")->required()->check(CLI::Range(0.1, 36000.0));
-  app.add_option("--fps", fps, "frame rate (Hz, default from the config: 30)")->check(CLI::Range(1.0, 200.0));
+  app.add_option("--seconds", seconds, "sequence duration (s)")
+      ->required()
+      ->check(CLI::Range(0.1, 36000.0));
+  app.add_option("--fps", fps, "frame rate (Hz, default from the config: 30)")
+      ->check(CLI::Range(1.0, 200.0));
   app.add_option("--out", out_dir, "output directory")->required();
   app.add_option("--width", width, "image width (px, default 640)")->check(CLI::Range(16, 4096));
   app.add_option("--height", height, "image height (px, default 480)")->check(CLI::Range(16, 4096));
   app.add_option("--config", config_path, "simulator YAML (default: built-in values)");
   app.add_flag("--noise-free", noise_free, "no sensor noise, biases, holes or exposure jitter");
-  app.add_option("--progress-every", progress_every, "progress line every N frames")->check(CLI::Range(1, 1000000));
+  app.add_option("--progress-every", progress_every, "progress line every N frames")
+      ->check(CLI::Range(1, 1000000));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -38,9 +41,11 @@ int main(int argc, char** argv) {
   }
   try {
     ltlo::sim::SimOptions options;
-    if (!config_path.empty()) options = ltlo::sim::SimOptions::load(ltlo::SettingsFile(config_path));
+    if (!config_path.empty())
+      options = ltlo::sim::SimOptions::load(ltlo::SettingsFile(config_path));
     if (!ltlo::sim::parseScenario(scenario_text, &options.scenario)) {
-      std::cerr << "--scenario " << scenario_text << ": expected static, stlo, mtlo, ltlo or carried\n";
+      std::cerr << "--scenario " << scenario_text
+                << ": expected static, stlo, mtlo, ltlo or carried\n";
       return 2;
     }
     options.seed = static_cast<uint64_t>(seed);

@@ -1,12 +1,12 @@
 #include "ltlo/render/offscreen_renderer.h"
 
+#include <GL/gl.h>
+#include <GL/osmesa.h>
+
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
-
-#include <GL/osmesa.h>
-#include <GL/gl.h>
-#include <opencv2/imgproc.hpp>
 
 #include "ltlo/core/assert.h"
 
@@ -72,7 +72,8 @@ Mesh makeBoxMesh(const Vec3& size_m, int texture, double uv_repeats_per_m) {
         const float sv = uv_repeats_per_m > 0 ? static_cast<float>(2 * h[b] * uv_repeats_per_m) : 1;
         mesh.uvs.emplace_back(0.5f * (c[0] + 1) * su, 0.5f * (1 - c[1]) * sv);
       }
-      mesh.triangles.insert(mesh.triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+      mesh.triangles.insert(mesh.triangles.end(),
+                            {base, base + 1, base + 2, base, base + 2, base + 3});
     }
   }
   return mesh;

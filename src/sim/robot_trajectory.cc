@@ -27,8 +27,10 @@ RobotTrajectory::RobotTrajectory(const TrajectoryParams& params, uint64_t seed) 
   const int kSteps = 2000;
   for (int i = 0; i < kSteps; ++i) {
     const double s = 2.0 * M_PI * i / kSteps;
-    const double dx = -radius_x_m_ * std::sin(s) - 2.0 * harmonic_x_m_ * std::sin(2.0 * s + harmonic_phase_);
-    const double dy = radius_y_m_ * std::cos(s) + 2.0 * harmonic_y_m_ * std::cos(2.0 * s + harmonic_phase_);
+    const double dx =
+        -radius_x_m_ * std::sin(s) - 2.0 * harmonic_x_m_ * std::sin(2.0 * s + harmonic_phase_);
+    const double dy =
+        radius_y_m_ * std::cos(s) + 2.0 * harmonic_y_m_ * std::cos(2.0 * s + harmonic_phase_);
     mean_dp_ds += std::hypot(dx, dy) / kSteps;
   }
   omega0_ = params.mean_speed_mps / mean_dp_ds;

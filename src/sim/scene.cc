@@ -3,9 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <random>
-
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -16,8 +15,8 @@ namespace {
 
 constexpr uint64_t kSceneSeed = 20261122;  // the room is the same in every sequence
 constexpr double kRoomX = 4.0, kRoomY = 3.0, kRoomZ = 3.0;
-constexpr double kEnterS = 1.0;            // time a box takes to slide in (and out)
-constexpr double kSlideM = 2.5;            // lateral distance it slides over
+constexpr double kEnterS = 1.0;  // time a box takes to slide in (and out)
+constexpr double kSlideM = 2.5;  // lateral distance it slides over
 
 // Texture index ranges (Scene::textures).
 constexpr int kWallPanels = 14, kFloorTextures = 6, kFurnitureTextures = 8, kDynamicTextures = 6;
@@ -33,7 +32,8 @@ double smoothstep(double x) {
 render::Mesh quad(const Vec3& p0, const Vec3& e_u, const Vec3& e_v, int texture) {
   render::Mesh mesh;
   mesh.texture = texture;
-  for (const Vec3& p : {p0, Vec3(p0 + e_u), Vec3(p0 + e_u + e_v), Vec3(p0 + e_v)}) mesh.positions_o.push_back(p.cast<float>());
+  for (const Vec3& p : {p0, Vec3(p0 + e_u), Vec3(p0 + e_u + e_v), Vec3(p0 + e_v)})
+    mesh.positions_o.push_back(p.cast<float>());
   mesh.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
   mesh.triangles = {0, 1, 2, 0, 2, 3};
   return mesh;
@@ -50,7 +50,8 @@ void addTable(std::vector<render::Mesh>* meshes, const Vec2& centre, double yaw,
   const SE3 T(so3ExpQuat(Vec3(0, 0, yaw)), Vec3(centre.x(), centre.y(), 0));
   meshes->push_back(box(T * Vec3(0, 0, 0.74), Vec3(1.4, 0.7, 0.04), yaw, texture));
   for (double sx : {-0.65, 0.65})
-    for (double sy : {-0.3, 0.3}) meshes->push_back(box(T * Vec3(sx, sy, 0.36), Vec3(0.05, 0.05, 0.72), yaw, texture));
+    for (double sy : {-0.3, 0.3})
+      meshes->push_back(box(T * Vec3(sx, sy, 0.36), Vec3(0.05, 0.05, 0.72), yaw, texture));
 }
 
 void addShelf(std::vector<render::Mesh>* meshes, const Vec2& centre, double yaw, int texture,
@@ -59,7 +60,8 @@ void addShelf(std::vector<render::Mesh>* meshes, const Vec2& centre, double yaw,
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const SE3 T(so3ExpQuat(Vec3(0, 0, yaw)), Vec3(centre.x(), centre.y(), 0));
   const double w = 1.2, d = 0.36, h = 1.9;
-  for (double sx : {-w / 2 + 0.015, w / 2 - 0.015}) meshes->push_back(box(T * Vec3(sx, 0, h / 2), Vec3(0.03, d, h), yaw, texture));
+  for (double sx : {-w / 2 + 0.015, w / 2 - 0.015})
+    meshes->push_back(box(T * Vec3(sx, 0, h / 2), Vec3(0.03, d, h), yaw, texture));
   meshes->push_back(box(T * Vec3(0, d / 2 - 0.005, h / 2), Vec3(w, 0.01, h), yaw, back_texture));
   for (double z : {0.05, 0.5, 0.95, 1.4, 1.88}) {
     meshes->push_back(box(T * Vec3(0, 0, z), Vec3(w - 0.06, d, 0.025), yaw, texture));
@@ -69,7 +71,8 @@ void addShelf(std::vector<render::Mesh>* meshes, const Vec2& centre, double yaw,
       const Vec3 size(0.08 + 0.2 * unit(rng), 0.12 + 0.15 * unit(rng), 0.1 + 0.25 * unit(rng));
       if (x + size.x() > w / 2 - 0.05) break;
       const int tex = kFirstFurniture + static_cast<int>(unit(rng) * kFurnitureTextures);
-      meshes->push_back(box(T * Vec3(x + size.x() / 2, -0.02, z + 0.0125 + size.z() / 2), size, yaw, tex));
+      meshes->push_back(
+          box(T * Vec3(x + size.x() / 2, -0.02, z + 0.0125 + size.z() / 2), size, yaw, tex));
       x += size.x() + 0.02 + 0.1 * unit(rng);
     }
   }
@@ -100,7 +103,8 @@ Scene Scene::buildRoom(const std::string& texture_dir) {
     scene.photo_paths.clear();
   }
   const int n = static_cast<int>(photos.size());
-  for (int k = 0; k < kWallPanels; ++k) scene.textures.push_back(makeCollage(photos, k, cv::Size(640, 960), rng));
+  for (int k = 0; k < kWallPanels; ++k)
+    scene.textures.push_back(makeCollage(photos, k, cv::Size(640, 960), rng));
   for (int k = 0; k < kFloorTextures; ++k) {
     cv::Mat t = makeCollage(photos, kWallPanels + k, cv::Size(512, 512), rng);
     t.convertTo(t, -1, 0.75, 0);  // floors darker than walls
@@ -111,24 +115,35 @@ Scene Scene::buildRoom(const std::string& texture_dir) {
     t.convertTo(t, -1, 0.5, 110);  // pale ceiling
     scene.textures.push_back(t);
   }
-  for (int k = 0; k < kFurnitureTextures + kDynamicTextures; ++k) scene.textures.push_back(makeCollage(photos, 3 * k + 1, cv::Size(512, 512), rng));
+  for (int k = 0; k < kFurnitureTextures + kDynamicTextures; ++k)
+    scene.textures.push_back(makeCollage(photos, 3 * k + 1, cv::Size(512, 512), rng));
 
   // Walls: 2 m panels, each with its own texture, seen upright from inside the room.
   std::vector<render::Mesh>& m = scene.static_meshes;
   int panel = 0;
-  const struct { Vec3 top_left; Vec3 right; double length; } walls[] = {
-      {{-kRoomX, kRoomY, kRoomZ}, {1, 0, 0}, 2 * kRoomX}, {{kRoomX, -kRoomY, kRoomZ}, {-1, 0, 0}, 2 * kRoomX},
-      {{kRoomX, kRoomY, kRoomZ}, {0, -1, 0}, 2 * kRoomY}, {{-kRoomX, -kRoomY, kRoomZ}, {0, 1, 0}, 2 * kRoomY}};
+  const struct {
+    Vec3 top_left;
+    Vec3 right;
+    double length;
+  } walls[] = {{{-kRoomX, kRoomY, kRoomZ}, {1, 0, 0}, 2 * kRoomX},
+               {{kRoomX, -kRoomY, kRoomZ}, {-1, 0, 0}, 2 * kRoomX},
+               {{kRoomX, kRoomY, kRoomZ}, {0, -1, 0}, 2 * kRoomY},
+               {{-kRoomX, -kRoomY, kRoomZ}, {0, 1, 0}, 2 * kRoomY}};
   for (const auto& wall : walls) {
     const int panels = static_cast<int>(std::round(wall.length / 2.0));
     const double width = wall.length / panels;
-    for (int k = 0; k < panels; ++k) m.push_back(quad(wall.top_left + wall.right * (k * width), wall.right * width, Vec3(0, 0, -kRoomZ), panel++));
+    for (int k = 0; k < panels; ++k)
+      m.push_back(quad(wall.top_left + wall.right * (k * width), wall.right * width,
+                       Vec3(0, 0, -kRoomZ), panel++));
   }
   int tile = 0;
   for (double x = -kRoomX; x < kRoomX - 1e-9; x += 2.0)
-    for (double y = -kRoomY; y < kRoomY - 1e-9; y += 2.0) m.push_back(quad(Vec3(x, y, 0), Vec3(2, 0, 0), Vec3(0, 2, 0), kFirstFloor + (tile++ % kFloorTextures)));
+    for (double y = -kRoomY; y < kRoomY - 1e-9; y += 2.0)
+      m.push_back(quad(Vec3(x, y, 0), Vec3(2, 0, 0), Vec3(0, 2, 0),
+                       kFirstFloor + (tile++ % kFloorTextures)));
   for (double x = -kRoomX; x < kRoomX - 1e-9; x += 4.0)
-    for (double y = -kRoomY; y < kRoomY - 1e-9; y += 3.0) m.push_back(quad(Vec3(x, y, kRoomZ), Vec3(4, 0, 0), Vec3(0, 3, 0), kCeiling));
+    for (double y = -kRoomY; y < kRoomY - 1e-9; y += 3.0)
+      m.push_back(quad(Vec3(x, y, kRoomZ), Vec3(4, 0, 0), Vec3(0, 3, 0), kCeiling));
 
   // Furniture along the walls, clear of the robot's path (|x| < 2.65, |y| < 1.9).
   addTable(&m, Vec2(3.3, -0.8), M_PI / 2, kFirstFurniture + 0);
@@ -152,7 +167,9 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(event_rng); };
   const double duration = options.duration_s;
   const double t_clear = std::min(3.0, 0.1 * duration);
-  auto dynamicTexture = [&]() { return kFirstDynamic + static_cast<int>(unit(event_rng) * kDynamicTextures); };
+  auto dynamicTexture = [&]() {
+    return kFirstDynamic + static_cast<int>(unit(event_rng) * kDynamicTextures);
+  };
   if (options.scenario == Scenario::kCarried) {
     DynamicBox b;
     b.size_m = Vec3(uniform(0.4, 0.6), uniform(0.75, 0.95), uniform(0.8, 0.95));
@@ -171,7 +188,8 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
                                                                   : Profile{0.72, 8.0, 16.0, 3};
     // Per event about hold + kEnterS seconds are largely occluded; gaps fill the rest.
     const double occluded_mean = 0.5 * (profile.hold_min_s + profile.hold_max_s) + kEnterS;
-    const double gap_mean = std::max(0.5, occluded_mean * (1.0 - profile.share) / profile.share - kEnterS);
+    const double gap_mean =
+        std::max(0.5, occluded_mean * (1.0 - profile.share) / profile.share - kEnterS);
     double t = t_clear;
     bool first = true;
     while (true) {
@@ -198,7 +216,9 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
         b.t_in_s = t_in + uniform(0.0, 2.0);
         b.t_out_s = std::max(b.t_in_s + 2 * kEnterS + 1.0, t_out - uniform(0.0, 2.0));
         b.distance_m = front.distance_m + front.size_m.x() + uniform(0.2, 0.6);
-        const double sign = k == 1 ? (unit(event_rng) < 0.5 ? -1.0 : 1.0) : -1.0 * (scene.boxes.back().lateral_m > front.lateral_m ? 1 : -1);
+        const double sign = k == 1
+                                ? (unit(event_rng) < 0.5 ? -1.0 : 1.0)
+                                : -1.0 * (scene.boxes.back().lateral_m > front.lateral_m ? 1 : -1);
         b.lateral_m = front.lateral_m + sign * uniform(0.55, 0.9);
         b.side = sign;
         b.sway_phase = uniform(0.0, 2.0 * M_PI);
@@ -209,7 +229,8 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   }
 }
 
-std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s, const RobotTrajectory& trajectory) const {
+std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s,
+                                                     const RobotTrajectory& trajectory) const {
   std::vector<std::pair<int, SE3>> poses;
   const Vec3 t_b_c = SimOptions::T_b_c().translation();
   for (size_t i = 0; i < boxes.size(); ++i) {
@@ -226,7 +247,8 @@ std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s, const RobotTraj
     } else {
       const double p = b.sway_phase;
       const SE3 T_floor_o(so3ExpQuat(Vec3(0, 0, 0.06 * std::sin(0.5 * t_s + 3 * p))),
-                          Vec3(x + 0.06 * std::sin(0.9 * t_s + p), y + 0.08 * std::sin(0.6 * t_s + 2 * p), 0.5 * b.size_m.z()));
+                          Vec3(x + 0.06 * std::sin(0.9 * t_s + p),
+                               y + 0.08 * std::sin(0.6 * t_s + 2 * p), 0.5 * b.size_m.z()));
       poses.emplace_back(static_cast<int>(i), trajectory.T_w_floor(t_s) * T_floor_o);
     }
   }
@@ -242,14 +264,18 @@ void Scene::writePly(const std::string& path) const {
     num_triangles += mesh.triangles.size() / 3;
   }
   out << "ply\nformat ascii 1.0\ncomment LTLO-SLAM simulated room, world frame, metres\n"
-      << "element vertex " << num_vertices << "\nproperty float x\nproperty float y\nproperty float z\n"
-      << "element face " << num_triangles << "\nproperty list uchar int vertex_indices\nend_header\n";
+      << "element vertex " << num_vertices
+      << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "element face " << num_triangles
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
   for (const render::Mesh& mesh : static_meshes)
-    for (const Eigen::Vector3f& p : mesh.positions_o) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+    for (const Eigen::Vector3f& p : mesh.positions_o)
+      out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
   size_t offset = 0;
   for (const render::Mesh& mesh : static_meshes) {
     for (size_t k = 0; k + 2 < mesh.triangles.size(); k += 3)
-      out << "3 " << offset + mesh.triangles[k] << ' ' << offset + mesh.triangles[k + 1] << ' ' << offset + mesh.triangles[k + 2] << '\n';
+      out << "3 " << offset + mesh.triangles[k] << ' ' << offset + mesh.triangles[k + 1] << ' '
+          << offset + mesh.triangles[k + 2] << '\n';
     offset += mesh.positions_o.size();
   }
   if (!out) throw InputError(path, 0, "write failed");

@@ -7,9 +7,14 @@
 namespace ltlo::sim {
 
 bool parseScenario(const std::string& text, Scenario* scenario) {
-  const struct { const char* name; Scenario value; } kNames[] = {
-      {"static", Scenario::kStatic}, {"stlo", Scenario::kStlo}, {"mtlo", Scenario::kMtlo},
-      {"ltlo", Scenario::kLtlo}, {"carried", Scenario::kCarried}};
+  const struct {
+    const char* name;
+    Scenario value;
+  } kNames[] = {{"static", Scenario::kStatic},
+                {"stlo", Scenario::kStlo},
+                {"mtlo", Scenario::kMtlo},
+                {"ltlo", Scenario::kLtlo},
+                {"carried", Scenario::kCarried}};
   for (const auto& entry : kNames) {
     if (text == entry.name) {
       *scenario = entry.value;
@@ -21,11 +26,16 @@ bool parseScenario(const std::string& text, Scenario* scenario) {
 
 std::string scenarioName(Scenario scenario) {
   switch (scenario) {
-    case Scenario::kStatic: return "static";
-    case Scenario::kStlo: return "stlo";
-    case Scenario::kMtlo: return "mtlo";
-    case Scenario::kLtlo: return "ltlo";
-    case Scenario::kCarried: return "carried";
+    case Scenario::kStatic:
+      return "static";
+    case Scenario::kStlo:
+      return "stlo";
+    case Scenario::kMtlo:
+      return "mtlo";
+    case Scenario::kLtlo:
+      return "ltlo";
+    case Scenario::kCarried:
+      return "carried";
   }
   return "unknown";
 }
@@ -35,8 +45,8 @@ PinholeCamera SimOptions::camera() const {
   const double factor = width_px / 640.0;
   const PinholeCamera reference(fx_px, fy_px, cx_px, cy_px, 640, 480);
   const PinholeCamera scaled = reference.scaled(factor);
-  return PinholeCamera(scaled.fx(), scaled.fy(), scaled.cx(), (cy_px + 0.5) * height_px / 480.0 - 0.5,
-                       width_px, height_px);
+  return PinholeCamera(scaled.fx(), scaled.fy(), scaled.cx(),
+                       (cy_px + 0.5) * height_px / 480.0 - 0.5, width_px, height_px);
 }
 
 SE3 SimOptions::T_b_c() {
@@ -45,8 +55,10 @@ SE3 SimOptions::T_b_c() {
   Mat3 R_b_c0;
   R_b_c0 << 0, 0, 1, -1, 0, 0, 0, -1, 0;
   const double deg = M_PI / 180.0;
-  const Mat3 tilt = (Eigen::AngleAxisd(8.0 * deg, Vec3::UnitY()) * Eigen::AngleAxisd(1.5 * deg, Vec3::UnitZ()) *
-                     Eigen::AngleAxisd(0.5 * deg, Vec3::UnitX())).toRotationMatrix();
+  const Mat3 tilt =
+      (Eigen::AngleAxisd(8.0 * deg, Vec3::UnitY()) * Eigen::AngleAxisd(1.5 * deg, Vec3::UnitZ()) *
+       Eigen::AngleAxisd(0.5 * deg, Vec3::UnitX()))
+          .toRotationMatrix();
   return SE3(tilt * R_b_c0, Vec3(0.10, 0.03, 0.45));
 }
 
@@ -84,7 +96,8 @@ SimOptions SimOptions::load(const SettingsFile& file) {
   o.acc_bias_init = file.getDouble("Sim.AccBiasInit", o.acc_bias_init, 0.0, 5.0);
   o.depth_min_m = file.getDouble("Depth.MinRange", o.depth_min_m, 0.05, 10.0);
   o.depth_max_m = file.getDouble("Depth.MaxRange", o.depth_max_m, 0.5, 60.0);
-  if (o.depth_max_m <= o.depth_min_m) file.fail("Depth.MaxRange", std::to_string(o.depth_max_m), "a value above Depth.MinRange");
+  if (o.depth_max_m <= o.depth_min_m)
+    file.fail("Depth.MaxRange", std::to_string(o.depth_max_m), "a value above Depth.MinRange");
   o.depth_noise_at_1m_m = file.getDouble("Depth.NoiseAt1m", o.depth_noise_at_1m_m, 0.0, 0.1);
   o.depth_edge_dropout = file.getDouble("Depth.EdgeDropout", o.depth_edge_dropout, 0.0, 1.0);
   o.depth_random_dropout = file.getDouble("Depth.RandomDropout", o.depth_random_dropout, 0.0, 0.5);

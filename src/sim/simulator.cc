@@ -8,11 +8,10 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
-#include <thread>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -75,7 +74,9 @@ void writePng(const std::string& path, const cv::Mat& image, int compression) {
   // requested by leaving the level unset: OpenCV then takes its speed path (zlib level 1 with the
   // single SUB filter instead of libpng's adaptive filter search), about twice as fast.
   std::vector<int> params = {cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE};
-  if (compression != 1) params = {cv::IMWRITE_PNG_COMPRESSION, compression, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE};
+  if (compression != 1)
+    params = {cv::IMWRITE_PNG_COMPRESSION, compression, cv::IMWRITE_PNG_STRATEGY,
+              cv::IMWRITE_PNG_STRATEGY_RLE};
   if (!cv::imwrite(path, image, params)) {
     throw InputError(path, 0, "cannot write PNG");
   }
@@ -89,7 +90,8 @@ std::ofstream openText(const std::string& path) {
 
 }  // namespace
 
-Simulator::Simulator(const SimOptions& options) : Simulator(options, Scene::buildRoom(options.texture_dir)) {}
+Simulator::Simulator(const SimOptions& options)
+    : Simulator(options, Scene::buildRoom(options.texture_dir)) {}
 
 Simulator::Simulator(const SimOptions& options, Scene room)
     : options_(options),
@@ -100,8 +102,10 @@ Simulator::Simulator(const SimOptions& options, Scene room)
       renderer_(std::make_unique<render::OffscreenRenderer>(options.width_px, options.height_px)) {
   scene_.scheduleOcclusions(options_);
   for (const cv::Mat& texture : scene_.textures) renderer_->addTexture(texture);
-  for (const render::Mesh& mesh : scene_.static_meshes) static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
-  for (const DynamicBox& box : scene_.boxes) box_drawables_.push_back(renderer_->addMesh(render::makeBoxMesh(box.size_m, box.texture, 0.0)));
+  for (const render::Mesh& mesh : scene_.static_meshes)
+    static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
+  for (const DynamicBox& box : scene_.boxes)
+    box_drawables_.push_back(renderer_->addMesh(render::makeBoxMesh(box.size_m, box.texture, 0.0)));
   exposure_phase_ = std::fmod(static_cast<double>(options.seed) * 0.618034, 1.0) * 2.0 * M_PI;
 }
 
@@ -111,9 +115,13 @@ int Simulator::numFrames() const {
   return static_cast<int>(std::floor(options_.duration_s * options_.fps - 1e-9)) + 1;
 }
 
-double Simulator::frameTime(int index) const { return std::round(index / options_.fps * 1e6) * 1e-6; }
+double Simulator::frameTime(int index) const {
+  return std::round(index / options_.fps * 1e6) * 1e-6;
+}
 
-SE3 Simulator::T_w_c(double t_s) const { return trajectory_.state(t_s).T_w_b * SimOptions::T_b_c(); }
+SE3 Simulator::T_w_c(double t_s) const {
+  return trajectory_.state(t_s).T_w_b * SimOptions::T_b_c();
+}
 
 io::Trajectory Simulator::groundTruth() const {
   io::Trajectory gt;
@@ -124,7 +132,8 @@ io::Trajectory Simulator::groundTruth() const {
 std::vector<render::DrawItem> Simulator::dynamicItems(double t_s) const {
   std::vector<render::DrawItem> items;
   for (const auto& [index, T_w_o] : scene_.dynamicPoses(t_s, trajectory_)) {
-    items.push_back({box_drawables_[index], T_w_o, 1.0f, static_cast<uint8_t>(std::min(index + 1, 255))});
+    items.push_back(
+        {box_drawables_[index], T_w_o, 1.0f, static_cast<uint8_t>(std::min(index + 1, 255))});
   }
   return items;
 }
@@ -132,14 +141,17 @@ std::vector<render::DrawItem> Simulator::dynamicItems(double t_s) const {
 SimFrame Simulator::renderFrame(int index) {
   const double t_s = frameTime(index);
   const SE3 T_w_c_now = T_w_c(t_s);
-  const float gain = options_.noise_free
-                         ? 1.0f
-                         : static_cast<float>(1.0 + options_.exposure_jitter * std::sin(2.0 * M_PI * t_s / 7.0 + exposure_phase_));
+  const float gain =
+      options_.noise_free
+          ? 1.0f
+          : static_cast<float>(1.0 + options_.exposure_jitter *
+                                         std::sin(2.0 * M_PI * t_s / 7.0 + exposure_phase_));
   std::vector<render::DrawItem> items = static_items_;
   for (render::DrawItem item : dynamicItems(t_s)) items.push_back(item);
   for (render::DrawItem& item : items) item.gain = gain;
   const auto t0 = std::chrono::steady_clock::now();
-  const render::RenderResult clean = renderer_->render({camera_, T_w_c_now.inverse(), kNearM, kFarM}, items);
+  const render::RenderResult clean =
+      renderer_->render({camera_, T_w_c_now.inverse(), kNearM, kFarM}, items);
   const auto t1 = std::chrono::steady_clock::now();
   SimFrame frame = addSensorEffects(index, clean);
   render_time_s_ += std::chrono::duration<double>(t1 - t0).count();
@@ -155,7 +167,8 @@ render::RenderResult Simulator::renderDynamicOnly(int index) {
 }
 
 render::RenderResult Simulator::renderStaticOnly(int index) {
-  return renderer_->render({camera_, T_w_c(frameTime(index)).inverse(), kNearM, kFarM}, static_items_);
+  return renderer_->render({camera_, T_w_c(frameTime(index)).inverse(), kNearM, kFarM},
+                           static_items_);
 }
 
 SimFrame Simulator::addSensorEffects(int index, const render::RenderResult& clean) const {
@@ -224,11 +237,14 @@ SimFrame Simulator::addSensorEffects(int index, const render::RenderResult& clea
   return frame;
 }
 
-SequenceStats writeSequence(const SimOptions& options, const std::string& out_dir, int progress_every) {
+SequenceStats writeSequence(const SimOptions& options, const std::string& out_dir,
+                            int progress_every) {
   const auto start = std::chrono::steady_clock::now();
   Simulator sim(options);
   SequenceStats stats = writeSequence(sim, out_dir, progress_every);
-  stats.frames_per_s = stats.num_frames / std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stats.frames_per_s =
+      stats.num_frames /
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   log::info("simulate: ", stats.frames_per_s, " frames/s including scene set-up");
   return stats;
 }
@@ -240,12 +256,16 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
   std::error_code error;
   for (const char* sub : {"rgb", "depth", "masks"}) {
     fs::create_directories(fs::path(out_dir) / sub, error);
-    if (error) throw InputError(out_dir, 0, "cannot create directory " + std::string(sub) + ": " + error.message());
+    if (error)
+      throw InputError(out_dir, 0,
+                       "cannot create directory " + std::string(sub) + ": " + error.message());
   }
   log::info("simulate: scenario ", scenarioName(options.scenario), ", seed ", options.seed, ", ",
-            options.duration_s, " s at ", options.fps, " fps, ", options.width_px, "x", options.height_px,
-            options.noise_free ? ", noise-free" : "", ", textures: ",
-            sim.scene().photo_textures ? std::to_string(sim.scene().photo_paths.size()) + " photographs" : "procedural",
+            options.duration_s, " s at ", options.fps, " fps, ", options.width_px, "x",
+            options.height_px, options.noise_free ? ", noise-free" : "", ", textures: ",
+            sim.scene().photo_textures
+                ? std::to_string(sim.scene().photo_paths.size()) + " photographs"
+                : "procedural",
             ", ", sim.scene().boxes.size(), " dynamic boxes");
 
   const std::string dir = out_dir + "/";
@@ -259,11 +279,13 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
     biases << "# timestamp bgx bgy bgz bax bay baz (true biases, ground truth)\n";
     char line[256];
     for (const ImuSample& s : sim.imu()) {
-      std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s, s.gyro_rad_s.x(),
-                    s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(), s.acc_mps2.y(), s.acc_mps2.z());
+      std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
+                    s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(),
+                    s.acc_mps2.y(), s.acc_mps2.z());
       imu << line;
-      std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s, s.bias_gyro.x(),
-                    s.bias_gyro.y(), s.bias_gyro.z(), s.bias_acc.x(), s.bias_acc.y(), s.bias_acc.z());
+      std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
+                    s.bias_gyro.x(), s.bias_gyro.y(), s.bias_gyro.z(), s.bias_acc.x(),
+                    s.bias_acc.y(), s.bias_acc.z());
       biases << line;
     }
     if (!imu || !biases) throw InputError(dir + "imu.txt", 0, "write failed");
@@ -272,7 +294,8 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
   std::ofstream rgb_txt = openText(dir + "rgb.txt"), depth_txt = openText(dir + "depth.txt"),
                 assoc_txt = openText(dir + "associations.txt");
   rgb_txt << "# colour images\n# timestamp filename\n";
-  depth_txt << "# depth images (16-bit, metres = value / " << options.depth_map_factor << ")\n# timestamp filename\n";
+  depth_txt << "# depth images (16-bit, metres = value / " << options.depth_map_factor
+            << ")\n# timestamp filename\n";
   assoc_txt << "# t_rgb rgb t_depth depth\n";
 
   // PNG encoding runs on two writer threads; file contents never depend on their timing.
@@ -290,7 +313,8 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
         writePng(dir + "rgb/" + name, frame.bgr, options.png_compression);
         writePng(dir + "depth/" + name, frame.depth_raw, options.png_compression);
         writePng(dir + "masks/" + name, frame.mask, options.png_compression);
-        png_time_s[worker] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        png_time_s[worker] +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!writer_error) writer_error = std::current_exception();
@@ -333,7 +357,8 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
       if (progress_every > 0 && (i + 1) % progress_every == 0) {
         const auto now = std::chrono::steady_clock::now();
         const double dt = std::chrono::duration<double>(now - last_report).count();
-        log::info("frame ", i + 1, "/", stats.num_frames, ", ", progress_every / std::max(dt, 1e-9), " fps");
+        log::info("frame ", i + 1, "/", stats.num_frames, ", ", progress_every / std::max(dt, 1e-9),
+                  " fps");
         last_report = now;
       }
     }
@@ -344,7 +369,8 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
   joinWriters();
   if (writer_error) std::rethrow_exception(writer_error);
 
-  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stats.path_length_m = sim.trajectory().pathLength(options.duration_s);
   stats.occluded_share = occluded / static_cast<double>(stats.num_frames);
   stats.mean_dynamic_fraction = dynamic_sum / stats.num_frames;
@@ -354,30 +380,30 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
 
   std::ofstream out = openText(dir + "stats.txt");
   out << "scenario " << scenarioName(options.scenario) << "\nseed " << options.seed
-      << "\nduration_s " << stats.duration_s << "\nnum_frames " << stats.num_frames
-      << "\nfps " << options.fps << "\nresolution " << options.width_px << "x" << options.height_px
-      << "\npath_length_m " << stats.path_length_m << "\noccluded_share_gt40 " << stats.occluded_share
-      << "\nmean_dynamic_fraction " << stats.mean_dynamic_fraction
+      << "\nduration_s " << stats.duration_s << "\nnum_frames " << stats.num_frames << "\nfps "
+      << options.fps << "\nresolution " << options.width_px << "x" << options.height_px
+      << "\npath_length_m " << stats.path_length_m << "\noccluded_share_gt40 "
+      << stats.occluded_share << "\nmean_dynamic_fraction " << stats.mean_dynamic_fraction
       << "\nmean_dynamic_fraction_when_present " << stats.mean_fraction_when_present
-      << "\nlongest_occlusion_s " << stats.longest_occlusion_s
-      << "\nnum_dynamic_boxes " << sim.scene().boxes.size()
-      << "\nnoise_free " << (options.noise_free ? 1 : 0)
+      << "\nlongest_occlusion_s " << stats.longest_occlusion_s << "\nnum_dynamic_boxes "
+      << sim.scene().boxes.size() << "\nnoise_free " << (options.noise_free ? 1 : 0)
       << "\nimu_rate_hz " << options.imu_rate_hz << "\nimu_noise_gyro " << options.noise_gyro
       << "\nimu_noise_acc " << options.noise_acc << "\nimu_gyro_walk " << options.gyro_walk
-      << "\nimu_acc_walk " << options.acc_walk << "\nimu_gyro_bias_init_std " << options.gyro_bias_init
-      << "\nimu_acc_bias_init_std " << options.acc_bias_init
+      << "\nimu_acc_walk " << options.acc_walk << "\nimu_gyro_bias_init_std "
+      << options.gyro_bias_init << "\nimu_acc_bias_init_std " << options.acc_bias_init
       << "\ndepth_range_m " << options.depth_min_m << " " << options.depth_max_m
       << "\ndepth_noise_at_1m_m " << options.depth_noise_at_1m_m << " (std grows with z^2)"
-      << "\ndepth_edge_dropout " << options.depth_edge_dropout
-      << "\ndepth_random_dropout " << options.depth_random_dropout
-      << "\nrgb_noise_sigma " << options.rgb_noise_sigma << "\nexposure_jitter " << options.exposure_jitter
-      << "\ntextures " << (sim.scene().photo_textures ? "photographs" : "procedural") << "\n";
+      << "\ndepth_edge_dropout " << options.depth_edge_dropout << "\ndepth_random_dropout "
+      << options.depth_random_dropout << "\nrgb_noise_sigma " << options.rgb_noise_sigma
+      << "\nexposure_jitter " << options.exposure_jitter << "\ntextures "
+      << (sim.scene().photo_textures ? "photographs" : "procedural") << "\n";
   for (const std::string& path : sim.scene().photo_paths) out << "texture_photo " << path << "\n";
   if (!out) throw InputError(dir + "stats.txt", 0, "write failed");
   log::info("simulate: wrote ", stats.num_frames, " frames to ", out_dir, " in ", elapsed_s, " s (",
-            stats.frames_per_s, " frames/s after set-up); path ", stats.path_length_m, " m; frames > 40 % dynamic: ",
-            100.0 * stats.occluded_share, " % (mean ", 100.0 * stats.mean_fraction_when_present,
-            " % of the image when present), longest ", stats.longest_occlusion_s, " s");
+            stats.frames_per_s, " frames/s after set-up); path ", stats.path_length_m,
+            " m; frames > 40 % dynamic: ", 100.0 * stats.occluded_share, " % (mean ",
+            100.0 * stats.mean_fraction_when_present, " % of the image when present), longest ",
+            stats.longest_occlusion_s, " s");
   log::info("simulate: per frame ", 1e3 * sim.renderTimeS() / stats.num_frames, " ms render, ",
             1e3 * sim.effectsTimeS() / stats.num_frames, " ms sensor effects, ",
             1e3 * (png_time_s[0] + png_time_s[1]) / stats.num_frames, " ms PNG (2 writer threads)");

@@ -1,8 +1,8 @@
 #include "ltlo/render/offscreen_renderer.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <opencv2/core.hpp>
 
 namespace ltlo::render {
@@ -30,7 +30,8 @@ TEST(OffscreenRenderer, FrontoParallelPlaneDepthIsExact) {
   const RenderResult r = renderer.render(view, {{plane, SE3(), 1.0f, 7}});
   double max_err = 0.0;
   for (int v = 0; v < cam.height(); ++v)
-    for (int u = 0; u < cam.width(); ++u) max_err = std::max(max_err, std::abs(r.depth_m.at<float>(v, u) - z_m));
+    for (int u = 0; u < cam.width(); ++u)
+      max_err = std::max(max_err, std::abs(r.depth_m.at<float>(v, u) - z_m));
   EXPECT_LT(max_err, 2e-4);
   EXPECT_EQ(r.labels.at<uint8_t>(60, 80), 7);
   EXPECT_EQ(r.bgr.at<cv::Vec3b>(60, 80), cv::Vec3b(255, 255, 255));
@@ -67,12 +68,16 @@ TEST(OffscreenRenderer, TiltedPlaneDepthMatchesRayIntersection) {
 TEST(OffscreenRenderer, ProjectionMatchesCameraModelToSubPixel) {
   const PinholeCamera cam = testCamera();
   OffscreenRenderer renderer(cam.width(), cam.height());
-  const int inside = renderer.addMesh(quadAtDepth(cam, 20 - 0.1, 30 - 0.1, 100 + 0.1, 90 + 0.1, 1.5));
-  const int outside = renderer.addMesh(quadAtDepth(cam, 20 + 0.1, 30 + 0.1, 100 - 0.1, 90 - 0.1, 1.5));
+  const int inside =
+      renderer.addMesh(quadAtDepth(cam, 20 - 0.1, 30 - 0.1, 100 + 0.1, 90 + 0.1, 1.5));
+  const int outside =
+      renderer.addMesh(quadAtDepth(cam, 20 + 0.1, 30 + 0.1, 100 - 0.1, 90 - 0.1, 1.5));
   for (int pass = 0; pass < 2; ++pass) {
-    const int first = pass == 0 ? 20 : 21, last_u = pass == 0 ? 100 : 99, last_v = pass == 0 ? 90 : 89;
+    const int first = pass == 0 ? 20 : 21, last_u = pass == 0 ? 100 : 99,
+              last_v = pass == 0 ? 90 : 89;
     const int first_v = pass == 0 ? 30 : 31;
-    const RenderResult r = renderer.render({cam, SE3(), 0.05, 50.0}, {{pass == 0 ? inside : outside, SE3(), 1.0f, 1}});
+    const RenderResult r =
+        renderer.render({cam, SE3(), 0.05, 50.0}, {{pass == 0 ? inside : outside, SE3(), 1.0f, 1}});
     int wrong = 0;
     for (int v = 0; v < cam.height(); ++v)
       for (int u = 0; u < cam.width(); ++u) {
@@ -93,7 +98,8 @@ TEST(OffscreenRenderer, KnownPointsProjectOntoTheirPixels) {
   for (size_t i = 0; i < points_c.size(); ++i) {
     const Vec2 uv = cam.project(points_c[i]);
     const Vec2 centre(std::round(uv.x()), std::round(uv.y()));
-    Mesh mesh = quadAtDepth(cam, centre.x() - 0.3, centre.y() - 0.3, centre.x() + 0.3, centre.y() + 0.3, points_c[i].z());
+    Mesh mesh = quadAtDepth(cam, centre.x() - 0.3, centre.y() - 0.3, centre.x() + 0.3,
+                            centre.y() + 0.3, points_c[i].z());
     items.push_back({renderer.addMesh(mesh), T_w_c, 1.0f, static_cast<uint8_t>(10 + i)});
   }
   const RenderResult r = renderer.render({cam, T_w_c.inverse(), 0.05, 50.0}, items);
@@ -126,7 +132,8 @@ TEST(OffscreenRenderer, NearerSurfaceWinsAndBackgroundHasNoDepth) {
   OffscreenRenderer renderer(cam.width(), cam.height());
   const int far_plane = renderer.addMesh(quadAtDepth(cam, 0, 0, 80, 200, 3.0));
   const int near_plane = renderer.addMesh(quadAtDepth(cam, 40, 0, 80, 200, 1.0));
-  const RenderResult r = renderer.render({cam, SE3(), 0.05, 50.0}, {{near_plane, SE3(), 1, 2}, {far_plane, SE3(), 1, 1}});
+  const RenderResult r = renderer.render({cam, SE3(), 0.05, 50.0},
+                                         {{near_plane, SE3(), 1, 2}, {far_plane, SE3(), 1, 1}});
   EXPECT_EQ(r.labels.at<uint8_t>(50, 10), 1);
   EXPECT_EQ(r.labels.at<uint8_t>(50, 60), 2);
   EXPECT_NEAR(r.depth_m.at<float>(50, 60), 1.0, 1e-4);
@@ -138,14 +145,18 @@ TEST(OffscreenRenderer, SplatsPointsAndLinesRender) {
   const PinholeCamera cam = testCamera();
   OffscreenRenderer renderer(cam.width(), cam.height());
   const Vec3 p_c = cam.backProject(Vec2(40, 40), 2.0);
-  const int splats = renderer.addMesh(makeSplatMesh({p_c.cast<float>()}, {Eigen::Vector3f(0, 0, -1)}, {0.05f}, {Eigen::Vector3f(1, 0, 0)}));
+  const int splats = renderer.addMesh(makeSplatMesh(
+      {p_c.cast<float>()}, {Eigen::Vector3f(0, 0, -1)}, {0.05f}, {Eigen::Vector3f(1, 0, 0)}));
   PointSet points;
   points.positions_o = {cam.backProject(Vec2(120, 40), 2.0).cast<float>()};
   points.size_px = 3;
   LineSet lines;
-  lines.positions_o = {cam.backProject(Vec2(10, 100), 2.0).cast<float>(), cam.backProject(Vec2(150, 100), 2.0).cast<float>()};
-  const RenderResult r = renderer.render({cam, SE3(), 0.05, 50.0},
-      {{splats, SE3(), 1, 1}, {renderer.addPoints(points), SE3(), 1, 2}, {renderer.addLines(lines), SE3(), 1, 3}});
+  lines.positions_o = {cam.backProject(Vec2(10, 100), 2.0).cast<float>(),
+                       cam.backProject(Vec2(150, 100), 2.0).cast<float>()};
+  const RenderResult r =
+      renderer.render({cam, SE3(), 0.05, 50.0}, {{splats, SE3(), 1, 1},
+                                                 {renderer.addPoints(points), SE3(), 1, 2},
+                                                 {renderer.addLines(lines), SE3(), 1, 3}});
   // Splat radius 0.05 m at 2 m = 3.75 px: its centre and a pixel 3 px away are covered.
   EXPECT_EQ(r.labels.at<uint8_t>(40, 40), 1);
   EXPECT_EQ(r.labels.at<uint8_t>(40, 43), 1);

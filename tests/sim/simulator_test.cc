@@ -1,19 +1,18 @@
 #include "ltlo/sim/simulator.h"
 
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <random>
-
-#include <unistd.h>
-
-#include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/settings_file.h"
@@ -48,7 +47,9 @@ double median(std::vector<double> values) {
 // One noise-free "carried" sequence shared by the tests below: the box slides in at 0.4 s.
 class NoiseFreeSim : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() { sim_ = new Simulator(smallOptions(Scenario::kCarried, 2.0, true), sharedRoom()); }
+  static void SetUpTestSuite() {
+    sim_ = new Simulator(smallOptions(Scenario::kCarried, 2.0, true), sharedRoom());
+  }
   static void TearDownTestSuite() {
     delete sim_;
     sim_ = nullptr;
@@ -65,7 +66,8 @@ TEST(RobotTrajectory, DerivativesMatchFiniteDifferences) {
     const RobotState sp = trajectory.state(t + h), sm = trajectory.state(t - h);
     const Vec3 v_num = (sp.T_w_b.translation() - sm.T_w_b.translation()) / (2 * h);
     const Vec3 a_num = (sp.v_w_b - sm.v_w_b) / (2 * h);
-    const Vec3 w_num = so3Log(sm.T_w_b.rotationMatrix().transpose() * sp.T_w_b.rotationMatrix()) / (2 * h);
+    const Vec3 w_num =
+        so3Log(sm.T_w_b.rotationMatrix().transpose() * sp.T_w_b.rotationMatrix()) / (2 * h);
     EXPECT_LT((v_num - s.v_w_b).norm(), 1e-7) << t;
     EXPECT_LT((a_num - s.a_w_b).norm(), 1e-6) << t;
     EXPECT_LT((w_num - s.omega_b).norm(), 1e-6) << t;
@@ -80,7 +82,9 @@ TEST(RobotTrajectory, PathIsClosedAndRevisited) {
   // Within two laps (< 70 s) the robot comes back within 10 cm of its start after leaving it.
   const Vec3 start = trajectory.state(0.0).T_w_b.translation();
   double closest_return_m = 1e9;
-  for (double t = 15.0; t < 70.0; t += 0.05) closest_return_m = std::min(closest_return_m, (trajectory.state(t).T_w_b.translation() - start).norm());
+  for (double t = 15.0; t < 70.0; t += 0.05)
+    closest_return_m =
+        std::min(closest_return_m, (trajectory.state(t).T_w_b.translation() - start).norm());
   EXPECT_LT(closest_return_m, 0.1);
 }
 
@@ -110,7 +114,9 @@ TEST_F(NoiseFreeSim, ImuIntegrationReproducesGroundTruth) {
   const io::StampedPose& at_1s = gt[30];
   ASSERT_NEAR(at_1s.t_s, 1.0, 1e-9);
   EXPECT_LT((T_w_c_integrated.translation() - at_1s.T_w_x.translation()).norm(), 1e-3);
-  EXPECT_LT(so3Log(T_w_c_integrated.rotationMatrix().transpose() * at_1s.T_w_x.rotationMatrix()).norm(), 1e-4);
+  EXPECT_LT(
+      so3Log(T_w_c_integrated.rotationMatrix().transpose() * at_1s.T_w_x.rotationMatrix()).norm(),
+      1e-4);
   EXPECT_LT((v - trajectory.state(1.0).v_w_b).norm(), 1e-3);
 }
 
@@ -128,8 +134,10 @@ TEST(ImuSimulator, NoiseMatchesConfiguredDensities) {
     acc_sq += (noisy[k].acc_mps2 - clean[k].acc_mps2 - noisy[k].bias_acc).squaredNorm();
   }
   const double n = 3.0 * noisy.size();
-  EXPECT_NEAR(std::sqrt(gyro_sq / n), o.noise_gyro * std::sqrt(o.imu_rate_hz), 0.03 * o.noise_gyro * std::sqrt(o.imu_rate_hz));
-  EXPECT_NEAR(std::sqrt(acc_sq / n), o.noise_acc * std::sqrt(o.imu_rate_hz), 0.03 * o.noise_acc * std::sqrt(o.imu_rate_hz));
+  EXPECT_NEAR(std::sqrt(gyro_sq / n), o.noise_gyro * std::sqrt(o.imu_rate_hz),
+              0.03 * o.noise_gyro * std::sqrt(o.imu_rate_hz));
+  EXPECT_NEAR(std::sqrt(acc_sq / n), o.noise_acc * std::sqrt(o.imu_rate_hz),
+              0.03 * o.noise_acc * std::sqrt(o.imu_rate_hz));
   // At rest-like orientation the accelerometer reads about +g along body z.
   EXPECT_NEAR(clean[0].acc_mps2.z(), kGravityMps2, 0.5);
 }
@@ -194,7 +202,7 @@ TEST_F(NoiseFreeSim, MaskCoversExactlyTheVisibleDynamicObjects) {
         wrong += expected != (frame.mask.at<uint8_t>(v, u) == 255);
       }
     EXPECT_EQ(wrong, 0) << "frame " << i;
-    frames_with_objects += dynamic_pixels > frame.mask.total() / 5;
+    frames_with_objects += dynamic_pixels > static_cast<int>(frame.mask.total() / 5);
   }
   EXPECT_GE(frames_with_objects, 4);  // the check is not vacuous
 }
@@ -234,7 +242,9 @@ TEST(Simulator, LtloScenarioOccludesMostFramesForLongStretches) {
   for (int i = 0; i < sim.numFrames(); ++i) {
     const render::RenderResult dynamic = sim.renderDynamicOnly(i);
     const double fraction = sim.renderFrame(i).dynamic_fraction;
-    ASSERT_LE(fraction, cv::countNonZero(dynamic.labels) / static_cast<double>(dynamic.labels.total()) + 1e-12);
+    ASSERT_LE(
+        fraction,
+        cv::countNonZero(dynamic.labels) / static_cast<double>(dynamic.labels.total()) + 1e-12);
     if (fraction > 0.4) {
       ++occluded;
       longest = std::max(longest, ++run);
@@ -262,9 +272,11 @@ TEST(Simulator, StaticViewsAreRichInOrbFeatures) {
     std::vector<cv::KeyPoint> keypoints;
     orb->detect(gray, keypoints);
     int occupied[4][4] = {};
-    for (const cv::KeyPoint& kp : keypoints) occupied[static_cast<int>(kp.pt.y * 4 / 480)][static_cast<int>(kp.pt.x * 4 / 640)] = 1;
+    for (const cv::KeyPoint& kp : keypoints)
+      occupied[static_cast<int>(kp.pt.y * 4 / 480)][static_cast<int>(kp.pt.x * 4 / 640)] = 1;
     int cells = 0;
-    for (const auto& row : occupied) for (int c : row) cells += c;
+    for (const auto& row : occupied)
+      for (int c : row) cells += c;
     EXPECT_GE(keypoints.size(), 900u) << "frame " << i;
     EXPECT_GE(cells, 12) << "frame " << i;
     RecordProperty("orb_keypoints_frame_" + std::to_string(i), static_cast<int>(keypoints.size()));
@@ -291,7 +303,8 @@ TEST(Simulator, WritesTheDataFormatLayoutDeterministically) {
   for (const auto& entry : fs::recursive_directory_iterator(root / "a"))
     if (entry.is_regular_file()) files.push_back(fs::relative(entry.path(), root / "a").string());
   EXPECT_EQ(files.size(), 3u * 15 + 9);  // rgb, depth, masks + 9 text/yaml/ply files
-  for (const std::string& f : files) EXPECT_EQ(readFile((root / "a" / f).string()), readFile((root / "b" / f).string())) << f;
+  for (const std::string& f : files)
+    EXPECT_EQ(readFile((root / "a" / f).string()), readFile((root / "b" / f).string())) << f;
 
   const SensorCalib calib = SensorCalib::load((root / "a" / "calib.yaml").string());
   EXPECT_TRUE(calib.has_imu);
@@ -299,7 +312,8 @@ TEST(Simulator, WritesTheDataFormatLayoutDeterministically) {
   EXPECT_LT((calib.imu.T_b_c.matrix() - SimOptions::T_b_c().matrix()).norm(), 1e-9);
   const io::Trajectory gt = io::readTumTrajectory((root / "a" / "groundtruth.txt").string());
   ASSERT_EQ(gt.size(), 15u);
-  const cv::Mat depth = cv::imread((root / "a" / "depth" / "0.033333.png").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat depth =
+      cv::imread((root / "a" / "depth" / "0.033333.png").string(), cv::IMREAD_UNCHANGED);
   EXPECT_EQ(depth.type(), CV_16U);
   std::ifstream assoc((root / "a" / "associations.txt").string());
   std::string line;

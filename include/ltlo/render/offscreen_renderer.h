@@ -12,9 +12,8 @@
 /// calls render(). Geometry is uploaded once (display lists) and drawn many times with poses.
 #include <cstdint>
 #include <memory>
-#include <vector>
-
 #include <opencv2/core/mat.hpp>
+#include <vector>
 
 #include "ltlo/core/camera.h"
 #include "ltlo/core/lie.h"
@@ -60,10 +59,10 @@ Mesh makeBoxMesh(const Vec3& size_m, int texture, double uv_repeats_per_m = 0.0)
 
 /// What to draw and how: one uploaded drawable at pose T_w_o.
 struct DrawItem {
-  int drawable = -1;     ///< id from addMesh/addPoints/addLines
-  SE3 T_w_o;             ///< object pose in the world
-  float gain = 1.0f;     ///< colour multiplier (exposure)
-  uint8_t label = 0;     ///< written into RenderResult::labels where this item is visible
+  int drawable = -1;  ///< id from addMesh/addPoints/addLines
+  SE3 T_w_o;          ///< object pose in the world
+  float gain = 1.0f;  ///< colour multiplier (exposure)
+  uint8_t label = 0;  ///< written into RenderResult::labels where this item is visible
 };
 
 struct RenderView {
@@ -103,8 +102,7 @@ class OffscreenRenderer {
 
   /// Column-major 4x4 OpenGL projection for `camera` acting on camera-frame points (x right,
   /// y down, z forward): window x = u + 0.5, window y = v + 0.5 (GL row v = image row v).
-  static Eigen::Matrix4d projectionMatrix(const PinholeCamera& camera, double near_m,
-                                          double far_m);
+  static Eigen::Matrix4d projectionMatrix(const PinholeCamera& camera, double near_m, double far_m);
 
  private:
   struct Impl;

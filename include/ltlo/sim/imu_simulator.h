@@ -15,10 +15,10 @@ constexpr double kGravityMps2 = 9.81;
 
 struct ImuSample {
   double t_s = 0.0;
-  Vec3 gyro_rad_s;   ///< measured angular rate, body frame
-  Vec3 acc_mps2;     ///< measured specific force, body frame
-  Vec3 bias_gyro;    ///< true gyro bias at t_s (ground truth)
-  Vec3 bias_acc;     ///< true accelerometer bias at t_s
+  Vec3 gyro_rad_s;  ///< measured angular rate, body frame
+  Vec3 acc_mps2;    ///< measured specific force, body frame
+  Vec3 bias_gyro;   ///< true gyro bias at t_s (ground truth)
+  Vec3 bias_acc;    ///< true accelerometer bias at t_s
 };
 
 /// Samples at k / rate for k = 0 .. floor(duration * rate). Noise-free options give exact values.

@@ -12,10 +12,10 @@ namespace ltlo::sim {
 
 struct RobotState {
   double t_s = 0.0;
-  SE3 T_w_b;      ///< body (IMU) pose; world z up, body x forward, y left, z up
-  Vec3 v_w_b;     ///< body velocity in the world (m/s)
-  Vec3 a_w_b;     ///< body acceleration in the world (m/s^2)
-  Vec3 omega_b;   ///< angular rate in the body frame (rad/s)
+  SE3 T_w_b;     ///< body (IMU) pose; world z up, body x forward, y left, z up
+  Vec3 v_w_b;    ///< body velocity in the world (m/s)
+  Vec3 a_w_b;    ///< body acceleration in the world (m/s^2)
+  Vec3 omega_b;  ///< angular rate in the body frame (rad/s)
 };
 
 struct TrajectoryParams {
@@ -44,7 +44,7 @@ class RobotTrajectory {
                        double* accel);
 
   TrajectoryParams params_;
-  double radius_x_m_, radius_y_m_;   // ellipse semi-axes
+  double radius_x_m_, radius_y_m_;  // ellipse semi-axes
   double harmonic_x_m_, harmonic_y_m_, harmonic_phase_;
   double omega0_, speed_wobble_, speed_wobble_omega_, s0_;
   std::vector<Sinusoid> roll_, pitch_, height_;

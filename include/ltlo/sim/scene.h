@@ -8,11 +8,10 @@
 /// furniture piece gets its own base photo with framed photo crops pasted at several scales, which
 /// gives dense corners at several scales and distinct places. When no photo can be read the same
 /// collage is built from procedural multi-scale noise images (logged as a warning).
+#include <opencv2/core/mat.hpp>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <opencv2/core/mat.hpp>
 
 #include "ltlo/core/lie.h"
 #include "ltlo/render/offscreen_renderer.h"
@@ -23,24 +22,24 @@ namespace ltlo::sim {
 
 /// A large textured box pushed in front of the robot (or carried by it) during [t_in_s, t_out_s].
 struct DynamicBox {
-  Vec3 size_m;             ///< full extents (x along the robot's heading, y lateral, z up)
-  int texture = -1;        ///< index into Scene::textures
-  double t_in_s = 0.0;     ///< starts entering from the side
-  double t_out_s = 0.0;    ///< has left at this time
-  double enter_s = 1.0;    ///< duration of the slide in (and of the slide out)
-  double distance_m = 1.0; ///< camera-to-near-face distance along the heading while held
-  double lateral_m = 0.0;  ///< lateral offset while held (+ = left)
-  double side = 1.0;       ///< enters from +1 left / -1 right
-  bool carried = false;    ///< rigidly attached to the (vibrating) body while held
-  double sway_phase = 0.0; ///< phase of the small sway of a pushed box
+  Vec3 size_m;              ///< full extents (x along the robot's heading, y lateral, z up)
+  int texture = -1;         ///< index into Scene::textures
+  double t_in_s = 0.0;      ///< starts entering from the side
+  double t_out_s = 0.0;     ///< has left at this time
+  double enter_s = 1.0;     ///< duration of the slide in (and of the slide out)
+  double distance_m = 1.0;  ///< camera-to-near-face distance along the heading while held
+  double lateral_m = 0.0;   ///< lateral offset while held (+ = left)
+  double side = 1.0;        ///< enters from +1 left / -1 right
+  bool carried = false;     ///< rigidly attached to the (vibrating) body while held
+  double sway_phase = 0.0;  ///< phase of the small sway of a pushed box
 };
 
 struct Scene {
-  std::vector<cv::Mat> textures;          ///< CV_8UC3 BGR; mesh texture ids index this list
+  std::vector<cv::Mat> textures;            ///< CV_8UC3 BGR; mesh texture ids index this list
   std::vector<render::Mesh> static_meshes;  ///< world frame
   std::vector<DynamicBox> boxes;
-  bool photo_textures = false;            ///< false: procedural fallback was used
-  std::vector<std::string> photo_paths;   ///< photographs used (for the log and stats.txt)
+  bool photo_textures = false;           ///< false: procedural fallback was used
+  std::vector<std::string> photo_paths;  ///< photographs used (for the log and stats.txt)
 
   /// Builds room, furniture and the scenario's occlusion schedule (scene layout fixed; schedule,
   /// box sizes and textures drawn from options.seed).
@@ -51,7 +50,8 @@ struct Scene {
   void scheduleOcclusions(const SimOptions& options);
 
   /// Poses of the boxes present at t_s: (index into boxes, T_w_o).
-  std::vector<std::pair<int, SE3>> dynamicPoses(double t_s, const RobotTrajectory& trajectory) const;
+  std::vector<std::pair<int, SE3>> dynamicPoses(double t_s,
+                                                const RobotTrajectory& trajectory) const;
 
   /// Static geometry as an ASCII PLY (vertices and triangles, world frame, metres).
   void writePly(const std::string& path) const;

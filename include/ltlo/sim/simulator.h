@@ -2,10 +2,9 @@
 /// Synthetic RGB-D-inertial sequence generator (issue 3): renders the room and the scenario's
 /// dynamic boxes along the robot trajectory, adds sensor effects and writes DATA_FORMAT.md.
 #include <memory>
+#include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core/mat.hpp>
 
 #include "ltlo/io/trajectory_io.h"
 #include "ltlo/render/offscreen_renderer.h"
@@ -31,11 +30,11 @@ struct SequenceStats {
   int num_frames = 0;
   double duration_s = 0.0;
   double path_length_m = 0.0;
-  double occluded_share = 0.0;        ///< frames with more than 40 % dynamic pixels
+  double occluded_share = 0.0;  ///< frames with more than 40 % dynamic pixels
   double mean_dynamic_fraction = 0.0;
   double mean_fraction_when_present = 0.0;  ///< over frames with more than 1 % dynamic pixels
-  double longest_occlusion_s = 0.0;   ///< longest run of frames above 40 %
-  double frames_per_s = 0.0;          ///< generation speed (wall clock)
+  double longest_occlusion_s = 0.0;         ///< longest run of frames above 40 %
+  double frames_per_s = 0.0;                ///< generation speed (wall clock)
 };
 
 class Simulator {
@@ -87,7 +86,8 @@ class Simulator {
 /// Generates the whole sequence into out_dir (created if missing) in the DATA_FORMAT.md layout,
 /// plus stats.txt, scene.ply and imu_biases.txt; progress every `progress_every` frames.
 /// Throws InputError when out_dir cannot be written.
-SequenceStats writeSequence(const SimOptions& options, const std::string& out_dir, int progress_every = 100);
+SequenceStats writeSequence(const SimOptions& options, const std::string& out_dir,
+                            int progress_every = 100);
 SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int progress_every = 100);
 
 }  // namespace ltlo::sim
