@@ -90,17 +90,32 @@ struct Drawable {
   float size_px = 1.0f;
 };
 
-void setColourMode(bool textured, GLuint white_texture, GLuint texture) {
-  glBindTexture(GL_TEXTURE_2D, textured ? texture : white_texture);
+// Colour = texture (unit 0, white when untextured) x vertex colour x constant (unit 1: gain in
+// RGB, item label in alpha). Unit 1 always samples the 1x1 white texture.
+void setUpTextureUnits(GLuint white_texture) {
+  glActiveTexture(GL_TEXTURE1);
+  glEnable(GL_TEXTURE_2D);
+  glBindTexture(GL_TEXTURE_2D, white_texture);
   glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_COMBINE);
   glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_MODULATE);
-  glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE0_RGB, textured ? GL_TEXTURE : GL_PRIMARY_COLOR);
+  glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE0_RGB, GL_PREVIOUS);
   glTexEnvi(GL_TEXTURE_ENV, GL_OPERAND0_RGB, GL_SRC_COLOR);
   glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE1_RGB, GL_CONSTANT);
   glTexEnvi(GL_TEXTURE_ENV, GL_OPERAND1_RGB, GL_SRC_COLOR);
   glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_ALPHA, GL_REPLACE);
   glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE0_ALPHA, GL_CONSTANT);
   glTexEnvi(GL_TEXTURE_ENV, GL_OPERAND0_ALPHA, GL_SRC_ALPHA);
+  glActiveTexture(GL_TEXTURE0);
+  glEnable(GL_TEXTURE_2D);
+  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);  // texture x vertex colour
+}
+
+void setItemColour(GLuint texture, float gain, uint8_t label) {
+  glBindTexture(GL_TEXTURE_2D, texture);  // unit 0 is active
+  const GLfloat constant[4] = {gain, gain, gain, label / 255.0f};
+  glActiveTexture(GL_TEXTURE1);
+  glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, constant);
+  glActiveTexture(GL_TEXTURE0);
 }
 
 }  // namespace
@@ -148,6 +163,7 @@ OffscreenRenderer::OffscreenRenderer(int width, int height) : impl_(std::make_un
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, 1, 1, 0, GL_RGB, GL_UNSIGNED_BYTE, white);
+  setUpTextureUnits(impl_->white_texture);
 }
 
 OffscreenRenderer::~OffscreenRenderer() {
@@ -286,9 +302,7 @@ RenderResult OffscreenRenderer::render(const RenderView& view, const std::vector
     const Eigen::Matrix4d T_c_o = (view.T_c_w * item.T_w_o).matrix();
     glLoadMatrixd(T_c_o.data());
     const bool textured = d.texture >= 0;
-    setColourMode(textured, im.white_texture, textured ? im.textures[d.texture] : 0);
-    const GLfloat constant[4] = {item.gain, item.gain, item.gain, item.label / 255.0f};
-    glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, constant);
+    setItemColour(textured ? im.textures[d.texture] : im.white_texture, item.gain, item.label);
     if (d.kind == DrawableKind::kPoints) glPointSize(d.size_px);
     if (d.kind == DrawableKind::kLines) glLineWidth(d.size_px);
     glCallList(d.list);

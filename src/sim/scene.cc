@@ -85,6 +85,19 @@ struct Profile {
 
 }  // namespace
 
+void bakeFlatShading(render::Mesh* mesh) {
+  const Eigen::Vector3f light = Eigen::Vector3f(0.35f, 0.55f, 0.75f).normalized();
+  mesh->colours_rgb.assign(mesh->positions_o.size(), Eigen::Vector3f::Ones());
+  for (size_t k = 0; k + 2 < mesh->triangles.size(); k += 3) {
+    const Eigen::Vector3f& a = mesh->positions_o[mesh->triangles[k]];
+    const Eigen::Vector3f& b = mesh->positions_o[mesh->triangles[k + 1]];
+    const Eigen::Vector3f& c = mesh->positions_o[mesh->triangles[k + 2]];
+    const Eigen::Vector3f n = (b - a).cross(c - a).normalized();
+    const float shade = 0.65f + 0.35f * std::abs(n.dot(light));
+    for (int j = 0; j < 3; ++j) mesh->colours_rgb[mesh->triangles[k + j]].setConstant(shade);
+  }
+}
+
 Scene Scene::build(const SimOptions& options) {
   Scene scene = buildRoom(options.texture_dir);
   scene.scheduleOcclusions(options);
@@ -156,6 +169,7 @@ Scene Scene::buildRoom(const std::string& texture_dir) {
   m.push_back(box(Vec3(0.6, 2.7, 0.3), Vec3(0.7, 0.45, 0.6), 0.0, kFirstFurniture + 1));
   m.push_back(box(Vec3(-0.6, -2.7, 0.45), Vec3(0.9, 0.45, 0.9), 0.0, kFirstFurniture + 6));
   m.push_back(box(Vec3(3.5, 2.55, 0.35), Vec3(0.6, 0.6, 0.7), 0.4, kFirstFurniture + 0));
+  for (render::Mesh& mesh : m) bakeFlatShading(&mesh);
   return scene;
 }
 

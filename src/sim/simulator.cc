@@ -104,8 +104,11 @@ Simulator::Simulator(const SimOptions& options, Scene room)
   for (const cv::Mat& texture : scene_.textures) renderer_->addTexture(texture);
   for (const render::Mesh& mesh : scene_.static_meshes)
     static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
-  for (const DynamicBox& box : scene_.boxes)
-    box_drawables_.push_back(renderer_->addMesh(render::makeBoxMesh(box.size_m, box.texture, 0.0)));
+  for (const DynamicBox& box : scene_.boxes) {
+    render::Mesh mesh = render::makeBoxMesh(box.size_m, box.texture, 0.0);
+    bakeFlatShading(&mesh);
+    box_drawables_.push_back(renderer_->addMesh(mesh));
+  }
   exposure_phase_ = std::fmod(static_cast<double>(options.seed) * 0.618034, 1.0) * 2.0 * M_PI;
 }
 

@@ -125,6 +125,16 @@ TEST(OffscreenRenderer, TextureColoursAndGainAreApplied) {
   EXPECT_NEAR(px[0], 20, 1);
   EXPECT_NEAR(px[1], 60, 1);
   EXPECT_NEAR(px[2], 100, 1);
+  EXPECT_EQ(r.labels.at<uint8_t>(50, 50), 3);
+  // Vertex colours (baked shading) multiply the texture too.
+  mesh.colours_rgb.assign(4, Eigen::Vector3f(0.5f, 1.0f, 0.25f));
+  const int shaded = renderer.addMesh(mesh);
+  const RenderResult s = renderer.render({cam, SE3(), 0.05, 50.0}, {{shaded, SE3(), 1.0f, 4}});
+  const cv::Vec3b shaded_px = s.bgr.at<cv::Vec3b>(50, 50);  // BGR: blue x 0.25, red x 0.5
+  EXPECT_NEAR(shaded_px[0], 10, 1);
+  EXPECT_NEAR(shaded_px[1], 120, 1);
+  EXPECT_NEAR(shaded_px[2], 100, 1);
+  EXPECT_EQ(s.labels.at<uint8_t>(50, 50), 4);
 }
 
 TEST(OffscreenRenderer, NearerSurfaceWinsAndBackgroundHasNoDepth) {

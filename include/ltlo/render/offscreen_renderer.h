@@ -21,7 +21,8 @@
 namespace ltlo::render {
 
 /// Triangle mesh in its own object frame o. `uvs` (texture coordinates, v down the image) are
-/// used with `texture`; otherwise `colours_rgb` (0..1 per vertex) or white.
+/// used with `texture`; `colours_rgb` (0..1 per vertex, white when empty) multiply the texture
+/// (baked shading) or are the colour of an untextured mesh.
 struct Mesh {
   std::vector<Eigen::Vector3f> positions_o;
   std::vector<Eigen::Vector2f> uvs;

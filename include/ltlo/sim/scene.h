@@ -34,6 +34,12 @@ struct DynamicBox {
   double sway_phase = 0.0;  ///< phase of the small sway of a pushed box
 };
 
+/// Fixed lighting baked into vertex colours: each triangle is shaded 0.65 + 0.35 |n . l| for one
+/// fixed light direction l (view-independent, so a surface looks the same from every view).
+/// Triangles must not share vertices across faces of different orientation (true for our quads
+/// and boxes).
+void bakeFlatShading(render::Mesh* mesh);
+
 struct Scene {
   std::vector<cv::Mat> textures;            ///< CV_8UC3 BGR; mesh texture ids index this list
   std::vector<render::Mesh> static_meshes;  ///< world frame
