@@ -1,0 +1,85 @@
+#pragma once
+/// Parameters of the synthetic RGB-D-inertial sequence generator (config_yaml/simulator.yaml).
+#include <cstdint>
+#include <string>
+
+#include "ltlo/core/calib.h"
+
+namespace ltlo {
+class SettingsFile;
+}
+
+namespace ltlo::sim {
+
+/// Occlusion scenarios of issue 3: share of frames with more than 40 % dynamic pixels.
+enum class Scenario {
+  kStatic,   ///< no dynamic objects
+  kStlo,     ///< short-term large occlusion, ~15-20 % of frames
+  kMtlo,     ///< medium-term, ~30 %
+  kLtlo,     ///< long-term, 55-75 %, several boxes at once, long stretches
+  kCarried,  ///< one box held at a fixed pose relative to the robot for a long stretch
+};
+
+/// "static", "stlo", "mtlo", "ltlo", "carried"; returns false when unknown.
+bool parseScenario(const std::string& text, Scenario* scenario);
+std::string scenarioName(Scenario scenario);
+
+struct SimOptions {
+  // Camera (Sim.*)
+  int width_px = 640;    ///< Camera.width
+  int height_px = 480;   ///< Camera.height
+  double fx_px = 525.0;  ///< Camera.fx at 640x480; scaled with the width when it differs
+  double fy_px = 525.0;  ///< Camera.fy
+  double cx_px = 319.5;  ///< Camera.cx
+  double cy_px = 239.5;  ///< Camera.cy
+  double fps = 30.0;     ///< Camera.fps (Hz)
+  double depth_map_factor = 1000.0;  ///< DepthMapFactor
+
+  // Sequence
+  Scenario scenario = Scenario::kStatic;
+  uint64_t seed = 1;         ///< drives trajectory details, occlusion schedule and noise
+  double duration_s = 10.0;  ///< sequence length (s)
+  bool noise_free = false;   ///< no IMU/depth/colour noise, no biases, no holes, no jitter
+
+  // IMU (IMU.*), low-cost MEMS defaults (datasheet densities inflated as calibration tools do)
+  double imu_rate_hz = 200.0;      ///< IMU.Frequency
+  double noise_gyro = 1.0e-3;      ///< IMU.NoiseGyro (rad/s/sqrt(Hz))
+  double noise_acc = 1.0e-2;       ///< IMU.NoiseAcc (m/s^2/sqrt(Hz))
+  double gyro_walk = 1.0e-5;       ///< IMU.GyroWalk (rad/s^2/sqrt(Hz))
+  double acc_walk = 2.0e-4;        ///< IMU.AccWalk (m/s^3/sqrt(Hz))
+  double gyro_bias_init = 2.0e-3;  ///< Sim.GyroBiasInit: std of the initial gyro bias (rad/s)
+  double acc_bias_init = 3.0e-2;   ///< Sim.AccBiasInit: std of the initial acc bias (m/s^2)
+
+  // Depth (Depth.*)
+  double depth_min_m = 0.25;            ///< Depth.MinRange (m)
+  double depth_max_m = 5.5;             ///< Depth.MaxRange (m)
+  double depth_noise_at_1m_m = 1.5e-3;  ///< Depth.NoiseAt1m: std (m) at 1 m, grows with z^2
+  double depth_edge_dropout = 0.7;      ///< Depth.EdgeDropout: probability of a hole at depth edges
+  double depth_random_dropout = 2.0e-3;  ///< Depth.RandomDropout: isolated missing pixels
+
+  // Colour (Rgb.*)
+  double rgb_noise_sigma = 2.0;   ///< Rgb.NoiseSigma: intensity noise std (0-255 scale)
+  double exposure_jitter = 0.03;  ///< Rgb.ExposureJitter: relative gain amplitude
+
+  // Robot (Robot.*)
+  double mean_speed_mps = 0.45;       ///< Robot.MeanSpeed (m/s), stays within 0.3-0.6
+  double vibration_angle_deg = 1.2;   ///< Robot.VibrationAngle: amplitude per roll/pitch term
+  double vibration_height_m = 0.004;  ///< Robot.VibrationHeight: amplitude per height term
+
+  // Scene (Sim.*)
+  std::string texture_dir = "/usr/share/backgrounds";  ///< Sim.TextureDir: photographs
+  int png_compression = 1;                             ///< Sim.PngCompression (0-9)
+
+  /// Camera model at the configured size (fx, fy, cx, cy scaled from 640x480 when width differs).
+  PinholeCamera camera() const;
+  /// Camera pose in the body (IMU) frame: looks forward, tilted down, offset from the IMU.
+  static SE3 T_b_c();
+  /// calib.yaml content for this configuration.
+  SensorCalib sensorCalib() const;
+
+  /// Reads the optional keys above from a simulator YAML (defaults when absent); throws
+  /// ConfigError naming file, key, range and value.
+  static SimOptions load(const SettingsFile& file);
+};
+
+}  // namespace ltlo::sim

@@ -1,0 +1,93 @@
+#pragma once
+/// Synthetic RGB-D-inertial sequence generator (issue 3): renders the room and the scenario's
+/// dynamic boxes along the robot trajectory, adds sensor effects and writes DATA_FORMAT.md.
+#include <memory>
+#include <opencv2/core/mat.hpp>
+#include <string>
+#include <vector>
+
+#include "ltlo/io/trajectory_io.h"
+#include "ltlo/render/offscreen_renderer.h"
+#include "ltlo/sim/imu_simulator.h"
+#include "ltlo/sim/robot_trajectory.h"
+#include "ltlo/sim/scene.h"
+#include "ltlo/sim/sim_options.h"
+
+namespace ltlo::sim {
+
+struct SimFrame {
+  double t_s = 0.0;
+  SE3 T_w_c;
+  cv::Mat bgr;        ///< CV_8UC3 with exposure jitter and noise (unless noise-free)
+  cv::Mat depth_m;    ///< CV_32F metres after noise, holes and range limits; 0 = no reading
+  cv::Mat depth_raw;  ///< CV_16U as written (metres * DepthMapFactor)
+  cv::Mat mask;       ///< CV_8U, 255 where a dynamic object is the visible surface
+  double dynamic_fraction = 0.0;
+};
+
+/// Summary of a written sequence (also in stats.txt).
+struct SequenceStats {
+  int num_frames = 0;
+  double duration_s = 0.0;
+  double path_length_m = 0.0;
+  double occluded_share = 0.0;  ///< frames with more than 40 % dynamic pixels
+  double mean_dynamic_fraction = 0.0;
+  double mean_fraction_when_present = 0.0;  ///< over frames with more than 1 % dynamic pixels
+  double longest_occlusion_s = 0.0;         ///< longest run of frames above 40 %
+  double frames_per_s = 0.0;                ///< generation speed (wall clock)
+};
+
+class Simulator {
+ public:
+  explicit Simulator(const SimOptions& options);
+  /// Reuses a room from Scene::buildRoom (loading photographs is the slow part of construction);
+  /// its dynamic boxes are rescheduled for `options`.
+  Simulator(const SimOptions& options, Scene room);
+  ~Simulator();
+
+  const SimOptions& options() const { return options_; }
+  const Scene& scene() const { return scene_; }
+  const RobotTrajectory& trajectory() const { return trajectory_; }
+  const PinholeCamera& camera() const { return camera_; }
+  const std::vector<ImuSample>& imu() const { return imu_; }
+
+  int numFrames() const;
+  /// Frame timestamps are i / fps rounded to microseconds (exact in the 6-decimal file names).
+  double frameTime(int index) const;
+  SE3 T_w_c(double t_s) const;
+  io::Trajectory groundTruth() const;
+
+  SimFrame renderFrame(int index);
+  /// Only the dynamic boxes (label = box index + 1), noise-free depth: for mask checks.
+  render::RenderResult renderDynamicOnly(int index);
+  /// Only the static room, noise-free.
+  render::RenderResult renderStaticOnly(int index);
+
+  /// Wall-clock seconds spent in renderFrame: OpenGL rendering and read-back, sensor effects.
+  double renderTimeS() const { return render_time_s_; }
+  double effectsTimeS() const { return effects_time_s_; }
+
+ private:
+  std::vector<render::DrawItem> dynamicItems(double t_s) const;
+  SimFrame addSensorEffects(int index, const render::RenderResult& clean) const;
+
+  SimOptions options_;
+  PinholeCamera camera_;
+  RobotTrajectory trajectory_;
+  Scene scene_;
+  std::vector<ImuSample> imu_;
+  std::unique_ptr<render::OffscreenRenderer> renderer_;
+  std::vector<render::DrawItem> static_items_;
+  std::vector<int> box_drawables_;
+  double exposure_phase_ = 0.0;
+  double render_time_s_ = 0.0, effects_time_s_ = 0.0;
+};
+
+/// Generates the whole sequence into out_dir (created if missing) in the DATA_FORMAT.md layout,
+/// plus stats.txt, scene.ply and imu_biases.txt; progress every `progress_every` frames.
+/// Throws InputError when out_dir cannot be written.
+SequenceStats writeSequence(const SimOptions& options, const std::string& out_dir,
+                            int progress_every = 100);
+SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int progress_every = 100);
+
+}  // namespace ltlo::sim
