@@ -83,10 +83,14 @@ std::string loadError(const std::string& config, const std::string& calib = "") 
   return "(no error)";
 }
 
+// SLAM settings files; simulator.yaml holds only simulator keys and is validated by the sim tests
+// (SimOptions::load).
 std::vector<fs::path> configFiles() {
   std::vector<fs::path> files;
   for (const fs::directory_entry& entry : fs::directory_iterator(configDir())) {
-    if (entry.path().extension() == ".yaml") files.push_back(entry.path());
+    if (entry.path().extension() == ".yaml" && entry.path().filename() != "simulator.yaml") {
+      files.push_back(entry.path());
+    }
   }
   std::sort(files.begin(), files.end());
   return files;
