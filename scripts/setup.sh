@@ -13,6 +13,8 @@ packages=(
   libbenchmark-dev       # kernel and solver benchmarks
   libceres-dev           # benchmark reference for sparse_opt only (never linked into the library)
   libcli11-dev           # command-line parsing of the Examples
+  gnome-backgrounds mate-backgrounds lomiri-wallpapers sway-backgrounds
+                         # real photographs: simulator textures, vocabulary training and tests
 )
 
 missing=()
