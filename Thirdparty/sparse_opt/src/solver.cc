@@ -15,30 +15,31 @@ namespace {
 
 constexpr double kMinDiagonal = 1e-6;
 constexpr double kMaxDiagonal = 1e32;
+// Damping range, as Ceres' trust-region radius range [1e-32, 1e16] with lambda = 1 / radius.
+constexpr double kMinLambda = 1e-16;
+constexpr double kMaxLambda = 1e32;
 
 double clampDiagonal(double d) { return std::min(std::max(d, kMinDiagonal), kMaxDiagonal); }
 
-/// Splits [0, n) into two halves; the second runs on a worker thread when num_threads > 1.
-/// The split does not depend on num_threads, so sums combined in a fixed order are identical.
+/// Runs f(0) and f(1), on two threads when parallel, else one after the other; rethrows.
 template <class F>
-void runHalves(int num_threads, int n, F&& f) {
-  const int mid = n / 2;
-  if (num_threads <= 1 || n < 64) {
-    f(0, mid, 0);
-    f(mid, n, 1);
+void runTwo(bool parallel, F&& f) {
+  if (!parallel) {
+    f(0);
+    f(1);
     return;
   }
   std::exception_ptr worker_error;
   std::thread worker([&] {
     try {
-      f(mid, n, 1);
+      f(1);
     } catch (...) {
       worker_error = std::current_exception();
     }
   });
   std::exception_ptr main_error;
   try {
-    f(0, mid, 0);
+    f(0);
   } catch (...) {
     main_error = std::current_exception();
   }
@@ -47,22 +48,19 @@ void runHalves(int num_threads, int n, F&& f) {
   if (worker_error) std::rethrow_exception(worker_error);
 }
 
+/// Splits [0, n) into two halves; the second runs on a worker thread when num_threads > 1.
+/// The split does not depend on num_threads, so sums combined in a fixed order are identical.
+template <class F>
+void runHalves(int num_threads, int n, F&& f) {
+  const int mid = n / 2;
+  runTwo(num_threads > 1 && n >= 64, [&](int t) { f(t == 0 ? 0 : mid, t == 0 ? mid : n, t); });
+}
+
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 }  // namespace
-
-void ContributionLists::build(int num_targets, std::vector<std::pair<int, Contribution>>& unsorted) {
-  start.assign(static_cast<size_t>(num_targets) + 1, 0);
-  for (const auto& [target, c] : unsorted) ++start[static_cast<size_t>(target) + 1];
-  for (int t = 0; t < num_targets; ++t) start[t + 1] += start[t];
-  items.resize(unsorted.size());
-  std::vector<int> fill(start.begin(), start.end() - 1);
-  for (const auto& [target, c] : unsorted) items[static_cast<size_t>(fill[target]++)] = c;  // stable
-  unsorted.clear();
-  unsorted.shrink_to_fit();
-}
 
 void Solver::throwNonFinite(int edge_index, const char* what) const {
   const EdgeBase* e = edges_[static_cast<size_t>(edge_index)];
@@ -111,6 +109,29 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
     hll_offset_[l + 1] = hll_offset_[l] + lm_dim_[l] * lm_dim_[l];
   }
   lm_total_ = lm_offset_[nl];
+
+  // Edges sorted by landmark (stable; landmark-free edges last) so that threads can own landmarks.
+  {
+    std::vector<std::pair<int, EdgeBase*>> keyed;
+    keyed.reserve(edges_.size());
+    for (EdgeBase* e : edges_) {
+      int key = nl;
+      for (int s = 0; s < e->numVertices(); ++s) {
+        const VertexBase* v = e->vertex(s);
+        if (!v->fixed() && index.at(v) <= -2) key = -2 - index.at(v);
+      }
+      keyed.emplace_back(key, e);
+    }
+    std::stable_sort(keyed.begin(), keyed.end(),
+                     [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (size_t k = 0; k < keyed.size(); ++k) edges_[k] = keyed[k].second;
+    edge_split_ = static_cast<int>(keyed.size() / 2);
+    while (edge_split_ > 0 && edge_split_ < static_cast<int>(keyed.size()) && keyed[edge_split_].first < nl &&
+           keyed[edge_split_ - 1].first == keyed[edge_split_].first) {
+      ++edge_split_;
+    }
+    landmark_split_ = edge_split_ < static_cast<int>(keyed.size()) ? std::min(keyed[edge_split_].first, nl) : nl;
+  }
 
   // Pass 1: camera pairs and camera-landmark pairs.
   std::vector<uint64_t> cam_pairs;  // (col << 32) | row, row <= col
@@ -215,43 +236,39 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
     lm_pair_start_[l + 1] = static_cast<int>(pair_block_.size());
   }
 
-  // Pass 2: contributions, in edge order.
-  std::vector<std::pair<int, Contribution>> cc, cl, ll, bc, bl;
+  // Pass 2: where each edge writes.
+  edge_write_start_.assign(edges_.size() + 1, 0);
+  writes_.clear();
   for (size_t k = 0; k < edges_.size(); ++k) {
     const EdgeBase* e = edges_[k];
-    const int ek = static_cast<int>(k);
     for (int a = 0; a < e->numVertices(); ++a) {
       const int ia = slotIndex(e, a);
       if (ia == std::numeric_limits<int>::min()) continue;
       if (ia >= 0) {
-        bc.push_back({ia, {ek, a, a}});
-        cc.push_back({diag_block_[ia], {ek, a, a}});
+        writes_.push_back({a, -1, BlockWrite::kCameraGradient, cam_offset_[ia]});
+        writes_.push_back({a, a, BlockWrite::kCameraPair, blk_offset_[diag_block_[ia]]});
       } else {
-        bl.push_back({-2 - ia, {ek, a, a}});
-        ll.push_back({-2 - ia, {ek, a, a}});
+        writes_.push_back({a, -1, BlockWrite::kLandmarkGradient, lm_offset_[-2 - ia]});
+        writes_.push_back({a, a, BlockWrite::kLandmark, hll_offset_[-2 - ia]});
       }
       for (int b = a + 1; b < e->numVertices(); ++b) {
         const int ib = slotIndex(e, b);
         if (ib == std::numeric_limits<int>::min()) continue;
         if (ia >= 0 && ib >= 0) {
           if (ia < ib) {
-            cc.push_back({findBlock(ia, ib), {ek, a, b}});
+            writes_.push_back({a, b, BlockWrite::kCameraPair, blk_offset_[findBlock(ia, ib)]});
           } else {
-            cc.push_back({findBlock(ib, ia), {ek, b, a}});
+            writes_.push_back({b, a, BlockWrite::kCameraPair, blk_offset_[findBlock(ib, ia)]});
           }
         } else if (ia >= 0) {
-          cl.push_back({findObs(-2 - ib, ia), {ek, a, b}});
+          writes_.push_back({a, b, BlockWrite::kCameraLandmark, obs_offset_[findObs(-2 - ib, ia)]});
         } else {
-          cl.push_back({findObs(-2 - ia, ib), {ek, b, a}});
+          writes_.push_back({b, a, BlockWrite::kCameraLandmark, obs_offset_[findObs(-2 - ia, ib)]});
         }
       }
     }
+    edge_write_start_[k + 1] = static_cast<int>(writes_.size());
   }
-  cc_lists_.build(num_blocks, cc);
-  cl_lists_.build(num_obs, cl);
-  ll_lists_.build(nl, ll);
-  bc_lists_.build(nc, bc);
-  bl_lists_.build(nl, bl);
 
   // Scalar upper-triangular pattern of the reduced system.
   pattern_col_start_.assign(static_cast<size_t>(cam_total_) + 1, 0);
@@ -274,6 +291,7 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
   }
 
   hcc_.assign(static_cast<size_t>(blk_offset_[num_blocks]), 0.0);
+  hcc_other_.assign(hcc_.size(), 0.0);
   s_.assign(hcc_.size(), 0.0);
   s_other_.assign(hcc_.size(), 0.0);
   hcl_.assign(static_cast<size_t>(obs_offset_[num_obs]), 0.0);
@@ -285,6 +303,7 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
   for (int d : lm_dim_) max_dl = std::max(max_dl, d);
   for (auto& s : scratch_) s.assign(static_cast<size_t>(std::max(1, max_obs_) * max_dc * max_dl), 0.0);
   bc_.setZero(cam_total_);
+  bc_other_.setZero(cam_total_);
   rc_.setZero(cam_total_);
   rc_other_.setZero(cam_total_);
   dxc_.setZero(cam_total_);
@@ -311,65 +330,47 @@ double Solver::evaluateChi2(int num_threads) {
   return partial[0] + partial[1];
 }
 
-void Solver::linearize(int num_threads) {
+void Solver::linearizeAndAccumulate(int num_threads) {
+  const int nl = static_cast<int>(landmarks_.size());
+  const int nc = static_cast<int>(cameras_.size());
   const int n = static_cast<int>(edges_.size());
   int bad[2] = {-1, -1};
-  runHalves(num_threads, n, [&](int begin, int end, int t) {
-    for (int k = begin; k < end; ++k) {
-      if (!edges_[k]->linearize() && bad[t] < 0) bad[t] = k;
+  auto work = [&](int t) {
+    const int edge_begin = t == 0 ? 0 : edge_split_;
+    const int edge_end = t == 0 ? edge_split_ : n;
+    const int lm_begin = t == 0 ? 0 : landmark_split_;
+    const int lm_end = t == 0 ? landmark_split_ : nl;
+    double* hcc = t == 0 ? hcc_.data() : hcc_other_.data();
+    double* bc = t == 0 ? bc_.data() : bc_other_.data();
+    std::fill(hcc, hcc + hcc_.size(), 0.0);
+    std::fill(bc, bc + cam_total_, 0.0);
+    std::fill(hcl_.data() + obs_offset_[lm_obs_start_[lm_begin]], hcl_.data() + obs_offset_[lm_obs_start_[lm_end]], 0.0);
+    std::fill(hll_.data() + hll_offset_[lm_begin], hll_.data() + hll_offset_[lm_end], 0.0);
+    std::fill(bl_.data() + lm_offset_[lm_begin], bl_.data() + lm_offset_[lm_end], 0.0);
+    for (int k = edge_begin; k < edge_end; ++k) {
+      EdgeBase* e = edges_[k];
+      if (!e->linearize()) {
+        if (bad[t] < 0) bad[t] = k;
+        continue;
+      }
+      for (int w = edge_write_start_[k]; w < edge_write_start_[k + 1]; ++w) {
+        const BlockWrite& item = writes_[w];
+        switch (item.target) {
+          case BlockWrite::kCameraPair: e->addHessianBlock(item.a, item.b, hcc + item.offset); break;
+          case BlockWrite::kCameraLandmark: e->addHessianBlock(item.a, item.b, hcl_.data() + item.offset); break;
+          case BlockWrite::kLandmark: e->addHessianBlock(item.a, item.b, hll_.data() + item.offset); break;
+          case BlockWrite::kCameraGradient: e->addGradient(item.a, bc + item.offset); break;
+          case BlockWrite::kLandmarkGradient: e->addGradient(item.a, bl_.data() + item.offset); break;
+        }
+      }
     }
-  });
+  };
+  runTwo(num_threads > 1 && n >= 64, work);
   for (int t = 0; t < 2; ++t) {
-    if (bad[t] >= 0) {
-      throwNonFinite(bad[t], edges_[bad[t]]->errorFinite() ? "jacobian" : "residual");
-    }
+    if (bad[t] >= 0) throwNonFinite(bad[t], edges_[bad[t]]->errorFinite() ? "jacobian" : "residual");
   }
-}
-
-void Solver::accumulate(int num_threads) {
-  const int nc = static_cast<int>(cameras_.size());
-  const int nl = static_cast<int>(landmarks_.size());
-  const int num_blocks = static_cast<int>(blk_row_.size());
-  const int num_obs = static_cast<int>(obs_cam_.size());
-  auto sumBlocks = [this](const ContributionLists& lists, int begin, int end, const std::vector<int>& offset,
-                          std::vector<double>& data) {
-    for (int k = begin; k < end; ++k) {
-      double* out = data.data() + offset[k];
-      std::fill(out, data.data() + offset[k + 1], 0.0);
-      for (int c = lists.start[k]; c < lists.start[k + 1]; ++c) {
-        const Contribution& item = lists.items[c];
-        edges_[item.edge]->addHessianBlock(item.a, item.b, out);
-      }
-    }
-  };
-  auto sumGradients = [this](const ContributionLists& lists, int begin, int end, const std::vector<int>& offset,
-                             Eigen::VectorXd& data) {
-    for (int k = begin; k < end; ++k) {
-      double* out = data.data() + offset[k];
-      std::fill(out, data.data() + offset[k + 1], 0.0);
-      for (int c = lists.start[k]; c < lists.start[k + 1]; ++c) {
-        const Contribution& item = lists.items[c];
-        edges_[item.edge]->addGradient(item.a, out);
-      }
-    }
-  };
-  // Every target block is summed by one thread in edge order: deterministic.
-  runHalves(num_threads, 128, [&](int begin, int, int t) {
-    auto half = [t](int n, int& b, int& e) {
-      b = t == 0 ? 0 : n / 2;
-      e = t == 0 ? n / 2 : n;
-    };
-    int b = 0, e = 0;
-    half(num_blocks, b, e);
-    sumBlocks(cc_lists_, b, e, blk_offset_, hcc_);
-    half(num_obs, b, e);
-    sumBlocks(cl_lists_, b, e, obs_offset_, hcl_);
-    half(nl, b, e);
-    sumBlocks(ll_lists_, b, e, hll_offset_, hll_);
-    sumGradients(bl_lists_, b, e, lm_offset_, bl_);
-    half(nc, b, e);
-    sumGradients(bc_lists_, b, e, cam_offset_, bc_);
-  });
+  for (size_t k = 0; k < hcc_.size(); ++k) hcc_[k] += hcc_other_[k];
+  bc_ += bc_other_;
   for (int i = 0; i < nc; ++i) {
     const int d = cam_dim_[i];
     const double* block = hcc_.data() + blk_offset_[diag_block_[i]];
@@ -585,8 +586,7 @@ Summary Solver::run(const Options& options) {
     summary.total_time_s = secondsSince(start);
     return summary;
   }
-  linearize(options.num_threads);
-  accumulate(options.num_threads);
+  linearizeAndAccumulate(options.num_threads);
   double lambda = lm ? options.initial_lambda : 0.0;
   double nu = 2.0;
   summary.termination = "maximum iterations reached";
@@ -614,6 +614,10 @@ Summary Solver::run(const Options& options) {
       stats.chi2 = chi2;
       stats.time_s = secondsSince(start);
       summary.history.push_back(stats);
+      if (lambda > kMaxLambda) {
+        summary.termination = "linear system not positive definite at any damping";
+        break;
+      }
       continue;
     }
     const double step_norm = std::sqrt(dxc_.squaredNorm() + dxl_.squaredNorm());
@@ -635,7 +639,7 @@ Summary Solver::run(const Options& options) {
       ++summary.accepted_iterations;
       if (lm) {
         const double f = 2.0 * rho - 1.0;
-        lambda *= std::max(1.0 / 3.0, 1.0 - f * f * f);
+        lambda = std::max(kMinLambda, lambda * std::max(1.0 / 3.0, 1.0 - f * f * f));
         nu = 2.0;
       }
       const double relative_decrease = (chi2 - new_chi2) / std::max(chi2, std::numeric_limits<double>::min());
@@ -644,8 +648,7 @@ Summary Solver::run(const Options& options) {
         summary.converged = true;
         summary.termination = "function tolerance";
       } else {
-        linearize(options.num_threads);
-        accumulate(options.num_threads);
+        linearizeAndAccumulate(options.num_threads);
         if (gradientMaxNorm() <= options.gradient_tolerance) {
           summary.converged = true;
           summary.termination = "gradient tolerance";
@@ -655,6 +658,10 @@ Summary Solver::run(const Options& options) {
       rollbackStep();
       lambda *= nu;
       nu *= 2.0;
+    }
+    if (lm && lambda > kMaxLambda) {
+      summary.termination = "damping too large (no decrease possible)";
+      summary.converged = true;
     }
     stats.chi2 = chi2;
     stats.time_s = secondsSince(start);
@@ -671,8 +678,7 @@ std::vector<Eigen::MatrixXd> Solver::covariance(const std::vector<const VertexBa
                  (options.linear_solver == LinearSolverType::kAuto && cam_total_ > options.dense_max_dimension);
   if (use_cholmod_ && cam_total_ > 0) cholmod_.setPattern(cam_total_, pattern_col_start_, pattern_row_);
   evaluateChi2(options.num_threads);
-  linearize(options.num_threads);
-  accumulate(options.num_threads);
+  linearizeAndAccumulate(options.num_threads);
   if (!solveStep(0.0, options)) throw Error("sparse_opt: marginalCovariance: the Hessian is not positive definite");
   std::vector<Eigen::MatrixXd> result;
   Eigen::VectorXd unit = Eigen::VectorXd::Zero(cam_total_);

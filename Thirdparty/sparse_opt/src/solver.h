@@ -11,18 +11,13 @@
 
 namespace sparse_opt::internal {
 
-/// One term of a block sum: edge edges_[edge] adds J_a^T W J_b (or -J_a^T W e for gradients).
-struct Contribution {
-  int edge;
+/// Where one edge adds J_a^T W J_b (b < 0: the gradient -J_a^T W e of slot a).
+struct BlockWrite {
+  enum Target : int { kCameraPair, kCameraLandmark, kLandmark, kCameraGradient, kLandmarkGradient };
   int a;
   int b;
-};
-
-/// Compressed lists of contributions per target block, in increasing edge order.
-struct ContributionLists {
-  std::vector<int> start;  // size num_targets + 1
-  std::vector<Contribution> items;
-  void build(int num_targets, std::vector<std::pair<int, Contribution>>& unsorted);
+  Target target;
+  int offset;  // into the target's storage
 };
 
 class Solver {
@@ -35,8 +30,10 @@ class Solver {
 
  private:
   double evaluateChi2(int num_threads);
-  void linearize(int num_threads);
-  void accumulate(int num_threads);
+  /// Linearises every edge and accumulates H and b. Edges are sorted by landmark and split at a
+  /// landmark boundary: landmark blocks have one writer; camera blocks are summed per thread and
+  /// added in a fixed order, so the result does not depend on the thread count.
+  void linearizeAndAccumulate(int num_threads);
   /// Builds the damped reduced system and solves it; false if not positive definite.
   bool solveStep(double lambda, const Options& options);
   bool factorizeReduced(const Options& options);
@@ -65,11 +62,13 @@ class Solver {
   // Camera-landmark blocks, landmark-major, cameras ascending within a landmark.
   std::vector<int> lm_obs_start_, obs_cam_, obs_offset_;
   std::vector<int> lm_pair_start_, pair_block_;  // S block of each camera pair (p <= q) per landmark
-  ContributionLists cc_lists_, cl_lists_, ll_lists_, bc_lists_, bl_lists_;
+  std::vector<int> edge_write_start_;
+  std::vector<BlockWrite> writes_;
+  int edge_split_ = 0, landmark_split_ = 0;
 
   // Numeric storage (reused across iterations).
-  std::vector<double> hcc_, hcl_, hll_, hll_inv_, s_, s_other_, scratch_[2];
-  Eigen::VectorXd bc_, bl_, rc_, rc_other_, dxc_, dxl_, diag_c_, diag_l_;
+  std::vector<double> hcc_, hcc_other_, hcl_, hll_, hll_inv_, s_, s_other_, scratch_[2];
+  Eigen::VectorXd bc_, bc_other_, bl_, rc_, rc_other_, dxc_, dxl_, diag_c_, diag_l_;
   Eigen::MatrixXd dense_;
 
   CholmodSolver cholmod_;
