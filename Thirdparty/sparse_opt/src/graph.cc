@@ -3,6 +3,7 @@
 #include <cxxabi.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <typeinfo>
 
@@ -121,7 +122,9 @@ std::vector<EdgeBase*> Graph::activeEdges(int level) const {
 Summary Graph::optimize(const Options& options) {
   if (options.num_threads < 1) throw Error("sparse_opt: Options::num_threads must be >= 1");
   if (options.max_iterations < 0) throw Error("sparse_opt: Options::max_iterations must be >= 0");
+  const auto setup_start = std::chrono::steady_clock::now();
   solver_->setup(activeEdges(options.level), options.use_schur);
+  solver_->setSetupTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count());
   Summary summary = solver_->run(options);
   // Edges of other levels get their chi2() at the final estimate too (outlier re-checks).
   for (const auto& [id, e] : edges_) {

@@ -60,6 +60,19 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+/// Adds the lifetime of the object to a stage time.
+class StageTimer {
+ public:
+  explicit StageTimer(double& total_s) : total_s_(total_s), start_(std::chrono::steady_clock::now()) {}
+  ~StageTimer() { total_s_ += secondsSince(start_); }
+  StageTimer(const StageTimer&) = delete;
+  StageTimer& operator=(const StageTimer&) = delete;
+
+ private:
+  double& total_s_;
+  std::chrono::steady_clock::time_point start_;
+};
+
 }  // namespace
 
 void Solver::throwNonFinite(int edge_index, const char* what) const {
@@ -314,6 +327,7 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
 }
 
 double Solver::evaluateChi2(int num_threads) {
+  const StageTimer timer(times_.evaluate_s);
   const int n = static_cast<int>(edges_.size());
   double partial[2] = {0.0, 0.0};
   int bad[2] = {-1, -1};
@@ -331,6 +345,7 @@ double Solver::evaluateChi2(int num_threads) {
 }
 
 void Solver::linearizeAndAccumulate(int num_threads) {
+  const StageTimer timer(times_.linearize_s);
   const int nl = static_cast<int>(landmarks_.size());
   const int nc = static_cast<int>(cameras_.size());
   const int n = static_cast<int>(edges_.size());
@@ -492,6 +507,7 @@ void Solver::solveReduced(const double* rhs, double* x) {
 }
 
 bool Solver::solveStep(double lambda, const Options& options) {
+  auto schur_start = std::chrono::steady_clock::now();
   const int nl = static_cast<int>(landmarks_.size());
   s_ = hcc_;
   const int nc = static_cast<int>(cameras_.size());
@@ -518,8 +534,13 @@ bool Solver::solveStep(double lambda, const Options& options) {
     for (size_t k = 0; k < s_.size(); ++k) s_[k] += s_other_[k];
     rc_ += rc_other_;
   }
-  if (!factorizeReduced(options)) return false;
-  solveReduced(rc_.data(), dxc_.data());
+  times_.schur_s += secondsSince(schur_start);
+  {
+    const StageTimer timer(times_.factorize_s);
+    if (!factorizeReduced(options)) return false;
+    solveReduced(rc_.data(), dxc_.data());
+  }
+  schur_start = std::chrono::steady_clock::now();
   if (nl > 0) {
     runHalves(options.num_threads, nl, [&](int begin, int end, int) {
       for (int l = begin; l < end; ++l) {
@@ -531,6 +552,7 @@ bool Solver::solveStep(double lambda, const Options& options) {
       }
     });
   }
+  times_.schur_s += secondsSince(schur_start);
   return dxc_.allFinite() && dxl_.allFinite();
 }
 
@@ -573,6 +595,7 @@ Summary Solver::run(const Options& options) {
                  (options.linear_solver == LinearSolverType::kAuto && cam_total_ > options.dense_max_dimension);
   summary.used_cholmod = use_cholmod_;
   if (use_cholmod_ && cam_total_ > 0) {
+    const StageTimer timer(times_.setup_s);
     reused_symbolic_ = cholmod_.setPattern(cam_total_, pattern_col_start_, pattern_row_);
     summary.reused_symbolic = reused_symbolic_;
   }
@@ -669,7 +692,8 @@ Summary Solver::run(const Options& options) {
   }
   // Edge chi2() must describe the final estimate (the last trial may have been rolled back).
   summary.final_chi2 = evaluateChi2(options.num_threads);
-  summary.total_time_s = secondsSince(start);
+  summary.stage_times = times_;
+  summary.total_time_s = secondsSince(start) + structure_setup_s_;
   return summary;
 }
 

@@ -24,6 +24,12 @@ class Solver {
  public:
   /// Classifies vertices and builds the block structure for these edges (throws Error on misuse).
   void setup(const std::vector<EdgeBase*>& edges, bool use_schur);
+  /// Adds the setup time (measured by the caller) to the next run's summary.
+  void setSetupTime(double seconds) {
+    times_ = StageTimes();
+    times_.setup_s = seconds;
+    structure_setup_s_ = seconds;
+  }
   Summary run(const Options& options);
   /// Blocks of H^-1 (lambda = 0) for vertices of the current setup's reduced system.
   std::vector<Eigen::MatrixXd> covariance(const std::vector<const VertexBase*>& vertices, const Options& options);
@@ -74,6 +80,8 @@ class Solver {
   CholmodSolver cholmod_;
   std::vector<int> pattern_col_start_, pattern_row_;
   bool use_cholmod_ = false;
+  StageTimes times_;
+  double structure_setup_s_ = 0.0;
   bool reused_symbolic_ = false;
 };
 

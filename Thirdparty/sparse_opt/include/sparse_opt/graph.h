@@ -49,6 +49,15 @@ struct IterationStats {
   double time_s = 0.0;      ///< wall time since optimize() started
 };
 
+/// Wall time per stage, summed over the iterations of one optimize() call.
+struct StageTimes {
+  double setup_s = 0.0;      ///< vertex ordering, block structure, CHOLMOD symbolic analysis
+  double linearize_s = 0.0;  ///< residuals, Jacobians and block accumulation
+  double schur_s = 0.0;      ///< damping, Schur complement and back-substitution
+  double factorize_s = 0.0;  ///< Cholesky factorisation and solve of the reduced system
+  double evaluate_s = 0.0;   ///< chi2 of trial points
+};
+
 struct Summary {
   bool converged = false;   ///< a tolerance was met (not the iteration cap or the stop flag)
   std::string termination;  ///< why it stopped, readable
@@ -62,6 +71,7 @@ struct Summary {
   bool reused_symbolic = false;  ///< CHOLMOD symbolic analysis reused from a previous call
   int reduced_dimension = 0;
   std::vector<IterationStats> history;
+  StageTimes stage_times;
 };
 
 /// Owns vertices and edges (unique ownership; raw pointers returned are valid until removal).
