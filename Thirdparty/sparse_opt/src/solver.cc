@@ -86,18 +86,20 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
   edges_ = edges;
   cameras_.clear();
   landmarks_.clear();
-  // index >= 0: camera index; index <= -2: landmark -(index + 2).
-  std::unordered_map<const VertexBase*, int> index;
-  index.reserve(edges.size());
+  // VertexBase::solver_index_ >= 0: camera index; <= -2: landmark -(index + 2).
+  constexpr int kUnset = std::numeric_limits<int>::min() + 1;
+  for (EdgeBase* e : edges_) {
+    for (int s = 0; s < e->numVertices(); ++s) e->vertex(s)->solver_index_ = kUnset;
+  }
   for (EdgeBase* e : edges_) {
     for (int s = 0; s < e->numVertices(); ++s) {
       VertexBase* v = e->vertex(s);
-      if (v->fixed() || index.count(v) != 0) continue;
+      if (v->fixed() || v->solver_index_ != kUnset) continue;
       if (use_schur && v->marginalized()) {
-        index[v] = -2 - static_cast<int>(landmarks_.size());
+        v->solver_index_ = -2 - static_cast<int>(landmarks_.size());
         landmarks_.push_back(v);
       } else {
-        index[v] = static_cast<int>(cameras_.size());
+        v->solver_index_ = static_cast<int>(cameras_.size());
         cameras_.push_back(v);
       }
     }
@@ -123,37 +125,46 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
   }
   lm_total_ = lm_offset_[nl];
 
-  // Edges sorted by landmark (stable; landmark-free edges last) so that threads can own landmarks.
+  // Edges sorted by landmark (stable counting sort; landmark-free edges last) so that threads
+  // can own landmarks.
   {
-    std::vector<std::pair<int, EdgeBase*>> keyed;
-    keyed.reserve(edges_.size());
-    for (EdgeBase* e : edges_) {
-      int key = nl;
+    std::vector<int> key(edges_.size(), nl);
+    std::vector<int> count(static_cast<size_t>(nl) + 2, 0);
+    for (size_t k = 0; k < edges_.size(); ++k) {
+      const EdgeBase* e = edges_[k];
       for (int s = 0; s < e->numVertices(); ++s) {
         const VertexBase* v = e->vertex(s);
-        if (!v->fixed() && index.at(v) <= -2) key = -2 - index.at(v);
+        if (!v->fixed() && v->solver_index_ <= -2) key[k] = -2 - v->solver_index_;
       }
-      keyed.emplace_back(key, e);
+      ++count[static_cast<size_t>(key[k]) + 1];
     }
-    std::stable_sort(keyed.begin(), keyed.end(),
-                     [](const auto& x, const auto& y) { return x.first < y.first; });
-    for (size_t k = 0; k < keyed.size(); ++k) edges_[k] = keyed[k].second;
-    edge_split_ = static_cast<int>(keyed.size() / 2);
-    while (edge_split_ > 0 && edge_split_ < static_cast<int>(keyed.size()) && keyed[edge_split_].first < nl &&
-           keyed[edge_split_ - 1].first == keyed[edge_split_].first) {
+    for (int l = 0; l <= nl; ++l) count[l + 1] += count[l];
+    std::vector<EdgeBase*> sorted(edges_.size());
+    std::vector<int> sorted_key(edges_.size());
+    for (size_t k = 0; k < edges_.size(); ++k) {
+      const int pos = count[key[k]]++;
+      sorted[pos] = edges_[k];
+      sorted_key[pos] = key[k];
+    }
+    edges_.swap(sorted);
+    const int n = static_cast<int>(edges_.size());
+    edge_split_ = n / 2;
+    while (edge_split_ > 0 && edge_split_ < n && sorted_key[edge_split_] < nl &&
+           sorted_key[edge_split_ - 1] == sorted_key[edge_split_]) {
       ++edge_split_;
     }
-    landmark_split_ = edge_split_ < static_cast<int>(keyed.size()) ? std::min(keyed[edge_split_].first, nl) : nl;
+    landmark_split_ = edge_split_ < n ? sorted_key[edge_split_] : nl;
   }
 
   // Pass 1: camera pairs and camera-landmark pairs.
   std::vector<uint64_t> cam_pairs;  // (col << 32) | row, row <= col
   std::vector<uint64_t> obs_pairs;  // (landmark << 32) | camera
+  cam_pairs.reserve(static_cast<size_t>(nc) + edges_.size());
+  obs_pairs.reserve(edges_.size());
   for (int i = 0; i < nc; ++i) cam_pairs.push_back((static_cast<uint64_t>(i) << 32) | static_cast<uint64_t>(i));
   auto slotIndex = [&](const EdgeBase* e, int s) {
     const VertexBase* v = e->vertex(s);
-    if (v->fixed()) return std::numeric_limits<int>::min();
-    return index.at(v);
+    return v->fixed() ? std::numeric_limits<int>::min() : v->solver_index_;
   };
   for (size_t k = 0; k < edges_.size(); ++k) {
     const EdgeBase* e = edges_[k];
@@ -252,6 +263,7 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
   // Pass 2: where each edge writes.
   edge_write_start_.assign(edges_.size() + 1, 0);
   writes_.clear();
+  writes_.reserve(edges_.size() * 5);
   for (size_t k = 0; k < edges_.size(); ++k) {
     const EdgeBase* e = edges_[k];
     for (int a = 0; a < e->numVertices(); ++a) {

@@ -7,6 +7,9 @@
 namespace sparse_opt {
 
 class Graph;
+namespace internal {
+class Solver;
+}
 
 /// Type-erased vertex as seen by the graph and the solver. Not thread-safe; owned by a Graph.
 class VertexBase {
@@ -37,9 +40,11 @@ class VertexBase {
   std::string typeName() const;
 
  private:
+  friend class internal::Solver;
   int id_;
   bool fixed_ = false;
   bool marginalized_ = false;
+  int solver_index_ = 0;  // position in the solver's system, written during Solver::setup
 };
 
 /// Vertex with tangent dimension D and estimate type T. Derived classes implement plus().
