@@ -48,12 +48,17 @@ void runTwo(bool parallel, F&& f) {
   if (worker_error) std::rethrow_exception(worker_error);
 }
 
-/// Splits [0, n) into two halves; the second runs on a worker thread when num_threads > 1.
-/// The split does not depend on num_threads, so sums combined in a fixed order are identical.
+// Below these sizes a phase takes well under a millisecond and starting a thread (which on a busy
+// machine may wait for a core) costs more than it saves. Results do not depend on it.
+constexpr int kMinParallelEdges = 20000;
+constexpr int kMinParallelLandmarks = 4000;
+
+/// Splits [0, n) into two halves; the second runs on a worker thread when num_threads > 1 and
+/// n >= min_parallel. The split does not depend on either, so results are identical.
 template <class F>
-void runHalves(int num_threads, int n, F&& f) {
+void runHalves(int num_threads, int n, int min_parallel, F&& f) {
   const int mid = n / 2;
-  runTwo(num_threads > 1 && n >= 64, [&](int t) { f(t == 0 ? 0 : mid, t == 0 ? mid : n, t); });
+  runTwo(num_threads > 1 && n >= min_parallel, [&](int t) { f(t == 0 ? 0 : mid, t == 0 ? mid : n, t); });
 }
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
@@ -343,7 +348,7 @@ double Solver::evaluateChi2(int num_threads) {
   const int n = static_cast<int>(edges_.size());
   double partial[2] = {0.0, 0.0};
   int bad[2] = {-1, -1};
-  runHalves(num_threads, n, [&](int begin, int end, int t) {
+  runHalves(num_threads, n, kMinParallelEdges, [&](int begin, int end, int t) {
     double sum = 0.0;
     for (int k = begin; k < end; ++k) {
       sum += edges_[k]->evaluateChi2();
@@ -392,7 +397,7 @@ void Solver::linearizeAndAccumulate(int num_threads) {
       }
     }
   };
-  runTwo(num_threads > 1 && n >= 64, work);
+  runTwo(num_threads > 1 && n >= kMinParallelEdges, work);
   for (int t = 0; t < 2; ++t) {
     if (bad[t] >= 0) throwNonFinite(bad[t], edges_[bad[t]]->errorFinite() ? "jacobian" : "residual");
   }
@@ -533,7 +538,7 @@ bool Solver::solveStep(double lambda, const Options& options) {
     std::fill(s_other_.begin(), s_other_.end(), 0.0);
     rc_other_.setZero();
     bool ok[2] = {true, true};
-    runHalves(options.num_threads, nl, [&](int begin, int end, int t) {
+    runHalves(options.num_threads, nl, kMinParallelLandmarks, [&](int begin, int end, int t) {
       double* s = t == 0 ? s_.data() : s_other_.data();
       double* rc = t == 0 ? rc_.data() : rc_other_.data();
       double* scratch = scratch_[t].data();
@@ -554,7 +559,7 @@ bool Solver::solveStep(double lambda, const Options& options) {
   }
   schur_start = std::chrono::steady_clock::now();
   if (nl > 0) {
-    runHalves(options.num_threads, nl, [&](int begin, int end, int) {
+    runHalves(options.num_threads, nl, kMinParallelLandmarks, [&](int begin, int end, int) {
       for (int l = begin; l < end; ++l) {
         if (lm_fast_[l]) {
           backSubstituteLandmark<6, 3>(l);
