@@ -126,3 +126,30 @@ TEST(Graph, UserVertexWithCustomManifold) {
 
 }  // namespace
 }  // namespace sparse_opt
+
+namespace sparse_opt {
+namespace {
+
+TEST(Graph, So3VertexAveragesRotations) {
+  // User edge on the provided SO3 vertex, numeric Jacobians: error = Log(Z^-1 q).
+  class EdgeRotationPrior final : public BaseEdge<3, Quat, VertexSO3> {
+   public:
+    void computeError() override { error_ = so3Log(measurement_.conjugate() * estimate<0>()); }
+  };
+  const Quat base = so3Exp(Vec3(0.3, -0.2, 1.0));
+  Graph graph;
+  auto* q = graph.addVertex(std::make_unique<VertexSO3>(0, Quat::Identity()));
+  for (const Vec3& offset : std::vector<Vec3>{Vec3(0.01, 0, 0), Vec3(-0.01, 0, 0), Vec3(0, 0.02, 0), Vec3(0, -0.02, 0)}) {
+    auto e = std::make_unique<EdgeRotationPrior>();
+    e->setVertex(0, q);
+    e->setMeasurement(base * so3Exp(offset));
+    graph.addEdge(std::move(e));
+  }
+  Options options;
+  options.function_tolerance = 1e-12;
+  graph.optimize(options);
+  EXPECT_LT(so3Log(base.conjugate() * q->estimate()).norm(), 1e-5);
+}
+
+}  // namespace
+}  // namespace sparse_opt
