@@ -65,8 +65,9 @@ TEST(PoseOnlyProblem, RecoversPoseAndFlagsOutliers) {
       obs.depth_m = 1.0 + 4.0 * uniform(rng);
     } else {
       obs.uv = model.camera.project(p_c) + Vec2(pixel_noise(rng), pixel_noise(rng));
-      // Depth noise giving 1 px on u_r: sigma_d = d^2 / bf.
-      obs.depth_m = p_c.z() + pixel_noise(rng) * p_c.z() * p_c.z() / model.bf_px_m;
+      // Depth whose u_r = u - bf / d carries its own independent 1 px noise.
+      const double u_r = model.projectRgbd(p_c).z() + pixel_noise(rng);
+      obs.depth_m = model.bf_px_m / (obs.uv.x() - u_r);
     }
     if (k % 7 == 3) obs.depth_m = 0.0;  // some features without depth: 2-D edges
     problem.observations.push_back(obs);
@@ -188,7 +189,8 @@ TEST(LocalBundleAdjust, VisualInertialWindowConvergesToGroundTruth) {
       obs.keyframe_id = 100 + k;
       obs.point_id = m;
       obs.uv = uv;
-      obs.depth_m = (m % 4 == 0) ? 0.0 : p_c.z();
+      // Every fourth point has depth only in the keyframe that seeded it (2-D edges elsewhere).
+      obs.depth_m = (m % 4 == 0 && m / 40 != k) ? 0.0 : p_c.z();
       problem.observations.push_back(obs);
       ++num_observations;
     }
