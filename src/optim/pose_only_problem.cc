@@ -5,7 +5,9 @@
 #include <sparse_opt/robust_kernel.h>
 
 #include "ltlo/core/assert.h"
+#include "ltlo/core/log.h"
 #include "ltlo/optim/inertial_edges.h"
+#include "ltlo/optim/pose_edges.h"
 #include "ltlo/optim/vertices.h"
 
 namespace ltlo::optim {
@@ -68,10 +70,34 @@ PoseOnlyResult optimizePose(const PoseOnlyProblem& problem, const PoseOnlyOption
     velocity = addVertex(graph, std::make_unique<VertexVelocity>(kVelocity, problem.v_w_b_init), false);
     gyro_bias = addVertex(graph, std::make_unique<VertexGyroBias>(kGyroBias, problem.bias_init.b_g), false);
     acc_bias = addVertex(graph, std::make_unique<VertexAccBias>(kAccBias, problem.bias_init.b_a), false);
-    auto* prev_pose = addVertex(graph, std::make_unique<VertexPose>(kPrevPose, link.T_w_b_prev), true);
-    auto* prev_velocity = addVertex(graph, std::make_unique<VertexVelocity>(kPrevVelocity, link.v_w_b_prev), true);
-    auto* prev_gyro = addVertex(graph, std::make_unique<VertexGyroBias>(kPrevGyroBias, link.bias_prev.b_g), true);
-    auto* prev_acc = addVertex(graph, std::make_unique<VertexAccBias>(kPrevAccBias, link.bias_prev.b_a), true);
+    const bool prev_fixed = !link.prev_prior.has_value();
+    auto* prev_pose = addVertex(graph, std::make_unique<VertexPose>(kPrevPose, link.T_w_b_prev), prev_fixed);
+    auto* prev_velocity =
+        addVertex(graph, std::make_unique<VertexVelocity>(kPrevVelocity, link.v_w_b_prev), prev_fixed);
+    auto* prev_gyro = addVertex(graph, std::make_unique<VertexGyroBias>(kPrevGyroBias, link.bias_prev.b_g), prev_fixed);
+    auto* prev_acc = addVertex(graph, std::make_unique<VertexAccBias>(kPrevAccBias, link.bias_prev.b_a), prev_fixed);
+    if (link.prev_prior) {
+      auto pose_prior = std::make_unique<EdgePosePrior>();
+      pose_prior->setVertex(0, prev_pose);
+      pose_prior->setMeasurement(link.T_w_b_prev);
+      pose_prior->setInformation(link.prev_prior->pose_information);
+      graph.addEdge(std::move(pose_prior));
+      auto velocity_prior = std::make_unique<EdgeVelocityPrior>();
+      velocity_prior->setVertex(0, prev_velocity);
+      velocity_prior->setMeasurement(link.v_w_b_prev);
+      velocity_prior->setInformation(link.prev_prior->velocity_information);
+      graph.addEdge(std::move(velocity_prior));
+      auto gyro_prior = std::make_unique<EdgeGyroBiasPrior>();
+      gyro_prior->setVertex(0, prev_gyro);
+      gyro_prior->setMeasurement(link.bias_prev.b_g);
+      gyro_prior->setInformation(link.prev_prior->gyro_bias_information);
+      graph.addEdge(std::move(gyro_prior));
+      auto acc_prior = std::make_unique<EdgeAccBiasPrior>();
+      acc_prior->setVertex(0, prev_acc);
+      acc_prior->setMeasurement(link.bias_prev.b_a);
+      acc_prior->setInformation(link.prev_prior->acc_bias_information);
+      graph.addEdge(std::move(acc_prior));
+    }
 
     // The current frame's biases correct the deltas (ORB-SLAM3's pose-inertial optimisation); the
     // random walk ties them to the previous frame's.
@@ -148,6 +174,15 @@ PoseOnlyResult optimizePose(const PoseOnlyProblem& problem, const PoseOnlyOption
   }
 
   result.T_w_b = pose->estimate();
+  // Information of the current pose: inverse of its marginal covariance at the final estimate.
+  // An unconstrained pose (too few inliers, no IMU) has no covariance: the information stays zero.
+  try {
+    const std::vector<Eigen::MatrixXd> covariance = graph.marginalCovariance({kPose}, solver_options);
+    const Mat6 cov = covariance.at(0);
+    result.pose_information = cov.ldlt().solve(Mat6::Identity());
+  } catch (const sparse_opt::Error& error) {
+    log::debug("optimizePose: no pose information (", result.num_inliers, " inliers): ", error.what());
+  }
   if (problem.inertial) {
     result.v_w_b = velocity->estimate();
     result.bias.b_g = gyro_bias->estimate();

@@ -10,6 +10,7 @@
 #include "imu/analytic_trajectory.h"
 #include "ltlo/core/lie.h"
 #include "ltlo/optim/inertial_edges.h"
+#include "ltlo/optim/pose_edges.h"
 #include "ltlo/optim/reprojection_edges.h"
 #include "ltlo/optim/vertices.h"
 

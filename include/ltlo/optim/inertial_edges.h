@@ -1,5 +1,5 @@
 #pragma once
-/// Inertial, bias random-walk and prior edges (namespace ltlo::optim). The inertial residual and its
+/// Inertial, bias random-walk and R^3 prior edges (namespace ltlo::optim). The inertial residual and its
 /// Jacobians are imu::inertialResidualJacobians (imu/inertial_residual.h); these edges only chain
 /// them to the vertex perturbations of vertices.h.
 #include <memory>
@@ -66,15 +66,6 @@ class EdgeBiasWalk final
   void linearizeOplus() override;
 };
 
-/// Prior on a body pose with measurement T_w_b0: r = [Log(R_0^T R); R_0^T (p - p_0)], which is
-/// the vertex perturbation [dphi; drho] at T_w_b0 to first order, so the 6x6 information of a
-/// marginal covariance of a VertexPose is used as it is.
-class EdgePosePrior final : public sparse_opt::BaseEdge<6, SE3, VertexPose> {
- public:
-  void computeError() override;
-  void linearizeOplus() override;
-};
-
 /// Prior r = x - measurement on an R^3 vertex (velocity, bias, point).
 template <typename Vertex>
 class EdgeVec3Prior final : public sparse_opt::BaseEdge<3, Vec3, Vertex> {
@@ -85,13 +76,5 @@ class EdgeVec3Prior final : public sparse_opt::BaseEdge<3, Vec3, Vertex> {
 using EdgeVelocityPrior = EdgeVec3Prior<VertexVelocity>;
 using EdgeGyroBiasPrior = EdgeVec3Prior<VertexGyroBias>;
 using EdgeAccBiasPrior = EdgeVec3Prior<VertexAccBias>;
-
-/// Relative body pose for the essential / pose graph: measurement T_i_j (the pose of j in i).
-/// E = T_i_j^-1 T_w_i^-1 T_w_j, r = [Log(R_E); t_E] (rotation first). Vertices 0 pose_i, 1 pose_j.
-class EdgeRelativePose final : public sparse_opt::BaseEdge<6, SE3, VertexPose, VertexPose> {
- public:
-  void computeError() override;
-  void linearizeOplus() override;
-};
 
 }  // namespace ltlo::optim

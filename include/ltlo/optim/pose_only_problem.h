@@ -25,7 +25,19 @@ struct PoseObservation {
   double static_weight = 1.0;  ///< beta * gamma (thesis Eq. 53), 1 for a static point
 };
 
-/// The previous frame's state, held fixed, and the IMU preintegrated from it to the current frame.
+/// Gaussian prior on the previous frame's state from its own (marginalised) optimisation, as a
+/// block-diagonal information in the vertex perturbations of vertices.h. With it the previous state
+/// is optimised together with the current one instead of held fixed (ORB-SLAM3's tracking against
+/// the last frame).
+struct PreviousStatePrior {
+  Mat6 pose_information = Mat6::Identity();      ///< [dphi; drho] of T_w_b_prev
+  Mat3 velocity_information = Mat3::Identity();  ///< (m/s)^-2
+  Mat3 gyro_bias_information = Mat3::Identity(); ///< (rad/s)^-2
+  Mat3 acc_bias_information = Mat3::Identity();  ///< (m/s^2)^-2
+};
+
+/// The previous frame's state and the IMU preintegrated from it to the current frame. The previous
+/// state is held fixed unless a prior is given.
 struct InertialLink {
   SE3 T_w_b_prev;
   Vec3 v_w_b_prev = Vec3::Zero();
@@ -33,6 +45,7 @@ struct InertialLink {
   std::shared_ptr<const imu::Preintegrated> pim;  ///< previous -> current frame
   Vec3 g_w = imu::gravityWorld();
   double lambda_imu = 1.0;  ///< weight of the bias random walk (thesis Eq. 58)
+  std::optional<PreviousStatePrior> prev_prior;  ///< absent: previous state fixed
 };
 
 struct PoseOnlyProblem {
@@ -54,6 +67,10 @@ struct PoseOnlyOptions {
 
 struct PoseOnlyResult {
   SE3 T_w_b;
+  /// Current-frame information of [dphi; drho] (VertexPose) from the last round's inliers, e.g.
+  /// the prior of the next pose-only problem (PreviousStatePrior::pose_information). Zero when the pose
+  /// is not constrained (too few inliers without IMU).
+  Mat6 pose_information = Mat6::Zero();
   Vec3 v_w_b = Vec3::Zero();
   imu::ImuBias bias;
   std::vector<bool> inliers;  ///< per observation, in input order
