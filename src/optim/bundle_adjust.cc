@@ -30,10 +30,20 @@ struct ObservationEdge {
   MonoEdge* mono = nullptr;
   double threshold = 0.0;
 
-  bool passes() const {
+  // Evaluates the edge; unweighted chi2 and whether the point is in front of the camera.
+  double unweightedChi2(bool* depth_positive) const {
     edge->computeError();
-    if (rgbd != nullptr) return rgbd->isDepthPositive() && rgbd->unweightedChi2() <= threshold;
-    return mono->isDepthPositive() && mono->unweightedChi2() <= threshold;
+    if (rgbd != nullptr) {
+      *depth_positive = rgbd->isDepthPositive();
+      return rgbd->unweightedChi2();
+    }
+    *depth_positive = mono->isDepthPositive();
+    return mono->unweightedChi2();
+  }
+  bool passes() const {
+    bool depth_positive = false;
+    const double chi2 = unweightedChi2(&depth_positive);
+    return depth_positive && chi2 <= threshold;
   }
 };
 
@@ -156,7 +166,13 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
     result.summary = graph.optimize(solver_options);
   }
   result.inliers.reserve(edges.size());
-  for (const ObservationEdge& entry : edges) result.inliers.push_back(entry.passes());
+  result.residual_chi2.reserve(edges.size());
+  for (const ObservationEdge& entry : edges) {
+    bool depth_positive = false;
+    const double chi2 = entry.unweightedChi2(&depth_positive);
+    result.inliers.push_back(depth_positive && chi2 <= entry.threshold);
+    result.residual_chi2.push_back(chi2);
+  }
 
   result.keyframes = problem.keyframes;
   for (size_t k = 0; k < result.keyframes.size(); ++k) {

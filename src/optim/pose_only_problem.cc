@@ -167,7 +167,7 @@ PoseOnlyResult optimizePose(const PoseOnlyProblem& problem, const PoseOnlyOption
       result.inliers[k] = inlier;
       edges[k].edge->setLevel(inlier ? 0 : 1);
       if (inlier) ++result.num_inliers;
-      // The last rounds run on inliers only, without the kernel (ORB-SLAM: from the third round).
+      // The last round runs on the inliers without the kernel (ORB-SLAM's pose optimisation).
       if (round + 2 >= options.rounds) edges[k].edge->setRobustKernel(nullptr);
     }
     if (result.num_inliers < 3 && !problem.inertial) break;  // too few to constrain the pose

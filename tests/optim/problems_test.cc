@@ -340,6 +340,14 @@ TEST(LocalBundleAdjust, VisualOnlyRejectsCorruptedObservations) {
     }
   }
   EXPECT_GE(clean_kept, clean - 12);
+  // Residuals for the Eq. 53 updates: unweighted, so a weight-0.5 clean observation is near zero
+  // and a corrupted one is large.
+  ASSERT_EQ(result.residual_chi2.size(), corrupted.size());
+  for (size_t n = 0; n < corrupted.size(); ++n) {
+    if (corrupted[n]) {
+      EXPECT_GT(result.residual_chi2[n], 100.0) << "observation " << n;
+    }
+  }
 }
 
 // Poses on a circle of radius 3 m, heading along the tangent.

@@ -71,6 +71,9 @@ struct LocalBaResult {
   std::vector<BaKeyFrame> keyframes;  ///< input order, optimised values
   std::vector<BaPoint> points;        ///< input order
   std::vector<bool> inliers;          ///< per observation
+  /// Per observation r^T Omega_obs r at the result, without the static weight: the |r|^2 of the
+  /// thesis' Eq. 53 (staticWeightedCost) for the closed-form weight updates.
+  std::vector<double> residual_chi2;
   sparse_opt::Summary summary;        ///< of the last pass
 };
 
