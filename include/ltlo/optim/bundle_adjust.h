@@ -1,0 +1,112 @@
+#pragma once
+/// Window problems on plain inputs (namespace ltlo::optim): local visual(-inertial) bundle adjustment
+/// and inertial-only IMU initialisation. Inputs are ids + Eigen values so optim does not depend on
+/// map/; the caller copies states in and writes results back under its own locks.
+#include <atomic>
+#include <memory>
+#include <vector>
+
+#include <sparse_opt/graph.h>
+
+#include "ltlo/core/eigen_types.h"
+#include "ltlo/core/lie.h"
+#include "ltlo/imu/imu_types.h"
+#include "ltlo/imu/inertial_residual.h"
+#include "ltlo/imu/preintegration.h"
+#include "ltlo/optim/reprojection_edges.h"
+
+namespace ltlo::optim {
+
+struct BaKeyFrame {
+  int id = 0;
+  SE3 T_w_b;
+  Vec3 v_w_b = Vec3::Zero();  ///< used when the keyframe has an inertial link
+  imu::ImuBias bias;          ///< used when the keyframe has an inertial link
+  bool fixed = false;         ///< in the problem as a constraint only (gauge, window border)
+};
+
+struct BaPoint {
+  int id = 0;
+  Vec3 p_w = Vec3::Zero();
+};
+
+struct BaObservation {
+  int keyframe_id = 0;
+  int point_id = 0;
+  Vec2 uv = Vec2::Zero();      ///< keypoint (px)
+  double depth_m = 0.0;        ///< <= 0: monocular 2-D edge
+  double sigma_px = 1.0;
+  double static_weight = 1.0;  ///< beta * gamma (thesis Eq. 53)
+};
+
+/// IMU between consecutive keyframes i -> j (the deltas are corrected for the biases of i).
+struct BaInertialLink {
+  int keyframe_i = 0;
+  int keyframe_j = 0;
+  std::shared_ptr<const imu::Preintegrated> pim;
+};
+
+struct LocalBaProblem {
+  ProjectionModel model;  ///< T_c_x = T_c_b
+  std::vector<BaKeyFrame> keyframes;
+  std::vector<BaPoint> points;
+  std::vector<BaObservation> observations;
+  std::vector<BaInertialLink> inertial;  ///< empty: visual-only BA
+  Vec3 g_w = imu::gravityWorld();
+  double lambda_imu = 1.0;  ///< bias random-walk weight (thesis Eq. 58)
+};
+
+struct LocalBaOptions {
+  int iterations = 10;
+  /// After a first pass, drop observations failing the chi2 test (or behind the camera) and run
+  /// `iterations` more without robust kernels (ORB-SLAM's local BA).
+  bool reject_outliers = true;
+  double chi2_2d = kChi2Threshold2Dof;
+  double chi2_3d = kChi2Threshold3Dof;
+  int num_threads = 2;
+  const std::atomic<bool>* stop_flag = nullptr;  ///< checked between iterations (new keyframe)
+};
+
+struct LocalBaResult {
+  std::vector<BaKeyFrame> keyframes;  ///< input order, optimised values
+  std::vector<BaPoint> points;        ///< input order
+  std::vector<bool> inliers;          ///< per observation
+  /// Per observation r^T Omega_obs r at the result, without the static weight: the |r|^2 of the
+  /// thesis' Eq. 53 (staticWeightedCost) for the closed-form weight updates.
+  std::vector<double> residual_chi2;
+  sparse_opt::Summary summary;        ///< of the last pass
+};
+
+/// Throws LTLO assertion errors on unknown ids; observations of points/keyframes not given are bugs.
+LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOptions& options = LocalBaOptions());
+
+/// Inertial-only initialisation with known (fixed) keyframe poses: velocities, one bias pair for the
+/// window and the gravity direction R_w_g (g_w = R_w_g (0, 0, -G)); scale is known (RGB-D).
+struct ImuInitProblem {
+  std::vector<SE3> T_w_b;  ///< keyframe poses in the (not gravity-aligned) map frame w
+  /// pims[k]: keyframe k -> k + 1 (size T_w_b.size() - 1).
+  std::vector<std::shared_ptr<const imu::Preintegrated>> pims;
+  imu::ImuBias bias_init;
+  double gravity_m_s2 = imu::kGravity_m_s2;
+  /// Information of zero-mean priors on the biases (keeps them bounded on short windows).
+  double gyro_bias_prior_information = 1e2;
+  double acc_bias_prior_information = 1e2;
+  int iterations = 20;
+};
+
+struct ImuInitResult {
+  Mat3 R_w_g = Mat3::Identity();
+  Vec3 g_w = Vec3::Zero();
+  imu::ImuBias bias;
+  std::vector<Vec3> v_w_b;  ///< per keyframe
+  sparse_opt::Summary summary;
+};
+
+/// Linear first guess: velocities and g_w by least squares on the velocity and position equations
+/// with the biases of the preintegrations; then R_w_g from the direction of g_w.
+ImuInitResult linearImuInit(const ImuInitProblem& problem);
+
+/// The linear guess refined by the inertial-only optimisation (EdgeInertialGravity).
+ImuInitResult initializeImu(const ImuInitProblem& problem);
+
+}  // namespace ltlo::optim
