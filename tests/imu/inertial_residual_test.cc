@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "analytic_trajectory.h"
+#include "common/analytic_trajectory.h"
 #include "ltlo/core/lie.h"
 #include "numeric_jacobian.h"
 

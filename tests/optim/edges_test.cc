@@ -7,7 +7,7 @@
 #include <random>
 
 #include "common/numeric_jacobian.h"
-#include "imu/analytic_trajectory.h"
+#include "common/analytic_trajectory.h"
 #include "ltlo/core/lie.h"
 #include "ltlo/optim/inertial_edges.h"
 #include "ltlo/optim/pose_edges.h"

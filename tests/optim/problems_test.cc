@@ -8,7 +8,7 @@
 #include <memory>
 #include <random>
 
-#include "imu/analytic_trajectory.h"
+#include "common/analytic_trajectory.h"
 #include "ltlo/core/lie.h"
 #include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/optim/pose_graph.h"
