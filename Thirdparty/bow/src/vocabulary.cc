@@ -1,0 +1,437 @@
+#include "bow/vocabulary.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+namespace bow {
+namespace {
+
+constexpr char kMagic[8] = {'L', 'T', 'L', 'O', 'B', 'O', 'W', '1'};
+constexpr std::size_t kNodeBytes = 2 + 4 + 32;  // child count, weight, descriptor
+
+/// Tree under construction; flattened breadth-first once complete.
+struct BuildNode {
+  Descriptor centre{};
+  std::vector<std::unique_ptr<BuildNode>> children;
+};
+
+/// Uniform double in [0, 1) from a 64-bit generator (portable, unlike std distributions).
+double uniform01(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+/// Bitwise majority of the descriptors `indices` (k-medians centre under Hamming distance).
+Descriptor majority(const std::vector<Descriptor>& data, const std::vector<std::uint32_t>& indices) {
+  std::array<std::uint32_t, 256> counts{};
+  for (std::uint32_t i : indices) {
+    for (int w = 0; w < 4; ++w) {
+      std::uint64_t bits = data[i][w];
+      while (bits) {
+        counts[w * 64 + __builtin_ctzll(bits)]++;
+        bits &= bits - 1;
+      }
+    }
+  }
+  Descriptor centre{};
+  const std::size_t n = indices.size();
+  for (int b = 0; b < 256; ++b) {
+    if (2 * static_cast<std::size_t>(counts[b]) > n) centre[b / 64] |= std::uint64_t{1} << (b % 64);
+  }
+  return centre;
+}
+
+/// k-means++ seeding with squared Hamming distance as the sampling weight.
+std::vector<Descriptor> seedCentres(const std::vector<Descriptor>& data,
+                                    const std::vector<std::uint32_t>& indices, int k, std::mt19937_64& rng) {
+  std::vector<Descriptor> centres;
+  centres.push_back(data[indices[rng() % indices.size()]]);
+  std::vector<double> min_dist_sq(indices.size());
+  for (std::size_t i = 0; i < indices.size(); ++i) {
+    const double d = hammingDistance(data[indices[i]], centres[0]);
+    min_dist_sq[i] = d * d;
+  }
+  while (static_cast<int>(centres.size()) < k) {
+    double total = 0.0;
+    for (double v : min_dist_sq) total += v;
+    if (total <= 0.0) break;  // every descriptor equals a centre already
+    const double target = uniform01(rng) * total;
+    double cumulative = 0.0;
+    std::size_t chosen = indices.size() - 1;
+    for (std::size_t i = 0; i < indices.size(); ++i) {
+      cumulative += min_dist_sq[i];
+      if (cumulative > target) {
+        chosen = i;
+        break;
+      }
+    }
+    centres.push_back(data[indices[chosen]]);
+    for (std::size_t i = 0; i < indices.size(); ++i) {
+      const double d = hammingDistance(data[indices[i]], centres.back());
+      min_dist_sq[i] = std::min(min_dist_sq[i], d * d);
+    }
+  }
+  return centres;
+}
+
+/// Splits `indices` into at most k clusters; returns the non-empty clusters with their centres.
+/// The returned assignment is nearest-centre for the returned centres (ties: lower centre), so
+/// greedy descent at transform time reproduces it.
+void kMedians(const std::vector<Descriptor>& data, const std::vector<std::uint32_t>& indices, int k,
+              int max_iterations, std::mt19937_64& rng, std::vector<Descriptor>* centres_out,
+              std::vector<std::vector<std::uint32_t>>* clusters_out) {
+  std::vector<Descriptor> centres = seedCentres(data, indices, k, rng);
+  const int num_centres = static_cast<int>(centres.size());
+  std::vector<int> assignment(indices.size(), -1);
+  for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    bool changed = false;
+    for (std::size_t i = 0; i < indices.size(); ++i) {
+      int best = 0;
+      int best_dist = 257;
+      for (int c = 0; c < num_centres; ++c) {
+        const int d = hammingDistance(data[indices[i]], centres[c]);
+        if (d < best_dist) {
+          best_dist = d;
+          best = c;
+        }
+      }
+      if (assignment[i] != best) {
+        assignment[i] = best;
+        changed = true;
+      }
+    }
+    if (!changed || iteration + 1 == max_iterations) break;
+    std::vector<std::vector<std::uint32_t>> members(num_centres);
+    for (std::size_t i = 0; i < indices.size(); ++i) members[assignment[i]].push_back(indices[i]);
+    for (int c = 0; c < num_centres; ++c) {
+      if (!members[c].empty()) centres[c] = majority(data, members[c]);
+    }
+  }
+  std::vector<std::vector<std::uint32_t>> members(num_centres);
+  for (std::size_t i = 0; i < indices.size(); ++i) members[assignment[i]].push_back(indices[i]);
+  centres_out->clear();
+  clusters_out->clear();
+  for (int c = 0; c < num_centres; ++c) {
+    if (members[c].empty()) continue;
+    centres_out->push_back(centres[c]);
+    clusters_out->push_back(std::move(members[c]));
+  }
+}
+
+void buildSubtree(const std::vector<Descriptor>& data, std::vector<std::uint32_t> indices, int levels_left,
+                  const TrainOptions& options, std::uint64_t seed, BuildNode* node) {
+  if (levels_left == 0 || indices.size() <= 1) return;
+  if (static_cast<int>(indices.size()) <= options.branching) {
+    // Few descriptors left: each distinct one becomes a leaf.
+    std::vector<Descriptor> distinct;
+    for (std::uint32_t i : indices) {
+      if (std::find(distinct.begin(), distinct.end(), data[i]) == distinct.end()) distinct.push_back(data[i]);
+    }
+    if (distinct.size() <= 1) return;
+    for (const Descriptor& d : distinct) {
+      node->children.push_back(std::make_unique<BuildNode>());
+      node->children.back()->centre = d;
+    }
+    return;
+  }
+  std::mt19937_64 rng(seed);
+  std::vector<Descriptor> centres;
+  std::vector<std::vector<std::uint32_t>> clusters;
+  kMedians(data, indices, options.branching, options.max_iterations, rng, &centres, &clusters);
+  indices.clear();
+  indices.shrink_to_fit();
+  if (clusters.size() <= 1) return;
+  for (std::size_t c = 0; c < clusters.size(); ++c) {
+    node->children.push_back(std::make_unique<BuildNode>());
+    node->children.back()->centre = centres[c];
+    buildSubtree(data, std::move(clusters[c]), levels_left - 1, options,
+                 seed * 6364136223846793005ULL + 1442695040888963407ULL + c, node->children.back().get());
+  }
+}
+
+void writeBytes(std::vector<char>* out, const void* data, std::size_t size) {
+  const char* p = static_cast<const char*>(data);
+  out->insert(out->end(), p, p + size);
+}
+
+}  // namespace
+
+Vocabulary Vocabulary::train(const std::vector<std::vector<Descriptor>>& images, const TrainOptions& options) {
+  if (options.branching < 2 || options.branching > 255 || options.depth < 1 || options.depth > 10 ||
+      options.max_iterations < 1 || options.num_threads < 1) {
+    throw std::invalid_argument("bow::Vocabulary::train: need branching in [2, 255], depth in [1, 10], "
+                                "max_iterations >= 1, num_threads >= 1; got branching " +
+                                std::to_string(options.branching) + ", depth " + std::to_string(options.depth));
+  }
+  std::size_t total = 0;
+  for (const auto& image : images) total += image.size();
+  if (total == 0) throw std::invalid_argument("bow::Vocabulary::train: no training descriptors");
+  std::vector<Descriptor> data;
+  if (options.max_cluster_descriptors == 0 || total <= options.max_cluster_descriptors) {
+    data.reserve(total);
+    for (const auto& image : images) data.insert(data.end(), image.begin(), image.end());
+  } else {
+    // Reservoir sample: deterministic for a given seed and input order.
+    std::mt19937_64 sample_rng(options.seed ^ 0x9E3779B97F4A7C15ULL);
+    data.reserve(options.max_cluster_descriptors);
+    std::size_t seen = 0;
+    for (const auto& image : images) {
+      for (const Descriptor& d : image) {
+        if (data.size() < options.max_cluster_descriptors) {
+          data.push_back(d);
+        } else {
+          const std::size_t j = sample_rng() % (seen + 1);
+          if (j < data.size()) data[j] = d;
+        }
+        ++seen;
+      }
+    }
+  }
+  const auto report = [&](const std::string& message) {
+    if (options.progress) options.progress(message);
+  };
+  report("clustering " + std::to_string(data.size()) + " descriptors from " + std::to_string(images.size()) +
+         " images into k = " + std::to_string(options.branching) + ", L = " + std::to_string(options.depth));
+
+  // Root split on the calling thread, then the subtrees under the root in parallel; each subtree
+  // has its own seed, so the result does not depend on the thread count.
+  BuildNode root;
+  std::vector<std::uint32_t> all(data.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<std::uint32_t>(i);
+  std::vector<std::vector<std::uint32_t>> clusters;
+  if (static_cast<int>(all.size()) <= options.branching) {
+    buildSubtree(data, all, options.depth, options, options.seed, &root);
+  } else {
+    std::mt19937_64 rng(options.seed);
+    std::vector<Descriptor> centres;
+    kMedians(data, all, options.branching, options.max_iterations, rng, &centres, &clusters);
+    for (const Descriptor& c : centres) {
+      root.children.push_back(std::make_unique<BuildNode>());
+      root.children.back()->centre = c;
+    }
+  }
+  all.clear();
+  all.shrink_to_fit();
+  std::atomic<std::size_t> next_cluster{0};
+  std::atomic<std::size_t> done{0};
+  std::mutex report_mutex;
+  const auto worker = [&]() {
+    for (std::size_t c = next_cluster++; c < clusters.size(); c = next_cluster++) {
+      buildSubtree(data, std::move(clusters[c]), options.depth - 1, options,
+                   options.seed * 2862933555777941757ULL + 3037000493ULL + c, root.children[c].get());
+      std::lock_guard<std::mutex> lock(report_mutex);
+      report("subtree " + std::to_string(++done) + " / " + std::to_string(clusters.size()) + " done");
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 1; t < options.num_threads; ++t) threads.emplace_back(worker);
+  worker();
+  for (std::thread& t : threads) t.join();
+
+  // Flatten breadth-first so that every node's children are contiguous.
+  Vocabulary vocabulary;
+  vocabulary.branching_ = options.branching;
+  vocabulary.depth_ = options.depth;
+  std::vector<const BuildNode*> queue{&root};
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    Node node;
+    node.centre = queue[head]->centre;
+    node.num_children = static_cast<std::uint16_t>(queue[head]->children.size());
+    vocabulary.nodes_.push_back(node);
+    for (const auto& child : queue[head]->children) queue.push_back(child.get());
+  }
+  vocabulary.link();
+
+  // IDF from the training images: idf(w) = ln(N / n_w), n_w = images in which word w occurs.
+  std::vector<std::uint32_t> images_with_word(vocabulary.numWords(), 0);
+  std::vector<std::uint32_t> last_image(vocabulary.numWords(), UINT32_MAX);
+  for (std::size_t image = 0; image < images.size(); ++image) {
+    for (const Descriptor& d : images[image]) {
+      const WordId w = vocabulary.wordOf(d);
+      if (last_image[w] != image) {
+        last_image[w] = static_cast<std::uint32_t>(image);
+        images_with_word[w]++;
+      }
+    }
+  }
+  const double num_images = static_cast<double>(images.size());
+  for (std::size_t w = 0; w < vocabulary.numWords(); ++w) {
+    // A word no training image reaches gets the weight of a word seen once.
+    const double n = std::max<double>(1.0, images_with_word[w]);
+    vocabulary.nodes_[vocabulary.word_nodes_[w]].weight = static_cast<float>(std::log(num_images / n));
+  }
+  report("vocabulary: " + std::to_string(vocabulary.numNodes()) + " nodes, " +
+         std::to_string(vocabulary.numWords()) + " words");
+  return vocabulary;
+}
+
+void Vocabulary::link() {
+  word_nodes_.clear();
+  std::uint32_t next = 1;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    Node& node = nodes_[i];
+    node.first_child = next;
+    if (next + node.num_children > nodes_.size()) {
+      throw std::runtime_error("bow::Vocabulary: inconsistent child counts at node " + std::to_string(i));
+    }
+    for (std::uint32_t c = next; c < next + node.num_children; ++c) {
+      nodes_[c].parent = static_cast<std::uint32_t>(i);
+      nodes_[c].depth = static_cast<std::uint16_t>(node.depth + 1);
+    }
+    next += node.num_children;
+    if (node.num_children == 0 && i != 0) {
+      node.word = static_cast<std::int32_t>(word_nodes_.size());
+      word_nodes_.push_back(static_cast<std::uint32_t>(i));
+    } else {
+      node.word = -1;
+    }
+  }
+  if (next != nodes_.size()) {
+    throw std::runtime_error("bow::Vocabulary: child counts cover " + std::to_string(next) + " of " +
+                             std::to_string(nodes_.size()) + " nodes");
+  }
+}
+
+std::uint32_t Vocabulary::descend(const Descriptor& d, int node_depth, std::uint32_t* node_at_depth) const {
+  std::uint32_t id = 0;
+  if (node_at_depth) *node_at_depth = 0;
+  while (nodes_[id].num_children > 0) {
+    const Node& node = nodes_[id];
+    std::uint32_t best = node.first_child;
+    int best_dist = 257;
+    for (std::uint32_t c = node.first_child; c < node.first_child + node.num_children; ++c) {
+      const int dist = hammingDistance(d, nodes_[c].centre);
+      if (dist < best_dist) {
+        best_dist = dist;
+        best = c;
+      }
+    }
+    id = best;
+    if (node_at_depth && nodes_[id].depth <= node_depth) *node_at_depth = id;
+  }
+  return id;
+}
+
+WordId Vocabulary::wordOf(const Descriptor& descriptor) const {
+  return static_cast<WordId>(nodes_[descend(descriptor, 0, nullptr)].word);
+}
+
+void Vocabulary::transform(const std::vector<Descriptor>& descriptors, BowVector* bow_vector,
+                           FeatureVector* features, int feature_depth) const {
+  bow_vector->entries.clear();
+  if (features) features->clear();
+  if (word_nodes_.empty() || descriptors.empty()) return;
+  feature_depth = std::clamp(feature_depth, 1, depth_);
+  std::vector<WordId> words(descriptors.size());
+  for (std::size_t i = 0; i < descriptors.size(); ++i) {
+    std::uint32_t node_at_depth = 0;
+    const std::uint32_t leaf = descend(descriptors[i], feature_depth, features ? &node_at_depth : nullptr);
+    words[i] = static_cast<WordId>(nodes_[leaf].word);
+    if (features) (*features)[node_at_depth].push_back(static_cast<std::uint32_t>(i));
+  }
+  std::sort(words.begin(), words.end());
+  double total = 0.0;
+  for (std::size_t i = 0; i < words.size();) {
+    std::size_t j = i;
+    while (j < words.size() && words[j] == words[i]) ++j;
+    const float value = static_cast<float>(j - i) * wordWeight(words[i]);  // tf * idf (tf unnormalised)
+    if (value > 0.0f) {
+      bow_vector->entries.emplace_back(words[i], value);
+      total += value;
+    }
+    i = j;
+  }
+  if (total > 0.0) {
+    for (auto& entry : bow_vector->entries) entry.second = static_cast<float>(entry.second / total);
+  }
+}
+
+void Vocabulary::save(const std::string& path) const {
+  std::vector<char> buffer;
+  buffer.reserve(sizeof(kMagic) + 12 + nodes_.size() * kNodeBytes);
+  writeBytes(&buffer, kMagic, sizeof(kMagic));
+  const std::uint32_t header[3] = {static_cast<std::uint32_t>(branching_), static_cast<std::uint32_t>(depth_),
+                                   static_cast<std::uint32_t>(nodes_.size())};
+  writeBytes(&buffer, header, sizeof(header));
+  for (const Node& node : nodes_) {
+    writeBytes(&buffer, &node.num_children, 2);
+    writeBytes(&buffer, &node.weight, 4);
+    writeBytes(&buffer, node.centre.data(), 32);
+  }
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw std::runtime_error(path + ": cannot open vocabulary file for writing");
+  out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+  if (!out) throw std::runtime_error(path + ": write failed");
+}
+
+Vocabulary Vocabulary::load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) throw std::runtime_error(path + ": cannot open vocabulary file");
+  const std::streamsize size = in.tellg();
+  in.seekg(0);
+  std::vector<char> buffer(static_cast<std::size_t>(size));
+  in.read(buffer.data(), size);
+  if (!in || buffer.size() < sizeof(kMagic) + 12 || std::memcmp(buffer.data(), kMagic, sizeof(kMagic)) != 0) {
+    throw std::runtime_error(path + ": not an LTLOBOW1 vocabulary file");
+  }
+  std::uint32_t header[3];
+  std::memcpy(header, buffer.data() + sizeof(kMagic), sizeof(header));
+  const std::size_t expected = sizeof(kMagic) + sizeof(header) + std::size_t{header[2]} * kNodeBytes;
+  if (buffer.size() != expected || header[2] == 0) {
+    throw std::runtime_error(path + ": size " + std::to_string(buffer.size()) + " bytes, expected " +
+                             std::to_string(expected) + " for " + std::to_string(header[2]) + " nodes");
+  }
+  Vocabulary vocabulary;
+  vocabulary.branching_ = static_cast<int>(header[0]);
+  vocabulary.depth_ = static_cast<int>(header[1]);
+  vocabulary.nodes_.resize(header[2]);
+  const char* p = buffer.data() + sizeof(kMagic) + sizeof(header);
+  for (Node& node : vocabulary.nodes_) {
+    std::memcpy(&node.num_children, p, 2);
+    std::memcpy(&node.weight, p + 2, 4);
+    std::memcpy(node.centre.data(), p + 6, 32);
+    p += kNodeBytes;
+  }
+  try {
+    vocabulary.link();
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
+  return vocabulary;
+}
+
+void Vocabulary::saveText(const std::string& path) const {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot open for writing");
+  out << "# LTLO bow vocabulary k " << branching_ << " L " << depth_ << " nodes " << nodes_.size() << " words "
+      << word_nodes_.size() << "\n# node_id parent_id depth word_id weight descriptor_hex(word0..word3)\n";
+  char hex[80];
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    const Node& n = nodes_[i];
+    std::snprintf(hex, sizeof(hex), "%016llx%016llx%016llx%016llx", static_cast<unsigned long long>(n.centre[0]),
+                  static_cast<unsigned long long>(n.centre[1]), static_cast<unsigned long long>(n.centre[2]),
+                  static_cast<unsigned long long>(n.centre[3]));
+    out << i << ' ' << (i == 0 ? -1 : static_cast<long>(n.parent)) << ' ' << n.depth << ' ' << n.word << ' '
+        << n.weight << ' ' << hex << '\n';
+  }
+  if (!out) throw std::runtime_error(path + ": write failed");
+}
+
+bool Vocabulary::operator==(const Vocabulary& other) const {
+  if (branching_ != other.branching_ || depth_ != other.depth_ || nodes_.size() != other.nodes_.size()) return false;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    const Node& a = nodes_[i];
+    const Node& b = other.nodes_[i];
+    if (a.centre != b.centre || a.weight != b.weight || a.num_children != b.num_children) return false;
+  }
+  return true;
+}
+
+}  // namespace bow
