@@ -15,8 +15,10 @@ std::vector<EssentialEdge> essentialGraphEdges(const Map& map, int min_covisibil
     if (!kf->isBad()) present.insert(kf->id());
   }
   std::set<std::pair<KeyFrameId, KeyFrameId>> linked;  // unordered pairs, stored (low, high)
+  // Ids are returned by value: order them into values, never keep std::minmax's references.
+  auto ordered = [](KeyFrameId a, KeyFrameId b) { return a < b ? std::make_pair(a, b) : std::make_pair(b, a); };
   auto claim = [&](KeyFrameId a, KeyFrameId b) {
-    return present.count(a) > 0 && present.count(b) > 0 && linked.insert(std::minmax(a, b)).second;
+    return present.count(a) > 0 && present.count(b) > 0 && linked.insert(ordered(a, b)).second;
   };
   std::vector<EssentialEdge> edges;
   for (const std::shared_ptr<KeyFrame>& kf : keyframes) {
@@ -28,7 +30,7 @@ std::vector<EssentialEdge> essentialGraphEdges(const Map& map, int min_covisibil
   for (const std::shared_ptr<KeyFrame>& kf : keyframes) {
     for (KeyFrameId other : kf->loopEdges()) {
       if (claim(kf->id(), other)) {
-        const auto [low, high] = std::minmax(kf->id(), other);
+        const auto [low, high] = ordered(kf->id(), other);
         edges.push_back({low, high, EdgeKind::kLoop, kf->weight(other)});
       }
     }
@@ -36,7 +38,7 @@ std::vector<EssentialEdge> essentialGraphEdges(const Map& map, int min_covisibil
   for (const std::shared_ptr<KeyFrame>& kf : keyframes) {
     for (KeyFrameId other : kf->covisiblesWithWeightAtLeast(min_covisibility_weight)) {
       if (claim(kf->id(), other)) {
-        const auto [low, high] = std::minmax(kf->id(), other);
+        const auto [low, high] = ordered(kf->id(), other);
         edges.push_back({low, high, EdgeKind::kCovisibility, kf->weight(other)});
       }
     }

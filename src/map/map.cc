@@ -81,8 +81,12 @@ bool Map::addObservation(KeyFrame& kf, int keypoint_index, MapPoint& point) {
   if (kf.bad_) return false;
   LTLO_ASSERT(keypoint_index >= 0 && keypoint_index < kf.numKeypoints(),
               "keypoint " << keypoint_index << " out of [0, " << kf.numKeypoints() << ") in " << kf.id());
+  MapPointId& slot = kf.map_points_[static_cast<std::size_t>(keypoint_index)];
+  if (slot.valid() && slot != point.id()) return false;  // the keypoint already has another point
   std::lock_guard<std::mutex> point_lock(point.mutex_);
   if (point.bad_) return false;
+  const auto seen = point.observations_.find(kf.id());
+  if (seen != point.observations_.end() && seen->second != keypoint_index) return false;  // seen at another keypoint
   kf.map_points_[static_cast<std::size_t>(keypoint_index)] = point.id();
   point.observations_[kf.id()] = keypoint_index;
   if (!point.reference_.valid()) point.reference_ = kf.id();
@@ -97,6 +101,8 @@ void Map::eraseObservation(KeyFrame& kf, int keypoint_index) {
 }
 
 void Map::updateConnections(KeyFrame& kf) {
+  // Serialised with culling: an edge computed here must not point at a keyframe erased meanwhile.
+  std::lock_guard<std::mutex> topology(topology_mutex_);
   std::unordered_map<KeyFrameId, int> shared_counts;
   for (MapPointId point_id : kf.mapPoints()) {
     if (!point_id.valid()) continue;

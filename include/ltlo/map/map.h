@@ -17,7 +17,8 @@
 namespace ltlo::map {
 
 /// Thread-safe. mutex_ guards the containers only and is never held while a KeyFrame or MapPoint
-/// method runs; topology_mutex_ serialises erasures and fusions (taken first, see atlas.h).
+/// method runs; topology_mutex_ serialises covisibility updates, erasures and fusions (taken
+/// first, see atlas.h).
 /// Touched by every thread: tracking (snapshots, reference points), local mapping (insertion,
 /// culling), loop closing (correction, fusion) and the Atlas (merging).
 class Map {
@@ -48,7 +49,8 @@ class Map {
   std::vector<KeyFrameId> originKeyFrames() const;
 
   /// Links keypoint `keypoint_index` of `kf` to `point` on both ends. Returns false (and links
-  /// nothing) when either is bad. Takes KeyFrame::mutex_ then MapPoint::mutex_.
+  /// nothing) when either is bad, the keypoint holds another point, or `point` is already seen at
+  /// another keypoint of `kf` (erase that link first). Takes KeyFrame::mutex_ then MapPoint::mutex_.
   bool addObservation(KeyFrame& kf, int keypoint_index, MapPoint& point);
   /// Unlinks keypoint `keypoint_index` of `kf` from its map point on both ends (no-op if none).
   void eraseObservation(KeyFrame& kf, int keypoint_index);
@@ -99,7 +101,7 @@ class Map {
   const std::shared_ptr<IdSource> ids_;
   std::atomic<std::uint64_t> version_{0};
 
-  mutable std::mutex topology_mutex_;  ///< serialises erase/replace (tree repair sees a stable graph)
+  mutable std::mutex topology_mutex_;  ///< serialises updateConnections/erase/replace (stable graph)
   mutable std::mutex mutex_;           ///< guards the containers below, nothing else
   std::unordered_map<KeyFrameId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points_;
