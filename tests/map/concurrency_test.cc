@@ -1,6 +1,7 @@
 // Several threads on one Atlas through the public API: a mapper inserting keyframes and points, a
-// culler erasing keyframes, fusing and erasing points, a loop thread moving poses, and readers taking
-// snapshots and querying the database. Synchronised with queues only (no sleeps); run under TSan.
+// culler erasing keyframes, fusing and erasing points, a loop thread moving poses, a lost-tracking
+// thread growing a second map and merging it back, and readers taking snapshots and querying the
+// database. Synchronised with queues only (no sleeps); run under TSan.
 #include <atomic>
 #include <thread>
 
@@ -33,6 +34,7 @@ TEST(MapConcurrency, InsertCullReadAndCorrectFromSeveralThreads) {
   BlockingQueue<std::shared_ptr<KeyFrame>> to_culler(4);
   BlockingQueue<std::shared_ptr<KeyFrame>> to_loop(4);
   std::atomic<int> inserted{0}, culled{0}, fused{0}, reads{0};
+  Vec3 merged_point_p_w = Vec3::Zero();  // written by `lost`, read after join
 
   std::thread mapper([&] {  // local mapping: keyframes, points shared with the last 3 keyframes
     std::vector<std::shared_ptr<KeyFrame>> recent;
@@ -92,6 +94,20 @@ TEST(MapConcurrency, InsertCullReadAndCorrectFromSeveralThreads) {
     }
   });
 
+  std::thread lost([&] {  // tracking lost once: a second map grows, then merges back into the first
+    Map& second = atlas.createNewMap();
+    std::vector<std::shared_ptr<KeyFrame>> kfs;
+    for (std::size_t k = 0; k < 3; ++k) {
+      kfs.push_back(second.createKeyFrame(frames[k]));
+      atlas.keyFrameDatabase().add(kfs.back());
+    }
+    const std::vector<std::shared_ptr<MapPoint>> points = {second.createMapPoint(Vec3(1.0, 2.0, 3.0), kfs[0]->id())};
+    for (int k = 0; k < 3; ++k) second.addObservation(*kfs[static_cast<std::size_t>(k)], k, *points[0]);
+    for (const auto& kf : kfs) second.updateConnections(*kf);
+    atlas.mergeMaps(second.id(), map.id(), SE3(Quat::Identity(), Vec3(0.5, 0.0, 0.0)));
+    merged_point_p_w = points[0]->p_w();
+  });
+
   auto reader = [&](int iterations) {  // tracking: snapshots and relocalisation queries
     for (int it = 0; it < iterations; ++it) {
       for (const std::shared_ptr<KeyFrame>& kf : map.keyFrames()) {
@@ -119,6 +135,7 @@ TEST(MapConcurrency, InsertCullReadAndCorrectFromSeveralThreads) {
   to_mapper.close();
   reader_a.join();
   reader_b.join();
+  lost.join();
   mapper.join();
   culler.join();
   loop.join();
@@ -127,7 +144,11 @@ TEST(MapConcurrency, InsertCullReadAndCorrectFromSeveralThreads) {
   EXPECT_EQ(reads.load(), 80);
   EXPECT_GT(culled.load(), 10);
   EXPECT_GT(fused.load(), 0);
-  EXPECT_EQ(map.numKeyFrames(), static_cast<std::size_t>(kNumFrames - culled.load()));
+  EXPECT_EQ(map.numKeyFrames(), static_cast<std::size_t>(kNumFrames + 3 - culled.load()));
+  EXPECT_EQ(atlas.mapIds(), std::vector<MapId>{map.id()});
+  EXPECT_EQ(atlas.activeMapId(), map.id());
+  // Loop corrections before the merge moved only the first map's points; the merge adds 0.5 m in x.
+  EXPECT_NEAR(merged_point_p_w.x(), 1.5, 1e-12);
   EXPECT_EQ(atlas.keyFrameDatabase().size(), map.numKeyFrames());
 
   // The map is consistent after the dust settles: links on both ends, a spanning tree.
@@ -142,9 +163,9 @@ TEST(MapConcurrency, InsertCullReadAndCorrectFromSeveralThreads) {
       EXPECT_EQ(p->indexIn(kf->id()), std::optional<int>(static_cast<int>(i)));
     }
     for (const auto& [other, w] : kf->covisibles()) EXPECT_NE(map.keyFrame(other), nullptr) << kf->id() << " -> " << other;
-    if (kf->id() == origins.front()) continue;
+    if (std::find(origins.begin(), origins.end(), kf->id()) != origins.end()) continue;
     const std::shared_ptr<KeyFrame> parent = map.keyFrame(kf->parent());
-    ASSERT_NE(parent, nullptr) << kf->id() << " has parent " << kf->parent();
+    ASSERT_NE(parent, nullptr) << kf->id() << " has parent " << kf->parent() << ", t = " << kf->t_s() << " s, " << kf->covisibles().size() << " covisibles, " << kf->numObservations() << " observations";
     const std::vector<KeyFrameId> siblings = parent->children();
     EXPECT_NE(std::find(siblings.begin(), siblings.end(), kf->id()), siblings.end());
   }
