@@ -27,7 +27,8 @@ Map::Map() : Map(MapId(0), std::make_shared<IdSource>()) {}
 std::shared_ptr<KeyFrame> Map::createKeyFrame(const Frame& frame) {
   auto kf = std::make_shared<KeyFrame>(ids_->nextKeyFrameId(), id_, frame);
   std::lock_guard<std::mutex> lock(mutex_);
-  if (keyframes_.empty() && origins_.empty()) origins_.push_back(kf->id());
+  if (!created_keyframe_) origins_.push_back(kf->id());  // even if a merge filled the map first
+  created_keyframe_ = true;
   keyframes_.emplace(kf->id(), kf);
   return kf;
 }

@@ -33,7 +33,8 @@ class Map {
   MapId id() const { return id_; }
 
   /// Promotes `frame` (with a pose) to a keyframe with a new id and inserts it. The first keyframe
-  /// of the map becomes an origin keyframe (spanning-tree root, never culled).
+  /// created in this map becomes an origin keyframe (spanning-tree root, never culled); a merge
+  /// adds the other map's origins.
   std::shared_ptr<KeyFrame> createKeyFrame(const Frame& frame);
   /// A new map point at p_w (m, world) with a new id, inserted; observations are added separately.
   std::shared_ptr<MapPoint> createMapPoint(const Vec3& p_w, KeyFrameId reference);
@@ -106,6 +107,7 @@ class Map {
   std::unordered_map<KeyFrameId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points_;
   std::vector<KeyFrameId> origins_;
+  bool created_keyframe_ = false;  ///< createKeyFrame() was called (its first keyframe is an origin)
   std::vector<MapPointId> reference_points_;
 };
 
