@@ -53,9 +53,9 @@ void ClusterSegmentation::validate() const {
   if (!labels.empty()) {
     double min_label = 0.0, max_label = 0.0;
     cv::minMaxLoc(labels, &min_label, &max_label);
-    LTLO_ASSERT(min_label >= 0 && max_label < numClusters(),
-                "cluster labels span [" << min_label << ", " << max_label << "] but only " << numClusters()
-                                        << " scores are given");
+    LTLO_ASSERT(min_label >= 0 && max_label < numClusters(), "cluster labels span [" << min_label << ", " << max_label
+                                                                                     << "] but only " << numClusters()
+                                                                                     << " scores are given");
   }
 }
 

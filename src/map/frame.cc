@@ -29,8 +29,8 @@ Frame::Frame(double t_s, const PinholeCamera& camera, const SE3& T_b_c, features
       scale_factors_(std::move(scale_factors)),
       depth_m_(std::move(depth_m)) {
   const std::size_t n = features_.keypoints.size();
-  LTLO_ASSERT(features_.descriptors.size() == n,
-              features_.descriptors.size() << " descriptors for " << n << " keypoints");
+  LTLO_ASSERT(features_.descriptors.size() == n, features_.descriptors.size()
+                                                     << " descriptors for " << n << " keypoints");
   LTLO_ASSERT(depth_m_.size() == n, depth_m_.size() << " depths for " << n << " keypoints");
   LTLO_ASSERT(!scale_factors_.empty(), "a frame needs the pyramid scale factors (at least level 0)");
   p_c_.assign(n, Vec3::Zero());
@@ -46,8 +46,7 @@ Frame::Frame(double t_s, const PinholeCamera& camera, const SE3& T_b_c, features
   outliers.assign(n, false);
 }
 
-std::vector<int> Frame::featuresInArea(float x_px, float y_px, float radius_px, int min_octave,
-                                       int max_octave) const {
+std::vector<int> Frame::featuresInArea(float x_px, float y_px, float radius_px, int min_octave, int max_octave) const {
   return grid_.featuresInArea(features_.keypoints, x_px, y_px, radius_px, min_octave, max_octave);
 }
 

@@ -17,8 +17,8 @@ GridIndex::GridIndex(const std::vector<features::Keypoint>& keypoints, int width
   }
 }
 
-std::vector<int> GridIndex::featuresInArea(const std::vector<features::Keypoint>& keypoints, float x_px,
-                                           float y_px, float radius_px, int min_octave, int max_octave) const {
+std::vector<int> GridIndex::featuresInArea(const std::vector<features::Keypoint>& keypoints, float x_px, float y_px,
+                                           float radius_px, int min_octave, int max_octave) const {
   std::vector<int> found;
   if (cells_.empty()) return found;
   const int col_min = std::max(0, static_cast<int>(std::floor((x_px - radius_px) * inv_cell_)));

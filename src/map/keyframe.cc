@@ -54,9 +54,9 @@ void KeyFrame::setGamma(std::vector<double> gamma) {
   segmentation.validate();
   const double ratio = segmentation.staticAreaRatio(static_threshold_);  // outside the lock: a full image pass
   std::lock_guard<std::mutex> lock(mutex_);
-  LTLO_ASSERT(segmentation.gamma.size() == gamma_.size(),
-              "keyframe " << id_ << " has " << gamma_.size() << " clusters, got " << segmentation.gamma.size()
-                          << " scores");
+  LTLO_ASSERT(segmentation.gamma.size() == gamma_.size(), "keyframe " << id_ << " has " << gamma_.size()
+                                                                      << " clusters, got " << segmentation.gamma.size()
+                                                                      << " scores");
   gamma_ = std::move(segmentation.gamma);
   static_area_ratio_ = ratio;
 }
@@ -64,8 +64,8 @@ void KeyFrame::setGamma(std::vector<double> gamma) {
 bool KeyFrame::isStatic(int i) const {
   const int cluster = clusterOf(i);
   std::lock_guard<std::mutex> lock(mutex_);
-  const double g = cluster >= 0 && cluster < static_cast<int>(gamma_.size()) ? gamma_[static_cast<std::size_t>(cluster)]
-                                                                              : 1.0;
+  const double g =
+      cluster >= 0 && cluster < static_cast<int>(gamma_.size()) ? gamma_[static_cast<std::size_t>(cluster)] : 1.0;
   return g >= static_threshold_;
 }
 
@@ -146,8 +146,8 @@ std::vector<MapPointId> KeyFrame::mapPoints() const {
 }
 int KeyFrame::numObservations() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return static_cast<int>(std::count_if(map_points_.begin(), map_points_.end(),
-                                        [](MapPointId p) { return p.valid(); }));
+  return static_cast<int>(
+      std::count_if(map_points_.begin(), map_points_.end(), [](MapPointId p) { return p.valid(); }));
 }
 bool KeyFrame::setMapPoint(int i, MapPointId point) {
   LTLO_ASSERT(i >= 0 && i < numKeypoints(), "keypoint " << i << " out of [0, " << numKeypoints() << ") in " << id_);
@@ -169,7 +169,8 @@ std::vector<std::pair<KeyFrameId, int>> KeyFrame::covisibles() const {
 std::vector<KeyFrameId> KeyFrame::bestCovisibles(std::size_t max_count) const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<KeyFrameId> ids;
-  for (std::size_t k = 0; k < ordered_covisibles_.size() && k < max_count; ++k) ids.push_back(ordered_covisibles_[k].first);
+  for (std::size_t k = 0; k < ordered_covisibles_.size() && k < max_count; ++k)
+    ids.push_back(ordered_covisibles_[k].first);
   return ids;
 }
 std::vector<KeyFrameId> KeyFrame::covisiblesWithWeightAtLeast(int min_weight) const {

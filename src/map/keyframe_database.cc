@@ -143,7 +143,8 @@ std::vector<PlaceCandidate> KeyFrameDatabase::detectMergeCandidates(const KeyFra
 std::vector<PlaceCandidate> KeyFrameDatabase::detectRelocalisationCandidates(const Frame& frame, MapId map,
                                                                              const PlaceQueryOptions& options) const {
   LTLO_ASSERT(frame.hasBow(), "relocalisation query at t = " << frame.t_s() << " s without a BoW vector");
-  return detectCandidates(frame.bowVector(), [&](const KeyFrame& kf) { return kf.mapId() == map; }, options);
+  return detectCandidates(
+      frame.bowVector(), [&](const KeyFrame& kf) { return kf.mapId() == map; }, options);
 }
 
 }  // namespace ltlo::map

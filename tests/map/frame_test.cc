@@ -102,7 +102,8 @@ TEST(Frame, BowUsesStaticKeypointsOnlyAndIndexesKeypoints) {
   // A tiny vocabulary on random descriptors; the dynamic keypoints must not reach the BoW.
   std::mt19937 rng(11);
   Frame frame = test::randomFrame(rng, 0.0, SE3(), 300);
-  const bow::Vocabulary vocabulary = bow::Vocabulary::train({frame.descriptors()}, bow::TrainOptions{4, 3, 5, 1, 1, 0, {}});
+  const bow::Vocabulary vocabulary =
+      bow::Vocabulary::train({frame.descriptors()}, bow::TrainOptions{4, 3, 5, 1, 1, 0, {}});
   ClusterSegmentation seg;
   seg.labels = cv::Mat(480, 640, CV_32S, cv::Scalar(0));
   seg.labels(cv::Rect(0, 0, 640, 240)).setTo(1);  // top half dynamic

@@ -87,7 +87,8 @@ class KeyFrameDatabaseTest : public ::testing::Test {
     vocabulary_.emplace(bow::Vocabulary::load(path));
     extractor_.emplace(features::OrbOptions{});
     // Smooth abstract wallpapers are no place to recognise: keep the textured crops.
-    images_ = placeImages([](const cv::Mat& image) { return extractor_->extract(image).keypoints.size() >= kMinKeypoints; });
+    images_ =
+        placeImages([](const cv::Mat& image) { return extractor_->extract(image).keypoints.size() >= kMinKeypoints; });
   }
   static void TearDownTestSuite() {
     vocabulary_.reset();
@@ -152,7 +153,8 @@ TEST_F(KeyFrameDatabaseTest, RelocalisationFindsTheRightKeyFrameAmongMany) {
   // An erased keyframe is no longer found.
   ASSERT_TRUE(atlas.keyFrameDatabase().erase(places[4]->id()));
   Frame query = frameOf(perturb(images_[4], 200), 200.0);
-  for (const PlaceCandidate& c : atlas.keyFrameDatabase().detectRelocalisationCandidates(query, atlas.activeMapId(), {})) {
+  for (const PlaceCandidate& c :
+       atlas.keyFrameDatabase().detectRelocalisationCandidates(query, atlas.activeMapId(), {})) {
     EXPECT_NE(c.keyframe, places[4]);
   }
 }
@@ -171,9 +173,8 @@ TEST_F(KeyFrameDatabaseTest, LoopCandidatesSkipCovisibleAndDynamicKeyFramesAndCo
   std::vector<PlaceCandidate> found = atlas.keyFrameDatabase().detectLoopCandidates(*query, 0.8, {});
   ASSERT_FALSE(found.empty());
   EXPECT_TRUE(found.front().keyframe == place3 || found.front().keyframe == twin);
-  const int group_members = static_cast<int>(std::count_if(found.begin(), found.end(), [&](const PlaceCandidate& c) {
-    return c.keyframe == place3 || c.keyframe == twin;
-  }));
+  const int group_members = static_cast<int>(std::count_if(
+      found.begin(), found.end(), [&](const PlaceCandidate& c) { return c.keyframe == place3 || c.keyframe == twin; }));
   EXPECT_EQ(group_members, 1);
   EXPECT_GT(found.front().group_score, found.front().score * 1.5);  // both views contributed
 

@@ -184,7 +184,7 @@ TEST(EssentialGraph, TreeLoopAndStrongCovisibilityEdgesOnce) {
   scene.share({a, c}, 110);  // strong but not a tree edge
   map.updateConnections(*c);
   scene.share({c, d}, 40);
-  scene.share({a, d}, 99);   // below 100: not essential
+  scene.share({a, d}, 99);  // below 100: not essential
   map.updateConnections(*d);
   a->addLoopEdge(d->id());
   d->addLoopEdge(a->id());

@@ -51,7 +51,8 @@ class SceneBuilder {
     std::uniform_real_distribution<double> coord(-2.0, 2.0);
     std::vector<std::shared_ptr<MapPoint>> points;
     for (int n = 0; n < count; ++n) {
-      std::shared_ptr<MapPoint> point = map_.createMapPoint(Vec3(coord(rng_), coord(rng_), 3.0 + coord(rng_)), KeyFrameId());
+      std::shared_ptr<MapPoint> point =
+          map_.createMapPoint(Vec3(coord(rng_), coord(rng_), 3.0 + coord(rng_)), KeyFrameId());
       for (const std::shared_ptr<KeyFrame>& kf : kfs) {
         const int index = next_keypoint_[kf->id()]++;
         if (!map_.addObservation(*kf, index, *point)) throw std::logic_error("observation refused");

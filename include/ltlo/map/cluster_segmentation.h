@@ -12,8 +12,8 @@ namespace ltlo::map {
 /// Labels are in [0, K]: 0..K-1 are depth clusters, K is the "no depth" cluster (gamma_K = 1).
 /// A plain value type; not synchronised (KeyFrame guards its copy with its own mutex).
 struct ClusterSegmentation {
-  cv::Mat labels;              ///< CV_32S or CV_16U, image size; empty = one cluster over the image
-  std::vector<double> gamma;   ///< static score per cluster in [0, 1]; gamma.size() = K + 1
+  cv::Mat labels;             ///< CV_32S or CV_16U, image size; empty = one cluster over the image
+  std::vector<double> gamma;  ///< static score per cluster in [0, 1]; gamma.size() = K + 1
 
   /// One cluster covering a width x height image with gamma = 1 (the trivially static seam).
   static ClusterSegmentation allStatic(int width_px, int height_px);

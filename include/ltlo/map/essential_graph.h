@@ -17,7 +17,7 @@ struct EssentialEdge {
   KeyFrameId from;  ///< spanning tree: the child; otherwise the lower id
   KeyFrameId to;    ///< spanning tree: the parent; otherwise the higher id
   EdgeKind kind = EdgeKind::kSpanningTree;
-  int weight = 0;   ///< shared map points between the two keyframes (0 if not covisible)
+  int weight = 0;  ///< shared map points between the two keyframes (0 if not covisible)
 };
 
 /// Each keyframe pair appears once, preferring spanning tree, then loop, then covisibility; bad

@@ -26,9 +26,15 @@ struct TypedId {
     return id.valid() ? (os << Tag::kPrefix << id.value) : (os << Tag::kPrefix << "none");
   }
 };
-struct KeyFrameTag { static constexpr const char* kPrefix = "kf"; };
-struct MapPointTag { static constexpr const char* kPrefix = "mp"; };
-struct MapTag { static constexpr const char* kPrefix = "map"; };
+struct KeyFrameTag {
+  static constexpr const char* kPrefix = "kf";
+};
+struct MapPointTag {
+  static constexpr const char* kPrefix = "mp";
+};
+struct MapTag {
+  static constexpr const char* kPrefix = "map";
+};
 }  // namespace detail
 
 using KeyFrameId = detail::TypedId<detail::KeyFrameTag>;

@@ -106,13 +106,13 @@ class KeyFrame {
  private:
   friend class Map;
   /// Map-side writers (Map keeps both ends of each link consistent).
-  bool setMapPoint(int i, MapPointId point);          ///< false on a bad keyframe
-  void eraseMapPoint(int i, MapPointId point);         ///< only if keypoint i still holds `point`
+  bool setMapPoint(int i, MapPointId point);    ///< false on a bad keyframe
+  void eraseMapPoint(int i, MapPointId point);  ///< only if keypoint i still holds `point`
   void replaceConnections(std::unordered_map<KeyFrameId, int> weights);
   void setParent(KeyFrameId parent);
-  bool addChild(KeyFrameId child);                     ///< false on a bad keyframe
+  bool addChild(KeyFrameId child);  ///< false on a bad keyframe
   void eraseChild(KeyFrameId child);
-  bool setBad();                                       ///< false if it already was bad
+  bool setBad();  ///< false if it already was bad
   void sortCovisiblesLocked();
 
   // Immutable per-image data.
