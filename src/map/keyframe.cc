@@ -69,6 +69,21 @@ bool KeyFrame::isStatic(int i) const {
   return g >= static_threshold_;
 }
 
+std::vector<int> KeyFrame::staticKeypoints() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const ClusterSegmentation scores{cv::Mat(), gamma_};  // gammaOf() only; labels are not needed
+  std::vector<int> indices;
+  for (int i = 0; i < numKeypoints(); ++i) {
+    if (scores.gammaOf(clusterOf(i)) >= static_threshold_) indices.push_back(i);
+  }
+  return indices;
+}
+
+ClusterSegmentation KeyFrame::segmentation() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return ClusterSegmentation{cluster_labels_, gamma_};
+}
+
 double KeyFrame::staticAreaRatio() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return static_area_ratio_;

@@ -91,6 +91,14 @@ TEST(Frame, StaticFilterFollowsClusterScores) {
   EXPECT_TRUE(kf.isStatic(right));
   EXPECT_FALSE(kf.isStatic(top));
   EXPECT_DOUBLE_EQ(kf.staticAreaRatio(), 0.75);
+  std::vector<int> expected_static;
+  for (int i = 0; i < kf.numKeypoints(); ++i) {
+    if (kf.clusterOf(i) != 2) expected_static.push_back(i);
+  }
+  EXPECT_EQ(kf.staticKeypoints(), expected_static);
+  EXPECT_EQ(expected_static.size(), 64u * 36u);  // rows 12..47 of the lattice lie below y = 120
+  EXPECT_EQ(kf.segmentation().gamma, (std::vector<double>{1.0, 0.9, 0.0}));
+  EXPECT_EQ(cv::countNonZero(kf.segmentation().labels != frame.segmentation().labels), 0);
 
   seg.gamma = {1.0, 1.5, 1.0};
   EXPECT_THROW(frame.setSegmentation(seg), AssertionError);

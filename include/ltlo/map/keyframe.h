@@ -55,6 +55,10 @@ class KeyFrame {
   /// Replaces Gamma (one score per cluster, size unchanged) and recomputes the static area ratio.
   void setGamma(std::vector<double> gamma);
   bool isStatic(int i) const;
+  /// Indices of the static keypoints, increasing (one lock for the whole pass).
+  std::vector<int> staticKeypoints() const;
+  /// Labels and current scores together (for saving the run's segmentation).
+  ClusterSegmentation segmentation() const;
   /// Share of image pixels in clusters with gamma >= staticThreshold() (Loop.MinStaticRatio).
   double staticAreaRatio() const;
 
