@@ -1,0 +1,31 @@
+#pragma once
+/// Grid of keypoint indices over the image for search by projection. Unlike
+/// features::KeypointGrid it keeps no pointer to the keypoints (queries take them), so the Frame
+/// and KeyFrame that own one stay copyable.
+#include <vector>
+
+#include "ltlo/features/orb_extractor.h"
+
+namespace ltlo::map {
+
+/// Immutable after construction; const queries are thread-safe.
+class GridIndex {
+ public:
+  GridIndex() = default;
+  /// Buckets `keypoints` (level-0 pixels) of a width_px x height_px image into cells of cell_px.
+  GridIndex(const std::vector<features::Keypoint>& keypoints, int width_px, int height_px, float cell_px = 16.0f);
+
+  /// Indices of the keypoints (the same vector given to the constructor) within radius_px
+  /// (Chebyshev window) of (x_px, y_px) whose octave is in [min_octave, max_octave]
+  /// (max_octave < 0: no upper bound), in increasing index order.
+  std::vector<int> featuresInArea(const std::vector<features::Keypoint>& keypoints, float x_px, float y_px,
+                                  float radius_px, int min_octave = 0, int max_octave = -1) const;
+
+ private:
+  int cols_ = 0;
+  int rows_ = 0;
+  float inv_cell_ = 1.0f;
+  std::vector<std::vector<int>> cells_;  ///< row-major, cells_[row * cols_ + col]
+};
+
+}  // namespace ltlo::map

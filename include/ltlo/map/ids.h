@@ -1,0 +1,66 @@
+#pragma once
+/// Typed ids of keyframes, map points and maps. Issued by an IdSource that the Atlas shares with
+/// all its maps (so ids stay unique when maps merge); no static counters.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <ostream>
+
+namespace ltlo::map {
+
+namespace detail {
+/// One id type per Tag: a KeyFrameId cannot be passed where a MapPointId is expected.
+template <typename Tag>
+struct TypedId {
+  static constexpr std::uint64_t kInvalid = std::numeric_limits<std::uint64_t>::max();
+  std::uint64_t value = kInvalid;  ///< issue order: a larger value was issued later
+
+  constexpr TypedId() = default;
+  constexpr explicit TypedId(std::uint64_t v) : value(v) {}
+  constexpr bool valid() const { return value != kInvalid; }
+  friend constexpr bool operator==(TypedId a, TypedId b) { return a.value == b.value; }
+  friend constexpr bool operator!=(TypedId a, TypedId b) { return a.value != b.value; }
+  friend constexpr bool operator<(TypedId a, TypedId b) { return a.value < b.value; }
+  friend std::ostream& operator<<(std::ostream& os, TypedId id) {
+    return id.valid() ? (os << Tag::kPrefix << id.value) : (os << Tag::kPrefix << "none");
+  }
+};
+struct KeyFrameTag {
+  static constexpr const char* kPrefix = "kf";
+};
+struct MapPointTag {
+  static constexpr const char* kPrefix = "mp";
+};
+struct MapTag {
+  static constexpr const char* kPrefix = "map";
+};
+}  // namespace detail
+
+using KeyFrameId = detail::TypedId<detail::KeyFrameTag>;
+using MapPointId = detail::TypedId<detail::MapPointTag>;
+using MapId = detail::TypedId<detail::MapTag>;
+
+/// Issues ids in increasing order. Thread-safe (atomic counters, no lock).
+class IdSource {
+ public:
+  KeyFrameId nextKeyFrameId() { return KeyFrameId(next_keyframe_.fetch_add(1)); }
+  MapPointId nextMapPointId() { return MapPointId(next_point_.fetch_add(1)); }
+  MapId nextMapId() { return MapId(next_map_.fetch_add(1)); }
+
+ private:
+  std::atomic<std::uint64_t> next_keyframe_{0};
+  std::atomic<std::uint64_t> next_point_{0};
+  std::atomic<std::uint64_t> next_map_{0};
+};
+
+}  // namespace ltlo::map
+
+namespace std {
+template <typename Tag>
+struct hash<ltlo::map::detail::TypedId<Tag>> {
+  std::size_t operator()(ltlo::map::detail::TypedId<Tag> id) const noexcept {
+    return std::hash<std::uint64_t>()(id.value);
+  }
+};
+}  // namespace std

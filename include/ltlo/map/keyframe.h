@@ -1,0 +1,158 @@
+#pragma once
+/// KeyFrame: a Frame promoted into the map. Shared by tracking, local mapping and loop closing
+/// (and read by the optimiser); the Map owns it through shared_ptr.
+#include <mutex>
+#include <optional>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "ltlo/map/frame.h"
+#include "ltlo/map/ids.h"
+
+namespace ltlo::map {
+
+/// Covisibility edges weaker than this are dropped when connections are rebuilt (the strongest
+/// one is kept even if weaker, so a keyframe with shared points is never disconnected).
+inline constexpr int kMinCovisibilityWeight = 15;
+
+/// Thread-safe: the per-image data copied from the Frame is immutable and read without a lock;
+/// everything else is guarded by the keyframe's own mutex_ and returned as copies. Lock order
+/// (atlas.h): Atlas -> Map -> KeyFrame -> MapPoint; KeyFrame methods take no other lock.
+/// Touched by tracking (reads), local mapping (observations, covisibility, culling, BA poses),
+/// loop closing (poses, loop edges) and the Atlas (map merging).
+class KeyFrame {
+ public:
+  /// Copies the per-image data and state of `frame` (which must have a pose). `frame`'s map-point
+  /// matches become this keyframe's observations only through Map::addObservation.
+  KeyFrame(KeyFrameId id, MapId map, const Frame& frame);
+  KeyFrame(const KeyFrame&) = delete;
+  KeyFrame& operator=(const KeyFrame&) = delete;
+
+  // ---- immutable per-image data (no lock) ----
+  KeyFrameId id() const { return id_; }
+  double t_s() const { return t_s_; }
+  const PinholeCamera& camera() const { return camera_; }
+  const SE3& T_b_c() const { return T_b_c_; }
+  int numKeypoints() const { return static_cast<int>(features_.keypoints.size()); }
+  const std::vector<features::Keypoint>& keypoints() const { return features_.keypoints; }
+  const std::vector<features::Descriptor>& descriptors() const { return features_.descriptors; }
+  const std::vector<float>& scaleFactors() const { return scale_factors_; }
+  float depth_m(int i) const { return depth_m_[static_cast<std::size_t>(i)]; }
+  const Vec3& p_c(int i) const { return p_c_[static_cast<std::size_t>(i)]; }
+  std::vector<int> featuresInArea(float x_px, float y_px, float radius_px, int min_octave = 0,
+                                  int max_octave = -1) const;
+  bool hasBow() const { return has_bow_; }
+  const bow::BowVector& bowVector() const { return bow_vector_; }
+  const bow::FeatureVector& featureVector() const { return feature_vector_; }
+  /// Cluster label image (CV_32S/CV_16U) and each keypoint's cluster; the scores may change.
+  const cv::Mat& clusterLabels() const { return cluster_labels_; }
+  int clusterOf(int i) const { return keypoint_cluster_[static_cast<std::size_t>(i)]; }
+  double staticThreshold() const { return static_threshold_; }
+
+  // ---- static scores (Gamma) ----
+  std::vector<double> gamma() const;
+  /// Replaces Gamma (one score per cluster, size unchanged) and recomputes the static area ratio.
+  void setGamma(std::vector<double> gamma);
+  bool isStatic(int i) const;
+  /// Indices of the static keypoints, increasing (one lock for the whole pass).
+  std::vector<int> staticKeypoints() const;
+  /// Labels and current scores together (for saving the run's segmentation).
+  ClusterSegmentation segmentation() const;
+  /// Share of image pixels in clusters with gamma >= staticThreshold() (Loop.MinStaticRatio).
+  double staticAreaRatio() const;
+
+  // ---- state ----
+  MapId mapId() const;
+  void setMapId(MapId map);
+  SE3 T_w_b() const;
+  SE3 T_w_c() const;
+  /// Camera centre in the world (m).
+  Vec3 cameraCentre_w() const;
+  void setPose_T_w_b(const SE3& T_w_b);
+  Vec3 v_w_b() const;
+  void setVelocity(const Vec3& v_w_b);
+  imu::ImuBias bias() const;
+  void setBias(const imu::ImuBias& bias);
+  /// IMU chain: the previous/next keyframe in time and the preintegration from the previous one.
+  KeyFrameId previousKeyFrame() const;
+  KeyFrameId nextKeyFrame() const;
+  void setPreviousKeyFrame(KeyFrameId id);
+  void setNextKeyFrame(KeyFrameId id);
+  std::optional<imu::Preintegrated> imuFromPrevious() const;
+  void setImuFromPrevious(std::optional<imu::Preintegrated> preintegration);
+
+  // ---- observations: keypoint index -> map point (written through Map) ----
+  MapPointId mapPoint(int i) const;
+  std::vector<MapPointId> mapPoints() const;
+  /// Number of keypoints with a map point.
+  int numObservations() const;
+
+  // ---- covisibility graph (ids; weight = number of shared map points) ----
+  /// Covisible keyframes with weights, best first (ties: lower id first).
+  std::vector<std::pair<KeyFrameId, int>> covisibles() const;
+  std::vector<KeyFrameId> bestCovisibles(std::size_t max_count) const;
+  std::vector<KeyFrameId> covisiblesWithWeightAtLeast(int min_weight) const;
+  /// Shared-point weight to `other`, 0 when not connected.
+  int weight(KeyFrameId other) const;
+  /// Sets or updates one edge (no-op on a bad keyframe); weight <= 0 erases it.
+  void addConnection(KeyFrameId other, int weight);
+  void eraseConnection(KeyFrameId other);
+
+  // ---- spanning tree and loop edges ----
+  KeyFrameId parent() const;
+  std::vector<KeyFrameId> children() const;
+  std::vector<KeyFrameId> loopEdges() const;
+  void addLoopEdge(KeyFrameId other);
+
+  bool isBad() const;
+
+ private:
+  friend class Map;
+  /// Map-side writers (Map keeps both ends of each link consistent).
+  bool setMapPoint(int i, MapPointId point);    ///< false on a bad keyframe
+  void eraseMapPoint(int i, MapPointId point);  ///< only if keypoint i still holds `point`
+  void replaceConnections(std::unordered_map<KeyFrameId, int> weights);
+  void setParent(KeyFrameId parent);
+  bool addChild(KeyFrameId child);  ///< false on a bad keyframe
+  void eraseChild(KeyFrameId child);
+  bool setBad();  ///< false if it already was bad
+  void sortCovisiblesLocked();
+
+  // Immutable per-image data.
+  const KeyFrameId id_;
+  const double t_s_;
+  const PinholeCamera camera_;
+  const SE3 T_b_c_;
+  const features::OrbFeatures features_;
+  const std::vector<float> scale_factors_;
+  const std::vector<float> depth_m_;
+  const std::vector<Vec3> p_c_;
+  const GridIndex grid_;
+  const bool has_bow_;
+  const bow::BowVector bow_vector_;
+  const bow::FeatureVector feature_vector_;
+  const cv::Mat cluster_labels_;
+  const std::vector<int> keypoint_cluster_;
+  const double static_threshold_;
+
+  mutable std::mutex mutex_;  ///< guards every member below
+  MapId map_;
+  std::vector<double> gamma_;
+  double static_area_ratio_ = 1.0;
+  SE3 T_w_b_;
+  Vec3 v_w_b_ = Vec3::Zero();
+  imu::ImuBias bias_;
+  KeyFrameId previous_;
+  KeyFrameId next_;
+  std::optional<imu::Preintegrated> imu_from_previous_;
+  std::vector<MapPointId> map_points_;
+  std::unordered_map<KeyFrameId, int> connections_;
+  std::vector<std::pair<KeyFrameId, int>> ordered_covisibles_;  ///< connections_ sorted best first
+  KeyFrameId parent_;
+  std::vector<KeyFrameId> children_;
+  std::vector<KeyFrameId> loop_edges_;
+  bool bad_ = false;
+};
+
+}  // namespace ltlo::map

@@ -1,0 +1,92 @@
+#pragma once
+/// MapPoint: a 3-D landmark observed by keyframes. Shared by tracking (reads, found/visible
+/// counters), local mapping (creation, fusion, culling, BA) and loop closing (fusion, correction).
+#include <map>
+#include <mutex>
+#include <optional>
+#include <vector>
+
+#include "ltlo/core/eigen_types.h"
+#include "ltlo/features/orb_extractor.h"
+#include "ltlo/map/ids.h"
+
+namespace ltlo::map {
+
+/// Thread-safe: every member is guarded by the point's own mutex_ and returned as a copy; the
+/// innermost lock of the order in atlas.h (MapPoint methods take no other lock).
+class MapPoint {
+ public:
+  /// A point at p_w (m, world) first seen in `reference` (its keyframe for normal and scale).
+  MapPoint(MapPointId id, const Vec3& p_w, KeyFrameId reference);
+  MapPoint(const MapPoint&) = delete;
+  MapPoint& operator=(const MapPoint&) = delete;
+
+  MapPointId id() const { return id_; }
+  Vec3 p_w() const;
+  void setPosition(const Vec3& p_w);
+
+  /// Observing keyframes -> keypoint index, ordered by keyframe id (written through Map).
+  std::map<KeyFrameId, int> observations() const;
+  int numObservations() const;
+  /// Keypoint index of this point in `kf`, if observed there.
+  std::optional<int> indexIn(KeyFrameId kf) const;
+  KeyFrameId referenceKeyFrame() const;
+
+  /// Representative descriptor: the observation with the least median distance to the others.
+  features::Descriptor descriptor() const;
+  void setDescriptor(const features::Descriptor& descriptor);
+  /// Index of the descriptor with the smallest median Hamming distance to all the others (ties:
+  /// lowest index); -1 for an empty list.
+  static int medianDescriptorIndex(const std::vector<features::Descriptor>& descriptors);
+
+  /// Mean viewing direction (unit, world) and the distance range (m) over which the point's
+  /// descriptor is expected to be detected (scale invariance, as in ORB-SLAM).
+  Vec3 normal_w() const;
+  double minDistance_m() const;
+  double maxDistance_m() const;
+  void setNormalAndDistances(const Vec3& normal_w, double min_distance_m, double max_distance_m);
+  /// Pyramid level at which a point seen at distance_m is expected, clamped to the levels of
+  /// `scale_factors` (OrbExtractor::scaleFactors()).
+  int predictScale(double distance_m, const std::vector<float>& scale_factors) const;
+
+  /// Tracking statistics: frames in whose view it fell, frames where it was matched.
+  void increaseVisible(int n = 1);
+  void increaseFound(int n = 1);
+  int numVisible() const;
+  int numFound() const;
+  /// found / visible (1 before it was ever visible).
+  double foundRatio() const;
+
+  /// Static score beta in [0, 1] (DESIGN.md; 1 until the segmentation issue estimates it).
+  double beta() const;
+  void setBeta(double beta);
+
+  bool isBad() const;
+  /// The point that replaced this one in a fusion (invalid when not replaced).
+  MapPointId replacedBy() const;
+
+ private:
+  friend class Map;
+  bool addObservation(KeyFrameId kf, int keypoint_index);  ///< false on a bad point
+  /// Returns the number of remaining observations; moves the reference keyframe if it was `kf`.
+  int eraseObservation(KeyFrameId kf);
+  /// Marks bad and hands back the observations it had (cleared here).
+  std::optional<std::map<KeyFrameId, int>> setBad(MapPointId replaced_by);
+
+  const MapPointId id_;
+  mutable std::mutex mutex_;  ///< guards every member below
+  Vec3 p_w_;
+  std::map<KeyFrameId, int> observations_;
+  KeyFrameId reference_;
+  features::Descriptor descriptor_{};
+  Vec3 normal_w_ = Vec3::Zero();
+  double min_distance_m_ = 0.0;
+  double max_distance_m_ = 0.0;
+  int num_visible_ = 1;
+  int num_found_ = 1;
+  double beta_ = 1.0;
+  bool bad_ = false;
+  MapPointId replaced_by_;
+};
+
+}  // namespace ltlo::map

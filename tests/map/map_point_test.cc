@@ -1,0 +1,85 @@
+// MapPoint: representative descriptor, normal and scale-invariance distances, fusion.
+#include <gtest/gtest.h>
+
+#include "ltlo/features/matching.h"
+#include "ltlo/map/map.h"
+#include "map_test_util.h"
+
+namespace ltlo::map {
+namespace {
+
+TEST(MapPointDescriptor, MedianIndexPicksTheCentralDescriptor) {
+  // Distances to z (all zero): 2, 2, 3, 64 -> sorted with itself [0, 2, 2, 3, 64], median 2.
+  // For d1: [0, 2, 4, 5, 66] -> 4; d3: [0, 3, 5, 5, 67] -> 5; far: >= 64. So z wins.
+  const features::Descriptor z{0, 0, 0, 0};
+  const features::Descriptor d1{0b11, 0, 0, 0}, d2{0b1100, 0, 0, 0}, d3{0b1110000, 0, 0, 0};
+  const features::Descriptor far{0, 0, 0, ~std::uint64_t{0}};
+  EXPECT_EQ(MapPoint::medianDescriptorIndex({d1, far, d2, z, d3}), 3);
+  EXPECT_EQ(MapPoint::medianDescriptorIndex({d1, d2}), 0);  // tie at 0 and 4 -> lowest index
+  EXPECT_EQ(MapPoint::medianDescriptorIndex({}), -1);
+}
+
+TEST(MapPointDescriptor, MapSelectsFromObservingKeyFrames) {
+  Map map;
+  test::SceneBuilder scene(map, 21);
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  for (int k = 0; k < 5; ++k) kfs.push_back(scene.addKeyFrame());
+  const std::shared_ptr<MapPoint> point = scene.share(kfs, 1).front();
+  // The observed descriptors are random (pairwise ~128 bits apart); pick by hand as reference.
+  std::vector<features::Descriptor> observed;
+  for (const auto& kf : kfs) observed.push_back(kf->descriptors()[static_cast<std::size_t>(*point->indexIn(kf->id()))]);
+  map.updateDescriptor(*point);
+  EXPECT_EQ(point->descriptor(), observed[static_cast<std::size_t>(MapPoint::medianDescriptorIndex(observed))]);
+  // Brute-force median check of the selection.
+  auto median = [&](const features::Descriptor& d) {
+    std::vector<int> dist;
+    for (const auto& o : observed) dist.push_back(features::hammingDistance(d, o));
+    std::sort(dist.begin(), dist.end());
+    return dist[2];
+  };
+  for (const auto& o : observed) EXPECT_LE(median(point->descriptor()), median(o));
+}
+
+TEST(MapPointGeometry, NormalAndDistancesFromObservations) {
+  Map map;
+  test::SceneBuilder scene(map, 22);
+  // Two cameras 1 m apart on x looking along z (T_b_c = identity); point 2 m ahead of the first.
+  const auto a = scene.addKeyFrame(SE3());
+  const auto b = scene.addKeyFrame(SE3(Quat::Identity(), Vec3(1.0, 0.0, 0.0)));
+  const std::shared_ptr<MapPoint> point = scene.share({a, b}, 1).front();
+  point->setPosition(Vec3(0.0, 0.0, 2.0));
+  ASSERT_EQ(point->referenceKeyFrame(), a->id());
+  map.updateNormalAndDistances(*point);
+  const Vec3 expected_normal = (Vec3(0, 0, 1) + Vec3(-1, 0, 2).normalized()).normalized();
+  EXPECT_LT((point->normal_w() - expected_normal).norm(), 1e-12);
+  const int octave = a->keypoints()[static_cast<std::size_t>(*point->indexIn(a->id()))].octave;
+  const double max_expected = 2.0 * test::scaleFactors()[static_cast<std::size_t>(octave)];
+  EXPECT_NEAR(point->maxDistance_m(), max_expected, 1e-6);
+  EXPECT_NEAR(point->minDistance_m(), max_expected / 1.728, 1e-6);
+  // Seen from max_distance it is a level-0 feature; from max / 1.2^2, a level-2 one.
+  EXPECT_EQ(point->predictScale(max_expected, test::scaleFactors()), 0);
+  EXPECT_EQ(point->predictScale(max_expected / 1.44 * 1.0001, test::scaleFactors()), 2);
+  EXPECT_EQ(point->predictScale(0.01, test::scaleFactors()), 3);  // clamped
+}
+
+TEST(MapPointFusion, ReplaceMovesObservationsAndMarksTheOldPoint) {
+  Map map;
+  test::SceneBuilder scene(map, 23);
+  const auto a = scene.addKeyFrame(), b = scene.addKeyFrame(), c = scene.addKeyFrame();
+  const std::shared_ptr<MapPoint> kept = scene.share({a, b}, 1).front();
+  const std::shared_ptr<MapPoint> duplicate = scene.share({b, c}, 1).front();
+  const int index_in_c = *duplicate->indexIn(c->id());
+  ASSERT_TRUE(map.replaceMapPoint(duplicate->id(), kept->id()));
+  EXPECT_TRUE(duplicate->isBad());
+  EXPECT_EQ(duplicate->replacedBy(), kept->id());
+  EXPECT_EQ(map.mapPoint(duplicate->id()), nullptr);
+  // c's keypoint now points at the kept point; b already had it at another keypoint.
+  EXPECT_EQ(c->mapPoint(index_in_c), kept->id());
+  EXPECT_EQ(kept->numObservations(), 3);
+  EXPECT_EQ(b->numObservations(), 1);
+  EXPECT_EQ(kept->numVisible(), 2);
+  EXPECT_FALSE(map.replaceMapPoint(duplicate->id(), kept->id()));
+}
+
+}  // namespace
+}  // namespace ltlo::map
