@@ -1,0 +1,55 @@
+#pragma once
+/// Depth K-means over-segmentation (thesis section 4.2): K seeds on a uniform pixel grid, pixels
+/// clustered by their back-projected 3-D points in the camera frame, a few Lloyd iterations.
+/// Runs every frame in the tracking thread, so it works on a subsampled depth image and labels
+/// the full image from the subsampled result.
+#include <opencv2/core/mat.hpp>
+
+#include "ltlo/core/camera.h"
+#include "ltlo/core/settings.h"
+#include "ltlo/segmentation/cluster_map.h"
+
+namespace ltlo::segmentation {
+
+struct DepthClusteringOptions {
+  /// K (Seg.Clusters)
+  int num_clusters = 24;
+  /// Lloyd iterations after seeding (Seg.KMeansIterations)
+  int kmeans_iterations = 3;
+  /// The image is subsampled by the largest integer step that keeps it at least this size, px
+  /// (Dense.Resolution, 320x240); smaller inputs are clustered at full resolution.
+  int working_width = 320;
+  int working_height = 240;
+  /// Connectivity: a boundary pixel pair links its two clusters when the depth difference across
+  /// it is below min(max_gap_m, gap_at_zero_m + gap_growth_per_m * z^2), z its mean depth in m.
+  /// The z^2 term follows the depth noise and the depth step between neighbouring pixels on
+  /// slanted surfaces, both of which grow with z^2.
+  double gap_at_zero_m = 0.02;
+  /// 1/m
+  double gap_growth_per_m = 0.05;
+  /// cap of the threshold (Seg.MaxNeighbourGap)
+  double max_gap_m = 0.15;
+
+  /// Takes K, iterations and the gap cap from Seg.*, the working size from Dense.Resolution.
+  static DepthClusteringOptions from(const SegmentationOptions& segmentation,
+                                     const DenseOptions& dense);
+  /// Depth-gap threshold for a boundary at depth z_m, m.
+  double gapThreshold(double z_m) const;
+};
+
+/// Stateless apart from its options; cluster() is const and thread-safe.
+class DepthClustering {
+ public:
+  explicit DepthClustering(const DepthClusteringOptions& options);
+
+  /// Clusters `depth_m` (CV_32F, metres, 0 or non-finite = no reading) taken with `camera`
+  /// (whose size must match the image). Deterministic: same input, same labels.
+  ClusterMap cluster(const cv::Mat& depth_m, const PinholeCamera& camera) const;
+
+  const DepthClusteringOptions& options() const { return options_; }
+
+ private:
+  DepthClusteringOptions options_;
+};
+
+}  // namespace ltlo::segmentation

@@ -1,0 +1,317 @@
+#include "ltlo/segmentation/depth_clustering.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "ltlo/core/assert.h"
+
+namespace ltlo::segmentation {
+
+namespace {
+
+bool validDepth(float depth_m) { return depth_m > 0.0f && std::isfinite(depth_m); }
+
+// The subsampled depth: one sample per step x step block (the first valid pixel of the block in
+// raster order, never an average, so no sample floats between two surfaces), back-projected at
+// its own full-resolution pixel.
+struct WorkingImage {
+  int step = 1;
+  int width = 0;
+  int height = 0;
+  std::vector<float> x, y, z;  // camera frame, m; z = 0 where the block has no depth
+  std::vector<int> valid;      // indices of samples with depth
+};
+
+WorkingImage subsample(const cv::Mat& depth_m, const PinholeCamera& camera,
+                       const DepthClusteringOptions& options) {
+  WorkingImage image;
+  image.step = std::max(1, std::min(depth_m.cols / options.working_width,
+                                    depth_m.rows / options.working_height));
+  image.width = depth_m.cols / image.step;
+  image.height = depth_m.rows / image.step;
+  const size_t size = static_cast<size_t>(image.width) * image.height;
+  image.x.assign(size, 0.0f);
+  image.y.assign(size, 0.0f);
+  image.z.assign(size, 0.0f);
+  image.valid.reserve(size);
+  const float inv_fx = static_cast<float>(1.0 / camera.fx());
+  const float inv_fy = static_cast<float>(1.0 / camera.fy());
+  const float cx = static_cast<float>(camera.cx());
+  const float cy = static_cast<float>(camera.cy());
+  const int step = image.step;
+  for (int wy = 0; wy < image.height; ++wy) {
+    for (int wx = 0; wx < image.width; ++wx) {
+      const int i = wy * image.width + wx;
+      for (int dv = 0; dv < step && image.z[i] == 0.0f; ++dv) {
+        const int v = wy * step + dv;
+        const float* row = depth_m.ptr<float>(v);
+        for (int du = 0; du < step; ++du) {
+          const int u = wx * step + du;
+          const float z = row[u];
+          if (!validDepth(z)) continue;
+          image.x[i] = (static_cast<float>(u) - cx) * inv_fx * z;
+          image.y[i] = (static_cast<float>(v) - cy) * inv_fy * z;
+          image.z[i] = z;
+          break;
+        }
+      }
+      if (image.z[i] > 0.0f) image.valid.push_back(i);
+    }
+  }
+  return image;
+}
+
+// Seeds on a uniform gx x gy grid over the working image (gx * gy >= K, K cells picked evenly);
+// a cell centre without depth moves to the nearest (Chebyshev rings) valid sample not yet a seed.
+std::vector<int> gridSeeds(const WorkingImage& image, int num_clusters) {
+  const int w = image.width, h = image.height;
+  const int grid_rows = std::max(
+      1, static_cast<int>(std::lround(std::sqrt(num_clusters * static_cast<double>(h) / w))));
+  const int grid_cols = (num_clusters + grid_rows - 1) / grid_rows;
+  const int num_cells = grid_rows * grid_cols;
+  std::vector<char> used(image.z.size(), 0);
+  std::vector<int> seeds;
+  seeds.reserve(num_clusters);
+  for (int s = 0; s < num_clusters; ++s) {
+    const int cell = static_cast<int>((s + 0.5) * num_cells / num_clusters);
+    const int cu = static_cast<int>((cell % grid_cols + 0.5) * w / grid_cols);
+    const int cv = static_cast<int>((cell / grid_cols + 0.5) * h / grid_rows);
+    int best = -1;
+    long best_d2 = std::numeric_limits<long>::max();
+    for (int r = 0; best < 0 && r < std::max(w, h); ++r) {
+      for (int v = std::max(0, cv - r); v <= std::min(h - 1, cv + r); ++v) {
+        const bool edge_row = (v == cv - r || v == cv + r);
+        const int u_step = edge_row ? 1 : 2 * r;
+        for (int u = cu - r; u <= cu + r; u += std::max(1, u_step)) {
+          if (u < 0 || u >= w) continue;
+          const int i = v * w + u;
+          if (image.z[i] == 0.0f || used[i]) continue;
+          const long d2 = static_cast<long>(u - cu) * (u - cu) + static_cast<long>(v - cv) * (v - cv);
+          if (d2 < best_d2) {
+            best_d2 = d2;
+            best = i;
+          }
+        }
+      }
+    }
+    LTLO_ASSERT(best >= 0, "no free valid sample for seed " << s);
+    used[best] = 1;
+    seeds.push_back(best);
+  }
+  return seeds;
+}
+
+// Centres as structure-of-arrays, with |c|^2, so that the nearest centre of p minimises
+// |c|^2 - 2 p.c (the |p|^2 term is common to all centres).
+struct Centres {
+  std::vector<float> x, y, z, norm2;
+  int size() const { return static_cast<int>(x.size()); }
+  void set(int k, float cx, float cy, float cz) {
+    x[k] = cx;
+    y[k] = cy;
+    z[k] = cz;
+    norm2[k] = cx * cx + cy * cy + cz * cz;
+  }
+  explicit Centres(int k) : x(k), y(k), z(k), norm2(k) {}
+};
+
+constexpr int kMaxClusters = 256;  // Seg.Clusters range
+
+// Returns the nearest centre of p; *score = |c|^2 - 2 p.c for it.
+inline int nearestCentre(const Centres& c, float px, float py, float pz, float* score) {
+  float d[kMaxClusters];
+  const int k_count = c.size();
+  const float* cx = c.x.data();
+  const float* cy = c.y.data();
+  const float* cz = c.z.data();
+  const float* cn = c.norm2.data();
+  const float px2 = 2.0f * px, py2 = 2.0f * py, pz2 = 2.0f * pz;
+  for (int k = 0; k < k_count; ++k) d[k] = cn[k] - (px2 * cx[k] + py2 * cy[k] + pz2 * cz[k]);
+  int best = 0;
+  float best_d = std::numeric_limits<float>::max();
+  for (int k = 0; k < k_count; ++k) {
+    if (d[k] < best_d) {
+      best_d = d[k];
+      best = k;
+    }
+  }
+  *score = best_d;
+  return best;
+}
+
+}  // namespace
+
+DepthClusteringOptions DepthClusteringOptions::from(const SegmentationOptions& segmentation,
+                                                    const DenseOptions& dense) {
+  DepthClusteringOptions options;
+  options.num_clusters = segmentation.num_clusters;
+  options.kmeans_iterations = segmentation.kmeans_iterations;
+  options.max_gap_m = segmentation.max_neighbour_gap_m;
+  options.working_width = dense.width;
+  options.working_height = dense.height;
+  return options;
+}
+
+double DepthClusteringOptions::gapThreshold(double z_m) const {
+  return std::min(max_gap_m, gap_at_zero_m + gap_growth_per_m * z_m * z_m);
+}
+
+DepthClustering::DepthClustering(const DepthClusteringOptions& options) : options_(options) {
+  LTLO_ASSERT(options.num_clusters >= 1 && options.num_clusters <= kMaxClusters,
+              "num_clusters = " << options.num_clusters << ", expected [1, " << kMaxClusters << "]");
+  LTLO_ASSERT(options.kmeans_iterations >= 1, "kmeans_iterations = " << options.kmeans_iterations);
+  LTLO_ASSERT(options.working_width >= 1 && options.working_height >= 1,
+              "working size " << options.working_width << "x" << options.working_height);
+}
+
+ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera& camera) const {
+  LTLO_ASSERT(depth_m.type() == CV_32F, "depth type " << depth_m.type() << ", expected CV_32F");
+  LTLO_ASSERT(depth_m.cols == camera.width() && depth_m.rows == camera.height(),
+              "depth " << depth_m.cols << "x" << depth_m.rows << ", camera " << camera.width()
+                       << "x" << camera.height());
+  const WorkingImage image = subsample(depth_m, camera, options_);
+  const int num_valid = static_cast<int>(image.valid.size());
+  const int K = std::min(options_.num_clusters, num_valid);
+
+  ClusterMap result;
+  result.num_clusters = K;
+  result.labels = cv::Mat(depth_m.size(), CV_32S, cv::Scalar(K));
+  result.pixel_counts.assign(K + 1, 0);
+  if (K == 0) {
+    result.pixel_counts[0] = static_cast<int>(depth_m.total());
+    return result;
+  }
+
+  // Lloyd iterations on the valid working samples.
+  Centres centres(K);
+  {
+    const std::vector<int> seeds = gridSeeds(image, K);
+    for (int k = 0; k < K; ++k) {
+      const int i = seeds[k];
+      centres.set(k, image.x[i], image.y[i], image.z[i]);
+    }
+  }
+  std::vector<int> sample_label(num_valid, 0);
+  std::vector<double> sum_x(K), sum_y(K), sum_z(K);
+  std::vector<int> count(K);
+  for (int iteration = 0; iteration < options_.kmeans_iterations; ++iteration) {
+    std::fill(sum_x.begin(), sum_x.end(), 0.0);
+    std::fill(sum_y.begin(), sum_y.end(), 0.0);
+    std::fill(sum_z.begin(), sum_z.end(), 0.0);
+    std::fill(count.begin(), count.end(), 0);
+    float worst_d2 = -1.0f;
+    int worst_sample = 0;
+    for (int n = 0; n < num_valid; ++n) {
+      const int i = image.valid[n];
+      const float px = image.x[i], py = image.y[i], pz = image.z[i];
+      float score;
+      const int k = nearestCentre(centres, px, py, pz, &score);
+      sample_label[n] = k;
+      sum_x[k] += px;
+      sum_y[k] += py;
+      sum_z[k] += pz;
+      ++count[k];
+      const float d2 = score + px * px + py * py + pz * pz;
+      if (d2 > worst_d2) {
+        worst_d2 = d2;
+        worst_sample = n;
+      }
+    }
+    const bool last = iteration + 1 == options_.kmeans_iterations;
+    bool reseeded = false;
+    for (int k = 0; k < K; ++k) {
+      if (count[k] > 0) {
+        centres.set(k, static_cast<float>(sum_x[k] / count[k]),
+                    static_cast<float>(sum_y[k] / count[k]), static_cast<float>(sum_z[k] / count[k]));
+      } else if (!last && !reseeded) {
+        // An empty cluster restarts at the sample worst served by its centre (keeps K clusters).
+        const int i = image.valid[worst_sample];
+        centres.set(k, image.x[i], image.y[i], image.z[i]);
+        reseeded = true;
+      }
+    }
+  }
+  for (int k = 0; k < K; ++k) {
+    result.centroids_c.emplace_back(centres.x[k], centres.y[k], centres.z[k]);
+  }
+
+  // Working label image and the connectivity graph V over 4-neighbour boundary pairs.
+  std::vector<int> working_label(image.z.size(), K);
+  for (int n = 0; n < num_valid; ++n) working_label[image.valid[n]] = sample_label[n];
+  std::vector<int> boundary_pairs(static_cast<size_t>(K) * K, 0);
+  auto link = [&](int i, int j) {
+    const int a = working_label[i], b = working_label[j];
+    if (a == b || a == K || b == K) return;
+    const float z_mean = 0.5f * (image.z[i] + image.z[j]);
+    if (std::abs(image.z[i] - image.z[j]) < options_.gapThreshold(z_mean)) {
+      ++boundary_pairs[static_cast<size_t>(std::min(a, b)) * K + std::max(a, b)];
+    }
+  };
+  for (int wy = 0; wy < image.height; ++wy) {
+    for (int wx = 0; wx < image.width; ++wx) {
+      const int i = wy * image.width + wx;
+      if (wx + 1 < image.width) link(i, i + 1);
+      if (wy + 1 < image.height) link(i, i + image.width);
+    }
+  }
+  for (int a = 0; a < K; ++a) {
+    for (int b = a + 1; b < K; ++b) {
+      const int pairs = boundary_pairs[static_cast<size_t>(a) * K + b];
+      if (pairs > 0) result.edges.push_back({a, b, pairs});
+    }
+  }
+
+  // Full-resolution labels: a pixel with depth takes the nearest centre among the labels of its
+  // working sample and that sample's 4 neighbours (so edges are placed at full resolution); only
+  // when all of those are no-depth does it search every centre.
+  const int step = image.step;
+  const float inv_fx = static_cast<float>(1.0 / camera.fx());
+  const float inv_fy = static_cast<float>(1.0 / camera.fy());
+  const float cx = static_cast<float>(camera.cx());
+  const float cy = static_cast<float>(camera.cy());
+  for (int v = 0; v < depth_m.rows; ++v) {
+    const float* depth_row = depth_m.ptr<float>(v);
+    int* label_row = result.labels.ptr<int>(v);
+    const int wy = std::min(v / step, image.height - 1);
+    for (int u = 0; u < depth_m.cols; ++u) {
+      const float z = depth_row[u];
+      if (!validDepth(z)) {
+        ++result.pixel_counts[K];
+        continue;
+      }
+      const int wx = std::min(u / step, image.width - 1);
+      const int i = wy * image.width + wx;
+      int label;
+      if (step == 1) {
+        label = working_label[i];
+      } else {
+        const float px = (static_cast<float>(u) - cx) * inv_fx * z;
+        const float py = (static_cast<float>(v) - cy) * inv_fy * z;
+        const int candidates[5] = {working_label[i],
+                                   wx > 0 ? working_label[i - 1] : K,
+                                   wx + 1 < image.width ? working_label[i + 1] : K,
+                                   wy > 0 ? working_label[i - image.width] : K,
+                                   wy + 1 < image.height ? working_label[i + image.width] : K};
+        label = K;
+        float best = std::numeric_limits<float>::max();
+        for (const int k : candidates) {
+          if (k == K) continue;
+          const float d = centres.norm2[k] - 2.0f * (px * centres.x[k] + py * centres.y[k] +
+                                                     z * centres.z[k]);
+          if (d < best) {
+            best = d;
+            label = k;
+          }
+        }
+        if (label == K) label = nearestCentre(centres, px, py, z, &best);
+      }
+      label_row[u] = label;
+      ++result.pixel_counts[label];
+    }
+  }
+  return result;
+}
+
+}  // namespace ltlo::segmentation
