@@ -141,6 +141,156 @@ inline int nearestCentre(const Centres& c, float px, float py, float pz, float* 
   return best;
 }
 
+
+int findRoot(std::vector<int>& parent, int i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];
+    i = parent[i];
+  }
+  return i;
+}
+
+// K-means on 3-D points ignores depth steps: a thin far strip between two near objects has no
+// centre of its own and joins a near cluster. This pass makes every cluster one piece of smooth
+// surface (4-neighbours closer in depth than the gap threshold) while keeping K:
+//  1. each cluster keeps its largest smooth-connected component;
+//  2. another component that touches other clusters smoothly joins the one it touches most;
+//  3. an isolated component (an island behind depth steps) of at least min_island_samples takes
+//     the label freed by merging the two smoothly adjacent clusters of smallest joint size,
+//     largest islands first. Smaller islands keep their label.
+void splitAtDepthSteps(const WorkingImage& image, const DepthClusteringOptions& options, int K,
+                       std::vector<int>* working_label) {
+  std::vector<int>& label = *working_label;
+  const int w = image.width, h = image.height;
+  const int n = w * h;
+  auto smooth = [&](int i, int j) {
+    const float zi = image.z[i], zj = image.z[j];
+    return zi > 0.0f && zj > 0.0f &&
+           std::abs(zi - zj) < options.gapThreshold(0.5 * (static_cast<double>(zi) + zj));
+  };
+  auto forEachLink = [&](auto&& visit) {
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const int i = y * w + x;
+        if (x + 1 < w) visit(i, i + 1);
+        if (y + 1 < h) visit(i, i + w);
+      }
+    }
+  };
+  std::vector<int> parent(n);
+  for (int i = 0; i < n; ++i) parent[i] = i;
+  forEachLink([&](int i, int j) {
+    if (label[i] == label[j] && label[i] < K && smooth(i, j)) {
+      const int ri = findRoot(parent, i), rj = findRoot(parent, j);
+      if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
+    }
+  });
+  std::vector<int> root(n, -1), component_size(n, 0);
+  for (const int i : image.valid) {
+    root[i] = findRoot(parent, i);
+    ++component_size[root[i]];
+  }
+  std::vector<int> main_root(K, -1);
+  for (const int i : image.valid) {
+    const int r = root[i], k = label[i];
+    if (r == i && (main_root[k] < 0 || component_size[r] > component_size[main_root[k]])) {
+      main_root[k] = r;
+    }
+  }
+  // Smooth links of fragments to main components of other clusters, and between main components.
+  std::vector<int> fragment_index(n, -1);
+  std::vector<int> fragment_roots;
+  for (const int i : image.valid) {
+    if (root[i] == i && main_root[label[i]] != i) {
+      fragment_index[i] = static_cast<int>(fragment_roots.size());
+      fragment_roots.push_back(i);
+    }
+  }
+  if (fragment_roots.empty()) return;
+  const int num_fragments = static_cast<int>(fragment_roots.size());
+  std::vector<int> votes(static_cast<size_t>(num_fragments) * K, 0);
+  std::vector<int> adjacency(static_cast<size_t>(K) * K, 0);
+  std::vector<int> cluster_size(K, 0);
+  for (const int i : image.valid) {
+    if (root[i] == main_root[label[i]]) ++cluster_size[label[i]];
+  }
+  forEachLink([&](int i, int j) {
+    if (label[i] == K || label[j] == K || root[i] == root[j] || !smooth(i, j)) return;
+    const bool main_i = root[i] == main_root[label[i]], main_j = root[j] == main_root[label[j]];
+    if (main_i && main_j) {
+      ++adjacency[static_cast<size_t>(label[i]) * K + label[j]];
+      ++adjacency[static_cast<size_t>(label[j]) * K + label[i]];
+    } else if (main_j) {
+      ++votes[static_cast<size_t>(fragment_index[root[i]]) * K + label[j]];
+    } else if (main_i) {
+      ++votes[static_cast<size_t>(fragment_index[root[j]]) * K + label[i]];
+    }
+  });
+  // New label of each fragment's root; -1 = island.
+  std::vector<int> new_label(num_fragments, -1);
+  std::vector<int> islands;
+  for (int f = 0; f < num_fragments; ++f) {
+    const int* v = &votes[static_cast<size_t>(f) * K];
+    const int best = static_cast<int>(std::max_element(v, v + K) - v);
+    if (v[best] > 0) {
+      new_label[f] = best;
+      cluster_size[best] += component_size[fragment_roots[f]];
+    } else {
+      islands.push_back(f);
+    }
+  }
+  std::stable_sort(islands.begin(), islands.end(), [&](int a, int b) {
+    return component_size[fragment_roots[a]] > component_size[fragment_roots[b]];
+  });
+  const int min_island_samples =
+      std::max(4, static_cast<int>(options.min_island_share * image.valid.size()));
+  std::vector<int> merged_into(K);
+  for (int k = 0; k < K; ++k) merged_into[k] = k;
+  for (const int f : islands) {
+    const int size = component_size[fragment_roots[f]];
+    if (size < min_island_samples) break;
+    int best_a = -1, best_b = -1;
+    long best_cost = std::numeric_limits<long>::max();
+    for (int a = 0; a < K; ++a) {
+      for (int b = a + 1; b < K; ++b) {
+        if (adjacency[static_cast<size_t>(a) * K + b] == 0) continue;
+        const long cost = static_cast<long>(cluster_size[a]) + cluster_size[b];
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_a = a;
+          best_b = b;
+        }
+      }
+    }
+    if (best_a < 0) break;
+    // b joins a; the island takes label b.
+    for (int c = 0; c < K; ++c) {
+      adjacency[static_cast<size_t>(best_a) * K + c] += adjacency[static_cast<size_t>(best_b) * K + c];
+      adjacency[static_cast<size_t>(c) * K + best_a] += adjacency[static_cast<size_t>(c) * K + best_b];
+      adjacency[static_cast<size_t>(best_b) * K + c] = 0;
+      adjacency[static_cast<size_t>(c) * K + best_b] = 0;
+    }
+    adjacency[static_cast<size_t>(best_a) * K + best_a] = 0;
+    for (int k = 0; k < K; ++k) {
+      if (merged_into[k] == best_b) merged_into[k] = best_a;
+    }
+    for (int g = 0; g < num_fragments; ++g) {
+      if (new_label[g] == best_b) new_label[g] = best_a;
+    }
+    cluster_size[best_a] += cluster_size[best_b];
+    cluster_size[best_b] = size;
+    new_label[f] = best_b;
+  }
+  for (const int i : image.valid) {
+    const int f = fragment_index[root[i]];
+    if (f >= 0 && new_label[f] >= 0) {
+      label[i] = new_label[f];
+    } else {
+      label[i] = merged_into[label[i]];
+    }
+  }
+}
+
 }  // namespace
 
 DepthClusteringOptions DepthClusteringOptions::from(const SegmentationOptions& segmentation,
@@ -233,13 +383,28 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
       }
     }
   }
-  for (int k = 0; k < K; ++k) {
-    result.centroids_c.emplace_back(centres.x[k], centres.y[k], centres.z[k]);
-  }
-
-  // Working label image and the connectivity graph V over 4-neighbour boundary pairs.
+  // Working label image, cut at depth steps; centroids are the means of the final clusters.
   std::vector<int> working_label(image.z.size(), K);
   for (int n = 0; n < num_valid; ++n) working_label[image.valid[n]] = sample_label[n];
+  splitAtDepthSteps(image, options_, K, &working_label);
+  {
+    std::vector<Vec3> sum(K, Vec3::Zero());
+    std::vector<int> members(K, 0);
+    for (const int i : image.valid) {
+      const int k = working_label[i];
+      sum[k] += Vec3(image.x[i], image.y[i], image.z[i]);
+      ++members[k];
+    }
+    for (int k = 0; k < K; ++k) {
+      const Vec3 centre = members[k] > 0 ? Vec3(sum[k] / members[k])
+                                         : Vec3(centres.x[k], centres.y[k], centres.z[k]);
+      result.centroids_c.push_back(centre);
+      centres.set(k, static_cast<float>(centre.x()), static_cast<float>(centre.y()),
+                  static_cast<float>(centre.z()));
+    }
+  }
+
+  // Connectivity graph V over 4-neighbour boundary pairs.
   std::vector<int> boundary_pairs(static_cast<size_t>(K) * K, 0);
   auto link = [&](int i, int j) {
     const int a = working_label[i], b = working_label[j];
@@ -263,9 +428,9 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
     }
   }
 
-  // Full-resolution labels: a pixel with depth takes the nearest centre among the labels of its
-  // working sample and that sample's 4 neighbours (so edges are placed at full resolution); only
-  // when all of those are no-depth does it search every centre.
+  // Full-resolution labels: a pixel with depth takes the label of the 3-D-nearest valid working
+  // sample in the 3x3 samples around its own (depth-guided nearest-neighbour upsampling, so labels
+  // stay on the right side of depth steps); without any, the nearest centre.
   const int step = image.step;
   const float inv_fx = static_cast<float>(1.0 / camera.fx());
   const float inv_fy = static_cast<float>(1.0 / camera.fy());
@@ -275,6 +440,7 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
     const float* depth_row = depth_m.ptr<float>(v);
     int* label_row = result.labels.ptr<int>(v);
     const int wy = std::min(v / step, image.height - 1);
+    const int wy0 = std::max(0, wy - 1), wy1 = std::min(image.height - 1, wy + 1);
     for (int u = 0; u < depth_m.cols; ++u) {
       const float z = depth_row[u];
       if (!validDepth(z)) {
@@ -282,27 +448,22 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
         continue;
       }
       const int wx = std::min(u / step, image.width - 1);
-      const int i = wy * image.width + wx;
-      int label;
-      if (step == 1) {
-        label = working_label[i];
-      } else {
+      int label = working_label[wy * image.width + wx];
+      if (step > 1) {
         const float px = (static_cast<float>(u) - cx) * inv_fx * z;
         const float py = (static_cast<float>(v) - cy) * inv_fy * z;
-        const int candidates[5] = {working_label[i],
-                                   wx > 0 ? working_label[i - 1] : K,
-                                   wx + 1 < image.width ? working_label[i + 1] : K,
-                                   wy > 0 ? working_label[i - image.width] : K,
-                                   wy + 1 < image.height ? working_label[i + image.width] : K};
         label = K;
         float best = std::numeric_limits<float>::max();
-        for (const int k : candidates) {
-          if (k == K) continue;
-          const float d = centres.norm2[k] - 2.0f * (px * centres.x[k] + py * centres.y[k] +
-                                                     z * centres.z[k]);
-          if (d < best) {
-            best = d;
-            label = k;
+        for (int sy = wy0; sy <= wy1; ++sy) {
+          for (int sx = std::max(0, wx - 1); sx <= std::min(image.width - 1, wx + 1); ++sx) {
+            const int i = sy * image.width + sx;
+            if (working_label[i] == K) continue;
+            const float dx = px - image.x[i], dy = py - image.y[i], dz = z - image.z[i];
+            const float d2 = dx * dx + dy * dy + dz * dz;
+            if (d2 < best) {
+              best = d2;
+              label = working_label[i];
+            }
           }
         }
         if (label == K) label = nearestCentre(centres, px, py, z, &best);

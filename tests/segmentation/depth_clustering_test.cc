@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>  // DEBUGDUMP
 
 #include <map>
 #include <set>
@@ -217,6 +218,14 @@ TEST(DepthClustering, ClustersRespectSimulatedMaskBoundaries) {
     if (frame.dynamic_fraction < 0.1 || frame.dynamic_fraction > 0.8) continue;
     ++frames_checked;
     const ClusterMap clusters = clustering.cluster(frame.depth_m, simulator.camera());
+    if (getenv("SEG_DUMP")) {  // DEBUGDUMP
+      cv::Mat l8; clusters.labels.convertTo(l8, CV_8U, 10.0);  // DEBUGDUMP
+      cv::Mat d8; frame.depth_m.convertTo(d8, CV_8U, 50.0);  // DEBUGDUMP
+      cv::imwrite("/tmp/seg_l" + std::to_string(i) + ".png", l8);  // DEBUGDUMP
+      cv::imwrite("/tmp/seg_d" + std::to_string(i) + ".png", d8);  // DEBUGDUMP
+      cv::imwrite("/tmp/seg_m" + std::to_string(i) + ".png", frame.mask);  // DEBUGDUMP
+      cv::imwrite("/tmp/seg_c" + std::to_string(i) + ".png", frame.bgr);  // DEBUGDUMP
+    }  // DEBUGDUMP
     std::vector<int> dynamic_count(clusters.num_clusters + 1, 0);
     for (int v = 0; v < frame.mask.rows; ++v) {
       for (int u = 0; u < frame.mask.cols; ++u) {
