@@ -150,105 +150,153 @@ int findRoot(std::vector<int>& parent, int i) {
   return i;
 }
 
-// K-means on 3-D points ignores depth steps: a thin far strip between two near objects has no
-// centre of its own and joins a near cluster. This pass makes every cluster one piece of smooth
-// surface (4-neighbours closer in depth than the gap threshold) while keeping K:
-//  1. each cluster keeps its largest smooth-connected component;
-//  2. another component that touches other clusters smoothly joins the one it touches most;
-//  3. an isolated component (an island behind depth steps) of at least min_island_samples takes
-//     the label freed by merging the two smoothly adjacent clusters of smallest joint size,
-//     largest islands first. Smaller islands keep their label.
-void splitAtDepthSteps(const WorkingImage& image, const DepthClusteringOptions& options, int K,
-                       std::vector<int>* working_label) {
+// K-means on 3-D points ignores surface breaks: a thin far strip between two near objects has no
+// centre of its own and joins a near cluster, and a box standing on the floor shares clusters with
+// it. This pass makes every cluster one piece of smooth surface while keeping K. Two 4-neighbour
+// samples are on one smooth surface when their depths differ by less than the gap threshold and
+// the surface does not fold between them (the 3-D tangents leading into and out of the link, along
+// its direction, differ by less than max_crease_angle).
+//  1. each cluster keeps its largest smooth-connected piece (its main piece);
+//  2. the other pieces, joined where they touch smoothly, form orphan groups; a group that touches
+//     main pieces smoothly joins the cluster it touches most;
+//  3. an isolated group (an island behind depth steps or creases) of at least min_island_share of
+//     the samples takes the label freed by merging the two smoothly adjacent clusters of smallest
+//     joint size, largest islands first. Smaller islands keep their labels.
+void splitAtSurfaceBreaks(const WorkingImage& image, const DepthClusteringOptions& options, int K,
+                          std::vector<int>* working_label) {
   std::vector<int>& label = *working_label;
   const int w = image.width, h = image.height;
   const int n = w * h;
-  auto smooth = [&](int i, int j) {
+  const float cos_crease = static_cast<float>(std::cos(options.max_crease_angle_rad));
+  auto depthSmooth = [&](int i, int j) {
     const float zi = image.z[i], zj = image.z[j];
     return zi > 0.0f && zj > 0.0f &&
            std::abs(zi - zj) < options.gapThreshold(0.5 * (static_cast<double>(zi) + zj));
   };
-  auto forEachLink = [&](auto&& visit) {
-    for (int y = 0; y < h; ++y) {
-      for (int x = 0; x < w; ++x) {
-        const int i = y * w + x;
-        if (x + 1 < w) visit(i, i + 1);
-        if (y + 1 < h) visit(i, i + w);
-      }
+  // Tangent from sample `from` to `to` (unnormalised), or false when `to` is unusable.
+  auto tangent = [&](int from, int to, float* t) {
+    if (!depthSmooth(from, to)) return false;
+    t[0] = image.x[to] - image.x[from];
+    t[1] = image.y[to] - image.y[from];
+    t[2] = image.z[to] - image.z[from];
+    return true;
+  };
+  // Link i -> j = i + offset (offset 1: right, w: down); `before` = i - offset exists, `after` =
+  // j + offset exists.
+  auto smooth = [&](int i, int j, int offset, bool before, bool after) {
+    if (!depthSmooth(i, j)) return false;
+    float t_in[3], t_out[3];
+    if (!before || !after || !tangent(i - offset, i, t_in) || !tangent(j, j + offset, t_out)) {
+      return true;
+    }
+    const float dot = t_in[0] * t_out[0] + t_in[1] * t_out[1] + t_in[2] * t_out[2];
+    const float norms = std::sqrt((t_in[0] * t_in[0] + t_in[1] * t_in[1] + t_in[2] * t_in[2]) *
+                                  (t_out[0] * t_out[0] + t_out[1] * t_out[1] + t_out[2] * t_out[2]));
+    return norms <= 0.0f || dot >= cos_crease * norms;
+  };
+  std::vector<uint8_t> smooth_right(n, 0), smooth_down(n, 0);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int i = y * w + x;
+      if (x + 1 < w) smooth_right[i] = smooth(i, i + 1, 1, x > 0, x + 2 < w);
+      if (y + 1 < h) smooth_down[i] = smooth(i, i + w, w, y > 0, y + 2 < h);
+    }
+  }
+  auto forEachSmoothLink = [&](auto&& visit) {
+    for (int i = 0; i < n; ++i) {
+      if (smooth_right[i]) visit(i, i + 1);
+      if (smooth_down[i]) visit(i, i + w);
     }
   };
+  auto unite = [](std::vector<int>& parent, int i, int j) {
+    const int ri = findRoot(parent, i), rj = findRoot(parent, j);
+    if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
+  };
+
+  // Pieces: same label, smoothly connected.
   std::vector<int> parent(n);
   for (int i = 0; i < n; ++i) parent[i] = i;
-  forEachLink([&](int i, int j) {
-    if (label[i] == label[j] && label[i] < K && smooth(i, j)) {
-      const int ri = findRoot(parent, i), rj = findRoot(parent, j);
-      if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
-    }
+  forEachSmoothLink([&](int i, int j) {
+    if (label[i] == label[j]) unite(parent, i, j);
   });
-  std::vector<int> root(n, -1), component_size(n, 0);
+  std::vector<int> piece(n, -1), piece_size(n, 0);
   for (const int i : image.valid) {
-    root[i] = findRoot(parent, i);
-    ++component_size[root[i]];
+    piece[i] = findRoot(parent, i);
+    ++piece_size[piece[i]];
   }
-  std::vector<int> main_root(K, -1);
+  std::vector<int> main_piece(K, -1);
   for (const int i : image.valid) {
-    const int r = root[i], k = label[i];
-    if (r == i && (main_root[k] < 0 || component_size[r] > component_size[main_root[k]])) {
-      main_root[k] = r;
+    const int k = label[i];
+    if (piece[i] == i && (main_piece[k] < 0 || piece_size[i] > piece_size[main_piece[k]])) {
+      main_piece[k] = i;
     }
   }
-  // Smooth links of fragments to main components of other clusters, and between main components.
-  std::vector<int> fragment_index(n, -1);
-  std::vector<int> fragment_roots;
+  auto isMain = [&](int i) { return piece[i] == main_piece[label[i]]; };
+
+  // Orphan groups: non-main pieces joined across smooth links.
+  std::vector<int> group_parent(n);
+  for (int i = 0; i < n; ++i) group_parent[i] = i;
+  bool any_orphan = false;
+  for (const int i : image.valid) any_orphan = any_orphan || !isMain(i);
+  if (!any_orphan) return;
+  forEachSmoothLink([&](int i, int j) {
+    if (!isMain(i) && !isMain(j)) unite(group_parent, piece[i], piece[j]);
+  });
+  std::vector<int> group_index(n, -1), group_roots;
+  std::vector<int> group_of(n, -1);
   for (const int i : image.valid) {
-    if (root[i] == i && main_root[label[i]] != i) {
-      fragment_index[i] = static_cast<int>(fragment_roots.size());
-      fragment_roots.push_back(i);
+    if (isMain(i)) continue;
+    const int g = findRoot(group_parent, piece[i]);
+    if (group_index[g] < 0) {
+      group_index[g] = static_cast<int>(group_roots.size());
+      group_roots.push_back(g);
     }
+    group_of[i] = group_index[g];
   }
-  if (fragment_roots.empty()) return;
-  const int num_fragments = static_cast<int>(fragment_roots.size());
-  std::vector<int> votes(static_cast<size_t>(num_fragments) * K, 0);
+  const int num_groups = static_cast<int>(group_roots.size());
+  std::vector<int> group_size(num_groups, 0);
+  for (const int i : image.valid) {
+    if (group_of[i] >= 0) ++group_size[group_of[i]];
+  }
+  std::vector<int> votes(static_cast<size_t>(num_groups) * K, 0);
   std::vector<int> adjacency(static_cast<size_t>(K) * K, 0);
   std::vector<int> cluster_size(K, 0);
   for (const int i : image.valid) {
-    if (root[i] == main_root[label[i]]) ++cluster_size[label[i]];
+    if (isMain(i)) ++cluster_size[label[i]];
   }
-  forEachLink([&](int i, int j) {
-    if (label[i] == K || label[j] == K || root[i] == root[j] || !smooth(i, j)) return;
-    const bool main_i = root[i] == main_root[label[i]], main_j = root[j] == main_root[label[j]];
+  forEachSmoothLink([&](int i, int j) {
+    const bool main_i = isMain(i), main_j = isMain(j);
     if (main_i && main_j) {
+      if (label[i] == label[j]) return;
       ++adjacency[static_cast<size_t>(label[i]) * K + label[j]];
       ++adjacency[static_cast<size_t>(label[j]) * K + label[i]];
     } else if (main_j) {
-      ++votes[static_cast<size_t>(fragment_index[root[i]]) * K + label[j]];
+      ++votes[static_cast<size_t>(group_of[i]) * K + label[j]];
     } else if (main_i) {
-      ++votes[static_cast<size_t>(fragment_index[root[j]]) * K + label[i]];
+      ++votes[static_cast<size_t>(group_of[j]) * K + label[i]];
     }
   });
-  // New label of each fragment's root; -1 = island.
-  std::vector<int> new_label(num_fragments, -1);
+  // New label of each group; -1 = island keeping its labels.
+  std::vector<int> new_label(num_groups, -1);
   std::vector<int> islands;
-  for (int f = 0; f < num_fragments; ++f) {
-    const int* v = &votes[static_cast<size_t>(f) * K];
+  for (int g = 0; g < num_groups; ++g) {
+    const int* v = &votes[static_cast<size_t>(g) * K];
     const int best = static_cast<int>(std::max_element(v, v + K) - v);
     if (v[best] > 0) {
-      new_label[f] = best;
-      cluster_size[best] += component_size[fragment_roots[f]];
+      new_label[g] = best;
+      cluster_size[best] += group_size[g];
     } else {
-      islands.push_back(f);
+      islands.push_back(g);
     }
   }
-  std::stable_sort(islands.begin(), islands.end(), [&](int a, int b) {
-    return component_size[fragment_roots[a]] > component_size[fragment_roots[b]];
-  });
+  std::stable_sort(islands.begin(), islands.end(),
+                   [&](int a, int b) { return group_size[a] > group_size[b]; });
   const int min_island_samples =
       std::max(4, static_cast<int>(options.min_island_share * image.valid.size()));
   std::vector<int> merged_into(K);
   for (int k = 0; k < K; ++k) merged_into[k] = k;
-  for (const int f : islands) {
-    const int size = component_size[fragment_roots[f]];
-    if (size < min_island_samples) break;
+  for (const int g : islands) {
+    if (group_size[g] < min_island_samples) break;
     int best_a = -1, best_b = -1;
     long best_cost = std::numeric_limits<long>::max();
     for (int a = 0; a < K; ++a) {
@@ -274,20 +322,16 @@ void splitAtDepthSteps(const WorkingImage& image, const DepthClusteringOptions& 
     for (int k = 0; k < K; ++k) {
       if (merged_into[k] == best_b) merged_into[k] = best_a;
     }
-    for (int g = 0; g < num_fragments; ++g) {
-      if (new_label[g] == best_b) new_label[g] = best_a;
+    for (int other = 0; other < num_groups; ++other) {
+      if (new_label[other] == best_b) new_label[other] = best_a;
     }
     cluster_size[best_a] += cluster_size[best_b];
-    cluster_size[best_b] = size;
-    new_label[f] = best_b;
+    cluster_size[best_b] = group_size[g];
+    new_label[g] = best_b;
   }
   for (const int i : image.valid) {
-    const int f = fragment_index[root[i]];
-    if (f >= 0 && new_label[f] >= 0) {
-      label[i] = new_label[f];
-    } else {
-      label[i] = merged_into[label[i]];
-    }
+    const int g = group_of[i];
+    label[i] = (g >= 0 && new_label[g] >= 0) ? new_label[g] : merged_into[label[i]];
   }
 }
 
@@ -383,10 +427,10 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
       }
     }
   }
-  // Working label image, cut at depth steps; centroids are the means of the final clusters.
+  // Working label image, cut at depth steps and creases; centroids are the means of the final clusters.
   std::vector<int> working_label(image.z.size(), K);
   for (int n = 0; n < num_valid; ++n) working_label[image.valid[n]] = sample_label[n];
-  splitAtDepthSteps(image, options_, K, &working_label);
+  splitAtSurfaceBreaks(image, options_, K, &working_label);
   {
     std::vector<Vec3> sum(K, Vec3::Zero());
     std::vector<int> members(K, 0);

@@ -29,9 +29,14 @@ struct DepthClusteringOptions {
   double gap_growth_per_m = 0.05;
   /// cap of the threshold (Seg.MaxNeighbourGap)
   double max_gap_m = 0.15;
-  /// A piece of a cluster cut off from the rest by depth steps (the same threshold) becomes a
-  /// cluster of its own, freeing a label by merging two small adjacent clusters, when it holds at
-  /// least this share of the valid working samples; smaller pieces keep their label.
+  /// Neighbouring samples lie on one smooth surface when their depth difference is below the gap
+  /// threshold and the surface folds by less than this angle between them (3-D tangents into and
+  /// out of the link), rad: it separates a box from the floor it stands on or from a wall corner.
+  double max_crease_angle_rad = 0.6;
+  /// A piece of a cluster cut off from the rest by depth steps or creases, touching no other
+  /// cluster smoothly, becomes a cluster of its own (freeing a label by merging two small adjacent
+  /// clusters) when it holds at least this share of the valid working samples; smaller pieces
+  /// keep their label.
   double min_island_share = 0.005;
 
   /// Takes K, iterations and the gap cap from Seg.*, the working size from Dense.Resolution.
