@@ -154,8 +154,8 @@ int findRoot(std::vector<int>& parent, int i) {
 // centre of its own and joins a near cluster, and a box standing on the floor shares clusters with
 // it. This pass makes every cluster one piece of smooth surface while keeping K. Two 4-neighbour
 // samples are on one smooth surface when their depths differ by less than the gap threshold and
-// the surface does not fold between them (the 3-D tangents leading into and out of the link, along
-// its direction, differ by less than max_crease_angle).
+// the surface does not fold between them (normals from each side's own samples differ by less
+// than max_crease_angle).
 //  1. each cluster keeps its largest smooth-connected piece (its main piece);
 //  2. the other pieces, joined where they touch smoothly, form orphan groups; a group that touches
 //     main pieces smoothly joins the cluster it touches most;
@@ -181,25 +181,48 @@ void splitAtSurfaceBreaks(const WorkingImage& image, const DepthClusteringOption
     t[2] = image.z[to] - image.z[from];
     return true;
   };
-  // Link i -> j = i + offset (offset 1: right, w: down); `before` = i - offset exists, `after` =
-  // j + offset exists.
-  auto smooth = [&](int i, int j, int offset, bool before, bool after) {
+  // Tangent across the link direction at sample i (perpendicular offset `across`, available on
+  // the low / high side as told), central where both neighbours are on i's surface.
+  auto acrossTangent = [&](int i, int across, bool low, bool high, float* t) {
+    float t_low[3], t_high[3];
+    const bool has_low = low && tangent(i - across, i, t_low);
+    const bool has_high = high && tangent(i, i + across, t_high);
+    if (!has_low && !has_high) return false;
+    for (int c = 0; c < 3; ++c) {
+      t[c] = (has_low ? t_low[c] : 0.0f) + (has_high ? t_high[c] : 0.0f);
+    }
+    return true;
+  };
+  auto cross = [](const float* a, const float* b, float* c) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+  };
+  // Link i -> j = i + offset (offset 1: right, w: down; `across` the other one). Each side's
+  // surface normal is taken from samples on its own side of the link only (the tangent leading
+  // into / out of the link and the tangent across it), so a crease right at the link shows.
+  auto smooth = [&](int i, int j, int offset, int across, bool before, bool after, bool low,
+                    bool high) {
     if (!depthSmooth(i, j)) return false;
-    float t_in[3], t_out[3];
-    if (!before || !after || !tangent(i - offset, i, t_in) || !tangent(j, j + offset, t_out)) {
+    float t_in[3], t_out[3], s_i[3], s_j[3];
+    if (!before || !after || !tangent(i - offset, i, t_in) || !tangent(j, j + offset, t_out) ||
+        !acrossTangent(i, across, low, high, s_i) || !acrossTangent(j, across, low, high, s_j)) {
       return true;
     }
-    const float dot = t_in[0] * t_out[0] + t_in[1] * t_out[1] + t_in[2] * t_out[2];
-    const float norms = std::sqrt((t_in[0] * t_in[0] + t_in[1] * t_in[1] + t_in[2] * t_in[2]) *
-                                  (t_out[0] * t_out[0] + t_out[1] * t_out[1] + t_out[2] * t_out[2]));
+    float n_i[3], n_j[3];
+    cross(t_in, s_i, n_i);
+    cross(t_out, s_j, n_j);
+    const float dot = n_i[0] * n_j[0] + n_i[1] * n_j[1] + n_i[2] * n_j[2];
+    const float norms = std::sqrt((n_i[0] * n_i[0] + n_i[1] * n_i[1] + n_i[2] * n_i[2]) *
+                                  (n_j[0] * n_j[0] + n_j[1] * n_j[1] + n_j[2] * n_j[2]));
     return norms <= 0.0f || dot >= cos_crease * norms;
   };
   std::vector<uint8_t> smooth_right(n, 0), smooth_down(n, 0);
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const int i = y * w + x;
-      if (x + 1 < w) smooth_right[i] = smooth(i, i + 1, 1, x > 0, x + 2 < w);
-      if (y + 1 < h) smooth_down[i] = smooth(i, i + w, w, y > 0, y + 2 < h);
+      if (x + 1 < w) smooth_right[i] = smooth(i, i + 1, 1, w, x > 0, x + 2 < w, y > 0, y + 1 < h);
+      if (y + 1 < h) smooth_down[i] = smooth(i, i + w, w, 1, y > 0, y + 2 < h, x > 0, x + 1 < w);
     }
   }
   auto forEachSmoothLink = [&](auto&& visit) {
