@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "ltlo/core/assert.h"
@@ -24,9 +25,9 @@ struct WorkingImage {
   std::vector<int> valid;      // indices of samples with depth
 };
 
-WorkingImage subsample(const cv::Mat& depth_m, const PinholeCamera& camera,
-                       const DepthClusteringOptions& options) {
-  WorkingImage image;
+void subsample(const cv::Mat& depth_m, const PinholeCamera& camera,
+               const DepthClusteringOptions& options, WorkingImage* image_out) {
+  WorkingImage& image = *image_out;
   image.step = std::max(1, std::min(depth_m.cols / options.working_width,
                                     depth_m.rows / options.working_height));
   image.width = depth_m.cols / image.step;
@@ -35,6 +36,7 @@ WorkingImage subsample(const cv::Mat& depth_m, const PinholeCamera& camera,
   image.x.assign(size, 0.0f);
   image.y.assign(size, 0.0f);
   image.z.assign(size, 0.0f);
+  image.valid.clear();
   image.valid.reserve(size);
   const float inv_fx = static_cast<float>(1.0 / camera.fx());
   const float inv_fy = static_cast<float>(1.0 / camera.fy());
@@ -60,18 +62,39 @@ WorkingImage subsample(const cv::Mat& depth_m, const PinholeCamera& camera,
       if (image.z[i] > 0.0f) image.valid.push_back(i);
     }
   }
-  return image;
 }
+
+// Forward 3-D tangent between neighbouring samples; ok = false where they are not on one surface.
+struct Tangent {
+  float x = 0.0f, y = 0.0f, z = 0.0f;
+  bool ok = false;
+};
+
+}  // namespace
+
+// Per-sample buffers kept between frames: allocating them afresh costs more than the clustering
+// (page faults on every call, glibc serves blocks this large with mmap).
+struct detail::ClusteringBuffers {
+  WorkingImage image;
+  std::vector<char> used;
+  std::vector<Tangent> right, down;
+  std::vector<uint8_t> smooth_right, smooth_down;
+  std::vector<int> parent, piece, piece_size, group_parent, group_index, group_of;
+  std::vector<int> sample_label, working_label;
+};
+
+namespace {
 
 // Seeds on a uniform gx x gy grid over the working image (gx * gy >= K, K cells picked evenly);
 // a cell centre without depth moves to the nearest (Chebyshev rings) valid sample not yet a seed.
-std::vector<int> gridSeeds(const WorkingImage& image, int num_clusters) {
+std::vector<int> gridSeeds(const WorkingImage& image, int num_clusters, std::vector<char>* used_buffer) {
   const int w = image.width, h = image.height;
   const int grid_rows = std::max(
       1, static_cast<int>(std::lround(std::sqrt(num_clusters * static_cast<double>(h) / w))));
   const int grid_cols = (num_clusters + grid_rows - 1) / grid_rows;
   const int num_cells = grid_rows * grid_cols;
-  std::vector<char> used(image.z.size(), 0);
+  std::vector<char>& used = *used_buffer;
+  used.assign(image.z.size(), 0);
   std::vector<int> seeds;
   seeds.reserve(num_clusters);
   for (int s = 0; s < num_clusters; ++s) {
@@ -163,66 +186,86 @@ int findRoot(std::vector<int>& parent, int i) {
 //     the samples takes the label freed by merging the two smoothly adjacent clusters of smallest
 //     joint size, largest islands first. Smaller islands keep their labels.
 void splitAtSurfaceBreaks(const WorkingImage& image, const DepthClusteringOptions& options, int K,
-                          std::vector<int>* working_label) {
+                          std::vector<int>* working_label, detail::ClusteringBuffers* buffers) {
   std::vector<int>& label = *working_label;
   const int w = image.width, h = image.height;
   const int n = w * h;
   const float cos_crease = static_cast<float>(std::cos(options.max_crease_angle_rad));
-  auto depthSmooth = [&](int i, int j) {
+  const float gap_at_zero_m = static_cast<float>(options.gap_at_zero_m);
+  const float gap_growth_per_m = static_cast<float>(options.gap_growth_per_m);
+  const float max_gap_m = static_cast<float>(options.max_gap_m);
+  auto depthSmooth = [&](int i, int j) {  // gapThreshold() in float
     const float zi = image.z[i], zj = image.z[j];
+    const float z_mean = 0.5f * (zi + zj);
     return zi > 0.0f && zj > 0.0f &&
-           std::abs(zi - zj) < options.gapThreshold(0.5 * (static_cast<double>(zi) + zj));
+           std::abs(zi - zj) <
+               std::min(max_gap_m, gap_at_zero_m + gap_growth_per_m * z_mean * z_mean);
   };
-  // Tangent from sample `from` to `to` (unnormalised), or false when `to` is unusable.
-  auto tangent = [&](int from, int to, float* t) {
-    if (!depthSmooth(from, to)) return false;
-    t[0] = image.x[to] - image.x[from];
-    t[1] = image.y[to] - image.y[from];
-    t[2] = image.z[to] - image.z[from];
-    return true;
-  };
-  // Tangent across the link direction at sample i (perpendicular offset `across`, available on
-  // the low / high side as told), central where both neighbours are on i's surface.
-  auto acrossTangent = [&](int i, int across, bool low, bool high, float* t) {
-    float t_low[3], t_high[3];
-    const bool has_low = low && tangent(i - across, i, t_low);
-    const bool has_high = high && tangent(i, i + across, t_high);
-    if (!has_low && !has_high) return false;
-    for (int c = 0; c < 3; ++c) {
-      t[c] = (has_low ? t_low[c] : 0.0f) + (has_high ? t_high[c] : 0.0f);
-    }
-    return true;
-  };
-  auto cross = [](const float* a, const float* b, float* c) {
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-  };
-  // Link i -> j = i + offset (offset 1: right, w: down; `across` the other one). Each side's
-  // surface normal is taken from samples on its own side of the link only (the tangent leading
-  // into / out of the link and the tangent across it), so a crease right at the link shows.
-  auto smooth = [&](int i, int j, int offset, int across, bool before, bool after, bool low,
-                    bool high) {
-    if (!depthSmooth(i, j)) return false;
-    float t_in[3], t_out[3], s_i[3], s_j[3];
-    if (!before || !after || !tangent(i - offset, i, t_in) || !tangent(j, j + offset, t_out) ||
-        !acrossTangent(i, across, low, high, s_i) || !acrossTangent(j, across, low, high, s_j)) {
-      return true;
-    }
-    float n_i[3], n_j[3];
-    cross(t_in, s_i, n_i);
-    cross(t_out, s_j, n_j);
-    const float dot = n_i[0] * n_j[0] + n_i[1] * n_j[1] + n_i[2] * n_j[2];
-    const float norms = std::sqrt((n_i[0] * n_i[0] + n_i[1] * n_i[1] + n_i[2] * n_i[2]) *
-                                  (n_j[0] * n_j[0] + n_j[1] * n_j[1] + n_j[2] * n_j[2]));
-    return norms <= 0.0f || dot >= cos_crease * norms;
-  };
-  std::vector<uint8_t> smooth_right(n, 0), smooth_down(n, 0);
+  // Forward tangents P(i + 1) - P(i) (right) and P(i + w) - P(i) (down) where both samples are on
+  // one surface in depth (ok = false otherwise); each link's side normals are built from these.
+  std::vector<Tangent>& right = buffers->right;
+  std::vector<Tangent>& down = buffers->down;
+  right.assign(n, Tangent{});
+  down.assign(n, Tangent{});
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const int i = y * w + x;
-      if (x + 1 < w) smooth_right[i] = smooth(i, i + 1, 1, w, x > 0, x + 2 < w, y > 0, y + 1 < h);
-      if (y + 1 < h) smooth_down[i] = smooth(i, i + w, w, 1, y > 0, y + 2 < h, x > 0, x + 1 < w);
+      if (x + 1 < w && depthSmooth(i, i + 1)) {
+        right[i] = {image.x[i + 1] - image.x[i], image.y[i + 1] - image.y[i],
+                    image.z[i + 1] - image.z[i], true};
+      }
+      if (y + 1 < h && depthSmooth(i, i + w)) {
+        down[i] = {image.x[i + w] - image.x[i], image.y[i + w] - image.y[i],
+                   image.z[i + w] - image.z[i], true};
+      }
+    }
+  }
+  // Tangent across a link at one sample: the sum of the forward tangents on both sides of it
+  // (a central difference), or the one available; false when neither is.
+  auto sumTangents = [](const Tangent* low, const Tangent& high, Tangent* t) {
+    const bool has_low = low != nullptr && low->ok;
+    if (!has_low && !high.ok) return false;
+    t->x = (has_low ? low->x : 0.0f) + (high.ok ? high.x : 0.0f);
+    t->y = (has_low ? low->y : 0.0f) + (high.ok ? high.y : 0.0f);
+    t->z = (has_low ? low->z : 0.0f) + (high.ok ? high.z : 0.0f);
+    return true;
+  };
+  // Link i -> j: each side's surface normal comes from samples on its own side of the link only
+  // (the tangent leading into / out of the link and the tangent across it at that sample), so a
+  // crease right at the link shows.
+  auto creaseFree = [&](const Tangent& t_in, const Tangent& t_out, const Tangent& s_i,
+                        const Tangent& s_j) {
+    const float n_i[3] = {t_in.y * s_i.z - t_in.z * s_i.y, t_in.z * s_i.x - t_in.x * s_i.z,
+                          t_in.x * s_i.y - t_in.y * s_i.x};
+    const float n_j[3] = {t_out.y * s_j.z - t_out.z * s_j.y, t_out.z * s_j.x - t_out.x * s_j.z,
+                          t_out.x * s_j.y - t_out.y * s_j.x};
+    const float dot = n_i[0] * n_j[0] + n_i[1] * n_j[1] + n_i[2] * n_j[2];
+    const float norms2 = (n_i[0] * n_i[0] + n_i[1] * n_i[1] + n_i[2] * n_i[2]) *
+                         (n_j[0] * n_j[0] + n_j[1] * n_j[1] + n_j[2] * n_j[2]);
+    return norms2 <= 0.0f || (dot >= 0.0f && dot * dot >= cos_crease * cos_crease * norms2);
+  };
+  std::vector<uint8_t>& smooth_right = buffers->smooth_right;
+  std::vector<uint8_t>& smooth_down = buffers->smooth_down;
+  smooth_right.assign(n, 0);
+  smooth_down.assign(n, 0);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int i = y * w + x;
+      Tangent s_i, s_j;
+      if (right[i].ok) {  // link i -> i + 1
+        const int j = i + 1;
+        smooth_right[i] = x == 0 || x + 2 >= w || !right[i - 1].ok || !right[j].ok ||
+                          !sumTangents(y > 0 ? &down[i - w] : nullptr, down[i], &s_i) ||
+                          !sumTangents(y > 0 ? &down[j - w] : nullptr, down[j], &s_j) ||
+                          creaseFree(right[i - 1], right[j], s_i, s_j);
+      }
+      if (down[i].ok) {  // link i -> i + w
+        const int j = i + w;
+        smooth_down[i] = y == 0 || y + 2 >= h || !down[i - w].ok || !down[j].ok ||
+                         !sumTangents(x > 0 ? &right[i - 1] : nullptr, right[i], &s_i) ||
+                         !sumTangents(x > 0 ? &right[j - 1] : nullptr, right[j], &s_j) ||
+                         creaseFree(down[i - w], down[j], s_i, s_j);
+      }
     }
   }
   auto forEachSmoothLink = [&](auto&& visit) {
@@ -237,12 +280,16 @@ void splitAtSurfaceBreaks(const WorkingImage& image, const DepthClusteringOption
   };
 
   // Pieces: same label, smoothly connected.
-  std::vector<int> parent(n);
+  std::vector<int>& parent = buffers->parent;
+  parent.resize(n);
   for (int i = 0; i < n; ++i) parent[i] = i;
   forEachSmoothLink([&](int i, int j) {
     if (label[i] == label[j]) unite(parent, i, j);
   });
-  std::vector<int> piece(n, -1), piece_size(n, 0);
+  std::vector<int>& piece = buffers->piece;
+  std::vector<int>& piece_size = buffers->piece_size;
+  piece.assign(n, -1);
+  piece_size.assign(n, 0);
   for (const int i : image.valid) {
     piece[i] = findRoot(parent, i);
     ++piece_size[piece[i]];
@@ -257,7 +304,8 @@ void splitAtSurfaceBreaks(const WorkingImage& image, const DepthClusteringOption
   auto isMain = [&](int i) { return piece[i] == main_piece[label[i]]; };
 
   // Orphan groups: non-main pieces joined across smooth links.
-  std::vector<int> group_parent(n);
+  std::vector<int>& group_parent = buffers->group_parent;
+  group_parent.resize(n);
   for (int i = 0; i < n; ++i) group_parent[i] = i;
   bool any_orphan = false;
   for (const int i : image.valid) any_orphan = any_orphan || !isMain(i);
@@ -265,8 +313,11 @@ void splitAtSurfaceBreaks(const WorkingImage& image, const DepthClusteringOption
   forEachSmoothLink([&](int i, int j) {
     if (!isMain(i) && !isMain(j)) unite(group_parent, piece[i], piece[j]);
   });
-  std::vector<int> group_index(n, -1), group_roots;
-  std::vector<int> group_of(n, -1);
+  std::vector<int>& group_index = buffers->group_index;
+  std::vector<int>& group_of = buffers->group_of;
+  group_index.assign(n, -1);
+  group_of.assign(n, -1);
+  std::vector<int> group_roots;
   for (const int i : image.valid) {
     if (isMain(i)) continue;
     const int g = findRoot(group_parent, piece[i]);
@@ -375,7 +426,12 @@ double DepthClusteringOptions::gapThreshold(double z_m) const {
   return std::min(max_gap_m, gap_at_zero_m + gap_growth_per_m * z_m * z_m);
 }
 
-DepthClustering::DepthClustering(const DepthClusteringOptions& options) : options_(options) {
+DepthClustering::~DepthClustering() = default;
+DepthClustering::DepthClustering(DepthClustering&&) noexcept = default;
+DepthClustering& DepthClustering::operator=(DepthClustering&&) noexcept = default;
+
+DepthClustering::DepthClustering(const DepthClusteringOptions& options)
+    : options_(options), buffers_(std::make_unique<detail::ClusteringBuffers>()) {
   LTLO_ASSERT(options.num_clusters >= 1 && options.num_clusters <= kMaxClusters,
               "num_clusters = " << options.num_clusters << ", expected [1, " << kMaxClusters << "]");
   LTLO_ASSERT(options.kmeans_iterations >= 1, "kmeans_iterations = " << options.kmeans_iterations);
@@ -383,12 +439,14 @@ DepthClustering::DepthClustering(const DepthClusteringOptions& options) : option
               "working size " << options.working_width << "x" << options.working_height);
 }
 
-ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera& camera) const {
+ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera& camera) {
   LTLO_ASSERT(depth_m.type() == CV_32F, "depth type " << depth_m.type() << ", expected CV_32F");
   LTLO_ASSERT(depth_m.cols == camera.width() && depth_m.rows == camera.height(),
               "depth " << depth_m.cols << "x" << depth_m.rows << ", camera " << camera.width()
                        << "x" << camera.height());
-  const WorkingImage image = subsample(depth_m, camera, options_);
+  detail::ClusteringBuffers& buffers = *buffers_;
+  subsample(depth_m, camera, options_, &buffers.image);
+  const WorkingImage& image = buffers.image;
   const int num_valid = static_cast<int>(image.valid.size());
   const int K = std::min(options_.num_clusters, num_valid);
 
@@ -404,13 +462,14 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
   // Lloyd iterations on the valid working samples.
   Centres centres(K);
   {
-    const std::vector<int> seeds = gridSeeds(image, K);
+    const std::vector<int> seeds = gridSeeds(image, K, &buffers.used);
     for (int k = 0; k < K; ++k) {
       const int i = seeds[k];
       centres.set(k, image.x[i], image.y[i], image.z[i]);
     }
   }
-  std::vector<int> sample_label(num_valid, 0);
+  std::vector<int>& sample_label = buffers.sample_label;
+  sample_label.assign(num_valid, 0);
   std::vector<double> sum_x(K), sum_y(K), sum_z(K);
   std::vector<int> count(K);
   for (int iteration = 0; iteration < options_.kmeans_iterations; ++iteration) {
@@ -451,9 +510,10 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
     }
   }
   // Working label image, cut at depth steps and creases; centroids are the means of the final clusters.
-  std::vector<int> working_label(image.z.size(), K);
+  std::vector<int>& working_label = buffers.working_label;
+  working_label.assign(image.z.size(), K);
   for (int n = 0; n < num_valid; ++n) working_label[image.valid[n]] = sample_label[n];
-  splitAtSurfaceBreaks(image, options_, K, &working_label);
+  splitAtSurfaceBreaks(image, options_, K, &working_label, &buffers);
   {
     std::vector<Vec3> sum(K, Vec3::Zero());
     std::vector<int> members(K, 0);
@@ -516,7 +576,20 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
       }
       const int wx = std::min(u / step, image.width - 1);
       int label = working_label[wy * image.width + wx];
+      // Inside a cluster (all valid samples around share one label) the label is that label.
+      bool uniform = label != K;
       if (step > 1) {
+        for (int sy = wy0; sy <= wy1 && uniform; ++sy) {
+          for (int sx = std::max(0, wx - 1); sx <= std::min(image.width - 1, wx + 1); ++sx) {
+            const int other = working_label[sy * image.width + sx];
+            if (other != label) {
+              uniform = false;
+              break;
+            }
+          }
+        }
+      }
+      if (!uniform) {
         const float px = (static_cast<float>(u) - cx) * inv_fx * z;
         const float py = (static_cast<float>(v) - cy) * inv_fy * z;
         label = K;

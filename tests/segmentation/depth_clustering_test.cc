@@ -87,7 +87,7 @@ TEST_P(TwoPlanesAndBox, CentroidsLieOnTheirSurfaces) {
 TEST_P(TwoPlanesAndBox, IsDeterministic) {
   const auto [width, height] = GetParam();
   const test::SyntheticDepth scene = test::makeTwoPlanesAndBox(width, height);
-  const DepthClustering clustering(defaultOptions());
+  DepthClustering clustering(defaultOptions());
   const ClusterMap first = clustering.cluster(scene.depth_m, scene.camera);
   const ClusterMap second = clustering.cluster(scene.depth_m.clone(), scene.camera);
   EXPECT_EQ(cv::countNonZero(first.labels != second.labels), 0);
@@ -165,7 +165,7 @@ TEST(DepthClustering, SubsampledConnectivityNeverCrossesDepthSteps) {
 TEST(DepthClustering, FewValidPixelsGiveFewerClusters) {
   const PinholeCamera camera(100.0, 100.0, 31.5, 23.5, 64, 48);
   cv::Mat depth_m(48, 64, CV_32F, cv::Scalar(0.0f));
-  const DepthClustering clustering(defaultOptions());
+  DepthClustering clustering(defaultOptions());
   const ClusterMap empty = clustering.cluster(depth_m, camera);
   EXPECT_EQ(empty.num_clusters, 0);
   EXPECT_EQ(cv::countNonZero(empty.labels), 0);
@@ -214,7 +214,7 @@ TEST(DepthClustering, ClustersRespectSimulatedMaskBoundaries) {
   o.fps = 2.0;
   o.noise_free = true;
   sim::Simulator simulator(o);
-  const DepthClustering clustering(defaultOptions());
+  DepthClustering clustering(defaultOptions());
   int frames_checked = 0, clusters_checked = 0, clusters_mixed = 0;
   for (int i = 0; i < simulator.numFrames() && frames_checked < 6; ++i) {
     const sim::SimFrame frame = simulator.renderFrame(i);

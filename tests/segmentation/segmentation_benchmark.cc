@@ -18,7 +18,7 @@ const test::SyntheticDepth& scene() {
 }
 
 void BM_DepthClustering(benchmark::State& state) {
-  const DepthClustering clustering(DepthClusteringOptions{});
+  DepthClustering clustering(DepthClusteringOptions{});
   for (auto _ : state) {
     ClusterMap clusters = clustering.cluster(scene().depth_m, scene().camera);
     benchmark::DoNotOptimize(clusters.labels.data);

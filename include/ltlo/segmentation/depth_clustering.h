@@ -3,6 +3,7 @@
 /// clustered by their back-projected 3-D points in the camera frame, a few Lloyd iterations.
 /// Runs every frame in the tracking thread, so it works on a subsampled depth image and labels
 /// the full image from the subsampled result.
+#include <memory>
 #include <opencv2/core/mat.hpp>
 
 #include "ltlo/core/camera.h"
@@ -46,19 +47,28 @@ struct DepthClusteringOptions {
   double gapThreshold(double z_m) const;
 };
 
-/// Stateless apart from its options; cluster() is const and thread-safe.
+namespace detail {
+struct ClusteringBuffers;
+}
+
+/// Keeps its working buffers between calls (reallocating them every frame costs more than the
+/// clustering), so one instance serves one thread at a time: not thread-safe, movable.
 class DepthClustering {
  public:
   explicit DepthClustering(const DepthClusteringOptions& options);
+  ~DepthClustering();
+  DepthClustering(DepthClustering&&) noexcept;
+  DepthClustering& operator=(DepthClustering&&) noexcept;
 
   /// Clusters `depth_m` (CV_32F, metres, 0 or non-finite = no reading) taken with `camera`
   /// (whose size must match the image). Deterministic: same input, same labels.
-  ClusterMap cluster(const cv::Mat& depth_m, const PinholeCamera& camera) const;
+  ClusterMap cluster(const cv::Mat& depth_m, const PinholeCamera& camera);
 
   const DepthClusteringOptions& options() const { return options_; }
 
  private:
   DepthClusteringOptions options_;
+  std::unique_ptr<detail::ClusteringBuffers> buffers_;
 };
 
 }  // namespace ltlo::segmentation
