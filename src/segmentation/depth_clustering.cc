@@ -81,6 +81,7 @@ struct detail::ClusteringBuffers {
   std::vector<uint8_t> smooth_right, smooth_down;
   std::vector<int> parent, piece, piece_size, group_parent, group_index, group_of;
   std::vector<int> sample_label, working_label;
+  std::vector<uint8_t> uniform;
 };
 
 namespace {
@@ -559,6 +560,27 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
   // sample in the 3x3 samples around its own (depth-guided nearest-neighbour upsampling, so labels
   // stay on the right side of depth steps); without any, the nearest centre.
   const int step = image.step;
+  // Samples inside a cluster (all 3x3 samples around share its label) label their pixels directly.
+  std::vector<uint8_t>& uniform_sample = buffers.uniform;
+  uniform_sample.assign(image.z.size(), 0);
+  if (step > 1) {
+    for (int wy = 0; wy < image.height; ++wy) {
+      for (int wx = 0; wx < image.width; ++wx) {
+        const int i = wy * image.width + wx;
+        const int k = working_label[i];
+        bool uniform = k != K;
+        for (int sy = std::max(0, wy - 1); sy <= std::min(image.height - 1, wy + 1) && uniform; ++sy) {
+          for (int sx = std::max(0, wx - 1); sx <= std::min(image.width - 1, wx + 1); ++sx) {
+            if (working_label[sy * image.width + sx] != k) {
+              uniform = false;
+              break;
+            }
+          }
+        }
+        uniform_sample[i] = uniform;
+      }
+    }
+  }
   const float inv_fx = static_cast<float>(1.0 / camera.fx());
   const float inv_fy = static_cast<float>(1.0 / camera.fy());
   const float cx = static_cast<float>(camera.cx());
@@ -576,19 +598,7 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
       }
       const int wx = std::min(u / step, image.width - 1);
       int label = working_label[wy * image.width + wx];
-      // Inside a cluster (all valid samples around share one label) the label is that label.
-      bool uniform = label != K;
-      if (step > 1) {
-        for (int sy = wy0; sy <= wy1 && uniform; ++sy) {
-          for (int sx = std::max(0, wx - 1); sx <= std::min(image.width - 1, wx + 1); ++sx) {
-            const int other = working_label[sy * image.width + sx];
-            if (other != label) {
-              uniform = false;
-              break;
-            }
-          }
-        }
-      }
+      const bool uniform = step == 1 || buffers.uniform[wy * image.width + wx];
       if (!uniform) {
         const float px = (static_cast<float>(u) - cx) * inv_fx * z;
         const float py = (static_cast<float>(v) - cy) * inv_fy * z;
