@@ -15,7 +15,8 @@ namespace ltlo::segmentation {
 struct DepthClusteringOptions {
   /// K (Seg.Clusters)
   int num_clusters = 24;
-  /// Lloyd iterations after seeding (Seg.KMeansIterations)
+  /// Lloyd iterations after seeding (Seg.KMeansIterations); they run on every other working
+  /// sample in both directions (a quarter), then one assignment labels all working samples
   int kmeans_iterations = 3;
   /// The image is subsampled by the largest integer step that keeps it at least this size, px
   /// (Dense.Resolution, 320x240); smaller inputs are clustered at full resolution.
