@@ -585,7 +585,8 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
         const int i = wy * image.width + wx;
         const int k = working_label[i];
         bool uniform = k != K;
-        for (int sy = std::max(0, wy - 1); sy <= std::min(image.height - 1, wy + 1) && uniform; ++sy) {
+        const int sy1 = std::min(image.height - 1, wy + 1);
+        for (int sy = std::max(0, wy - 1); sy <= sy1 && uniform; ++sy) {
           for (int sx = std::max(0, wx - 1); sx <= std::min(image.width - 1, wx + 1); ++sx) {
             if (working_label[sy * image.width + sx] != k) {
               uniform = false;
