@@ -28,8 +28,8 @@ struct WorkingImage {
 void subsample(const cv::Mat& depth_m, const PinholeCamera& camera,
                const DepthClusteringOptions& options, WorkingImage* image_out) {
   WorkingImage& image = *image_out;
-  image.step = std::max(1, std::min(depth_m.cols / options.working_width,
-                                    depth_m.rows / options.working_height));
+  image.step = std::max(
+      1, std::min(depth_m.cols / options.working_width, depth_m.rows / options.working_height));
   image.width = depth_m.cols / image.step;
   image.height = depth_m.rows / image.step;
   const size_t size = static_cast<size_t>(image.width) * image.height;
@@ -88,7 +88,8 @@ namespace {
 
 // Seeds on a uniform gx x gy grid over the working image (gx * gy >= K, K cells picked evenly);
 // a cell centre without depth moves to the nearest (Chebyshev rings) valid sample not yet a seed.
-std::vector<int> gridSeeds(const WorkingImage& image, int num_clusters, std::vector<char>* used_buffer) {
+std::vector<int> gridSeeds(const WorkingImage& image, int num_clusters,
+                           std::vector<char>* used_buffer) {
   const int w = image.width, h = image.height;
   const int grid_rows = std::max(
       1, static_cast<int>(std::lround(std::sqrt(num_clusters * static_cast<double>(h) / w))));
@@ -112,7 +113,8 @@ std::vector<int> gridSeeds(const WorkingImage& image, int num_clusters, std::vec
           if (u < 0 || u >= w) continue;
           const int i = v * w + u;
           if (image.z[i] == 0.0f || used[i]) continue;
-          const long d2 = static_cast<long>(u - cu) * (u - cu) + static_cast<long>(v - cv) * (v - cv);
+          const long d2 =
+              static_cast<long>(u - cu) * (u - cu) + static_cast<long>(v - cv) * (v - cv);
           if (d2 < best_d2) {
             best_d2 = d2;
             best = i;
@@ -164,7 +166,6 @@ inline int nearestCentre(const Centres& c, float px, float py, float pz, float* 
   *score = best_d;
   return best;
 }
-
 
 int findRoot(std::vector<int>& parent, int i) {
   while (parent[i] != i) {
@@ -388,8 +389,10 @@ void splitAtSurfaceBreaks(const WorkingImage& image, const DepthClusteringOption
     if (best_a < 0) break;
     // b joins a; the island takes label b.
     for (int c = 0; c < K; ++c) {
-      adjacency[static_cast<size_t>(best_a) * K + c] += adjacency[static_cast<size_t>(best_b) * K + c];
-      adjacency[static_cast<size_t>(c) * K + best_a] += adjacency[static_cast<size_t>(c) * K + best_b];
+      adjacency[static_cast<size_t>(best_a) * K + c] +=
+          adjacency[static_cast<size_t>(best_b) * K + c];
+      adjacency[static_cast<size_t>(c) * K + best_a] +=
+          adjacency[static_cast<size_t>(c) * K + best_b];
       adjacency[static_cast<size_t>(best_b) * K + c] = 0;
       adjacency[static_cast<size_t>(c) * K + best_b] = 0;
     }
@@ -433,8 +436,9 @@ DepthClustering& DepthClustering::operator=(DepthClustering&&) noexcept = defaul
 
 DepthClustering::DepthClustering(const DepthClusteringOptions& options)
     : options_(options), buffers_(std::make_unique<detail::ClusteringBuffers>()) {
-  LTLO_ASSERT(options.num_clusters >= 1 && options.num_clusters <= kMaxClusters,
-              "num_clusters = " << options.num_clusters << ", expected [1, " << kMaxClusters << "]");
+  LTLO_ASSERT(
+      options.num_clusters >= 1 && options.num_clusters <= kMaxClusters,
+      "num_clusters = " << options.num_clusters << ", expected [1, " << kMaxClusters << "]");
   LTLO_ASSERT(options.kmeans_iterations >= 1, "kmeans_iterations = " << options.kmeans_iterations);
   LTLO_ASSERT(options.working_width >= 1 && options.working_height >= 1,
               "working size " << options.working_width << "x" << options.working_height);
@@ -512,7 +516,8 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
     for (int k = 0; k < K; ++k) {
       if (count[k] > 0) {
         centres.set(k, static_cast<float>(sum_x[k] / count[k]),
-                    static_cast<float>(sum_y[k] / count[k]), static_cast<float>(sum_z[k] / count[k]));
+                    static_cast<float>(sum_y[k] / count[k]),
+                    static_cast<float>(sum_z[k] / count[k]));
       } else if (!last && !reseeded) {
         // An empty cluster restarts at the sample worst served by its centre (keeps K clusters).
         const int i = image.valid[worst_sample];
@@ -526,7 +531,8 @@ ClusterMap DepthClustering::cluster(const cv::Mat& depth_m, const PinholeCamera&
     float score;
     sample_label[n] = nearestCentre(centres, image.x[i], image.y[i], image.z[i], &score);
   }
-  // Working label image, cut at depth steps and creases; centroids are the means of the final clusters.
+  // Working label image, cut at depth steps and creases; centroids are the means of the final
+  // clusters.
   std::vector<int>& working_label = buffers.working_label;
   working_label.assign(image.z.size(), K);
   for (int n = 0; n < num_valid; ++n) working_label[image.valid[n]] = sample_label[n];

@@ -25,7 +25,8 @@ double StaticScores::gamma(int label) const {
 }
 
 void StaticScores::setGamma(int k, double gamma) {
-  LTLO_ASSERT(k >= 0 && k < numClusters(), "cluster " << k << " outside [0, " << numClusters() << ")");
+  LTLO_ASSERT(k >= 0 && k < numClusters(),
+              "cluster " << k << " outside [0, " << numClusters() << ")");
   LTLO_ASSERT(gamma >= 0.0 && gamma <= 1.0, "gamma_" << k << " = " << gamma << ", expected [0, 1]");
   gamma_[k] = gamma;
 }
@@ -55,10 +56,9 @@ cv::Mat StaticScores::staticMask(const ClusterMap& clusters, double threshold) c
 double StaticScores::staticAreaRatio(const ClusterMap& clusters, double threshold) const {
   LTLO_ASSERT(clusters.num_clusters == numClusters(),
               "scores for " << numClusters() << " clusters, map has " << clusters.num_clusters);
-  LTLO_ASSERT(clusters.pixel_counts.size() == gamma_.size(), "pixel_counts has "
-                                                                 << clusters.pixel_counts.size()
-                                                                 << " entries, expected "
-                                                                 << gamma_.size());
+  LTLO_ASSERT(clusters.pixel_counts.size() == gamma_.size(),
+              "pixel_counts has " << clusters.pixel_counts.size() << " entries, expected "
+                                  << gamma_.size());
   long long total = 0, num_static = 0;
   for (size_t k = 0; k < gamma_.size(); ++k) {
     total += clusters.pixel_counts[k];

@@ -2,10 +2,9 @@
 
 #include <gtest/gtest.h>
 
-#include <opencv2/core.hpp>
-
 #include <cstdio>
 #include <map>
+#include <opencv2/core.hpp>
 #include <set>
 #include <utility>
 
@@ -40,15 +39,16 @@ INSTANTIATE_TEST_SUITE_P(Sizes, TwoPlanesAndBox,
 TEST_P(TwoPlanesAndBox, ClustersStayOnOneSurfaceAndNoDepthIsLabelK) {
   const auto [width, height] = GetParam();
   const test::SyntheticDepth scene = test::makeTwoPlanesAndBox(width, height);
-  const ClusterMap clusters = DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
+  const ClusterMap clusters =
+      DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
   ASSERT_EQ(clusters.num_clusters, 24);
   ASSERT_EQ(clusters.labels.size(), scene.depth_m.size());
   ASSERT_EQ(clusters.labels.type(), CV_32S);
   const std::vector<std::map<int, int>> surfaces = surfacesPerCluster(clusters, scene.surface);
   for (int k = 0; k < clusters.num_clusters; ++k) {
     EXPECT_GT(clusters.pixel_counts[k], 0) << "cluster " << k << " is empty";
-    EXPECT_EQ(surfaces[k].size(), 1u) << "cluster " << k << " spans " << surfaces[k].size()
-                                       << " surfaces";
+    EXPECT_EQ(surfaces[k].size(), 1u)
+        << "cluster " << k << " spans " << surfaces[k].size() << " surfaces";
     EXPECT_EQ(surfaces[k].count(test::kNoDepth), 0u) << "cluster " << k;
   }
   const int num_no_depth = static_cast<int>(cv::countNonZero(scene.depth_m == 0.0f));
@@ -65,7 +65,8 @@ TEST_P(TwoPlanesAndBox, ClustersStayOnOneSurfaceAndNoDepthIsLabelK) {
 TEST_P(TwoPlanesAndBox, CentroidsLieOnTheirSurfaces) {
   const auto [width, height] = GetParam();
   const test::SyntheticDepth scene = test::makeTwoPlanesAndBox(width, height);
-  const ClusterMap clusters = DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
+  const ClusterMap clusters =
+      DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
   const std::vector<std::map<int, int>> surfaces = surfacesPerCluster(clusters, scene.surface);
   ASSERT_EQ(clusters.centroids_c.size(), 24u);
   for (int k = 0; k < clusters.num_clusters; ++k) {
@@ -108,7 +109,8 @@ TEST_P(TwoPlanesAndBox, IsDeterministic) {
 // step are not linked.
 TEST(DepthClustering, ConnectivityLinksNeighboursOnOneSurfaceOnly) {
   const test::SyntheticDepth scene = test::makeTwoPlanesAndBox(160, 120);
-  const ClusterMap clusters = DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
+  const ClusterMap clusters =
+      DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
   const int K = clusters.num_clusters;
   std::map<std::pair<int, int>, int> same_surface_pairs;
   std::set<std::pair<int, int>> cross_surface_pairs;
@@ -128,7 +130,8 @@ TEST(DepthClustering, ConnectivityLinksNeighboursOnOneSurfaceOnly) {
       if (v + 1 < 120) visit(u, v, u, v + 1);
     }
   }
-  ASSERT_FALSE(cross_surface_pairs.empty());  // the scene does put clusters side by side across steps
+  ASSERT_FALSE(
+      cross_surface_pairs.empty());  // the scene does put clusters side by side across steps
   ASSERT_GE(same_surface_pairs.size(), 20u);
   EXPECT_EQ(clusters.edges.size(), same_surface_pairs.size());
   for (const ClusterEdge& edge : clusters.edges) {
@@ -149,7 +152,8 @@ TEST(DepthClustering, ConnectivityLinksNeighboursOnOneSurfaceOnly) {
 // step, and every cluster has a neighbour on its own surface (each surface holds several).
 TEST(DepthClustering, SubsampledConnectivityNeverCrossesDepthSteps) {
   const test::SyntheticDepth scene = test::makeTwoPlanesAndBox(640, 480);
-  const ClusterMap clusters = DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
+  const ClusterMap clusters =
+      DepthClustering(defaultOptions()).cluster(scene.depth_m, scene.camera);
   const std::vector<std::map<int, int>> surfaces = surfacesPerCluster(clusters, scene.surface);
   for (const ClusterEdge& edge : clusters.edges) {
     EXPECT_EQ(surfaces[edge.a].begin()->first, surfaces[edge.b].begin()->first)
