@@ -10,6 +10,7 @@
 #include "ltlo/eval/trajectory_metrics.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/map.h"
+#include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/sim/simulator.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/tracker.h"
@@ -41,8 +42,80 @@ class TrackerOnSimulatedSequence : public ::testing::Test {
     orb.num_features = 500;
     return orb;
   }
+  /// Runs the tracker over the whole sequence (the first pose from ground truth); returns ATE.
+  struct RunResult {
+    int frames = 0;
+    int ok = 0;
+    int keyframes = 0;
+    int min_inliers = 1 << 30;
+    double duration_s = 0.0;
+    eval::AteResult ate;
+  };
+  static RunResult run(const Tracker::LocalMappingCallback& callback) {
+    io::SequenceReader reader = io::SequenceReader::open(dir_->string());
+    const FrameBuilder builder(orbOptions(), reader.calib());
+    map::Map map;
+    Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+    tracker.setLocalMappingCallback(callback);
+    RunResult result;
+    io::Trajectory estimate;
+    while (auto input = reader.next()) {
+      map::Frame frame = builder.build(*input);
+      if (result.frames == 0) frame.setPose_T_w_c(reader.groundTruth().front().T_w_x);
+      const TrackingState state = tracker.track(frame);
+      ++result.frames;
+      if (state != TrackingState::kOk) continue;
+      ++result.ok;
+      estimate.push_back({frame.t_s(), tracker.T_w_c()});
+      if (result.frames > 1) result.min_inliers = std::min(result.min_inliers, tracker.stats().inliers);
+    }
+    result.keyframes = tracker.numKeyFrames();
+    result.duration_s = reader.frameTime(result.frames - 1) - reader.frameTime(0);
+    result.ate = eval::computeAte(eval::associateTrajectories(reader.groundTruth(), estimate), false);
+    return result;
+  }
   static fs::path* dir_;
 };
+
+/// Visual local BA over the newest keyframes (the rest and the first keyframe fixed), written back
+/// into the map: the synchronous stand-in for the local-mapping thread.
+void localBundleAdjustNewest(map::Map& map, const std::shared_ptr<map::KeyFrame>& newest, int window) {
+  optim::LocalBaProblem problem;
+  problem.model.camera = newest->camera();
+  problem.model.T_c_x = newest->T_b_c().inverse();
+  problem.model.bf_px_m = TrackerOptions().bf_px_m;
+  const auto keyframes = map.keyFrames();  // by id
+  const int n = static_cast<int>(keyframes.size());
+  std::map<std::uint64_t, std::shared_ptr<map::KeyFrame>> in_problem;
+  for (int k = 0; k < n; ++k) {
+    optim::BaKeyFrame kf;
+    kf.id = static_cast<int>(keyframes[static_cast<std::size_t>(k)]->id().value);
+    kf.T_w_b = keyframes[static_cast<std::size_t>(k)]->T_w_b();
+    kf.fixed = k == 0 || k < n - window;
+    problem.keyframes.push_back(kf);
+    in_problem[keyframes[static_cast<std::size_t>(k)]->id().value] = keyframes[static_cast<std::size_t>(k)];
+  }
+  const auto points = map.mapPoints();
+  for (const auto& point : points) {
+    problem.points.push_back({static_cast<int>(point->id().value), point->p_w()});
+    for (const auto& [kf_id, index] : point->observations()) {
+      const auto& kf = in_problem.at(kf_id.value);
+      optim::BaObservation obs;
+      obs.keyframe_id = static_cast<int>(kf_id.value);
+      obs.point_id = static_cast<int>(point->id().value);
+      const features::Keypoint& kp = kf->keypoints()[static_cast<std::size_t>(index)];
+      obs.uv = Vec2(kp.x_px, kp.y_px);
+      obs.depth_m = kf->depth_m(index);
+      obs.sigma_px = kf->scaleFactors()[static_cast<std::size_t>(kp.octave)];
+      problem.observations.push_back(obs);
+    }
+  }
+  const optim::LocalBaResult result = optim::localBundleAdjust(problem);
+  for (std::size_t k = 0; k < result.keyframes.size(); ++k) {
+    if (!problem.keyframes[k].fixed) keyframes[k]->setPose_T_w_b(result.keyframes[k].T_w_b);
+  }
+  for (std::size_t k = 0; k < result.points.size(); ++k) points[k]->setPosition(result.points[k].p_w);
+}
 fs::path* TrackerOnSimulatedSequence::dir_ = nullptr;
 
 TEST_F(TrackerOnSimulatedSequence, VisualOdometryTracksEveryFrameWithinCentimetres) {
@@ -87,6 +160,20 @@ TEST_F(TrackerOnSimulatedSequence, VisualOdometryTracksEveryFrameWithinCentimetr
   EXPECT_GE(keyframes_per_s, 1.0);
   EXPECT_LE(keyframes_per_s, 10.0);
   EXPECT_LT(ate.error_m.rmse, 0.05);
+}
+
+TEST_F(TrackerOnSimulatedSequence, LocalBundleAdjustmentInTheCallbackKeepsTracking) {
+  const RunResult vo = run(nullptr);
+  int calls = 0;
+  const RunResult ba = run([&](map::Map& map, const std::shared_ptr<map::KeyFrame>& kf) {
+    ++calls;
+    localBundleAdjustNewest(map, kf, 5);
+  });
+  std::printf("VO: ATE rmse %.4f m, max %.4f m; with local BA: ATE rmse %.4f m, max %.4f m, %d keyframes\n",
+              vo.ate.error_m.rmse, vo.ate.error_m.max, ba.ate.error_m.rmse, ba.ate.error_m.max, ba.keyframes);
+  EXPECT_EQ(calls, ba.keyframes);
+  EXPECT_EQ(ba.ok, ba.frames);
+  EXPECT_LT(ba.ate.error_m.rmse, 0.05);
 }
 
 TEST_F(TrackerOnSimulatedSequence, BlackFramesMakeTheTrackerLostWithoutCrashing) {
