@@ -264,7 +264,7 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
     index.push_back(i);
   }
   if (problem.observations.empty()) return 0;
-  if (imu_initialised_ && stats_.used_imu && frame.imu_from_last_frame) {
+  if (options_.inertial_pose_optimisation && imu_initialised_ && stats_.used_imu && frame.imu_from_last_frame) {
     optim::InertialLink link;
     link.T_w_b_prev = last_frame_->T_w_b();
     link.v_w_b_prev = last_frame_->v_w_b();

@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 
 #include "ltlo/eval/trajectory_metrics.h"
+#include "ltlo/imu/inertial_residual.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/map.h"
 #include "ltlo/optim/bundle_adjust.h"
@@ -178,6 +179,37 @@ TEST_F(TrackerOnSimulatedSequence, LocalBundleAdjustmentInTheCallbackKeepsTracki
   EXPECT_EQ(calls, ba.keyframes);
   EXPECT_EQ(ba.ok, ba.frames);
   EXPECT_LT(ba.ate.error_m.rmse, 0.05);
+}
+
+TEST_F(TrackerOnSimulatedSequence, ImuHookPredictsWithPreintegrationAfterInitialisation) {
+  io::SequenceReader reader = io::SequenceReader::open(dir_->string());
+  ASSERT_TRUE(reader.calib().has_imu);
+  const FrameBuilder builder(orbOptions(), reader.calib());
+  map::Map map;
+  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  io::Trajectory estimate;
+  int frames = 0, ok = 0, imu_frames = 0;
+  while (auto input = reader.next()) {
+    // The world is the simulator's gravity-aligned one (first pose from ground truth); the IMU is
+    // switched on after 10 vision-only frames have given a velocity, biases left at zero.
+    if (frames == 10) tracker.setImuInitialised(imu::ImuBias(), imu::gravityWorld());
+    map::Frame frame = builder.build(*input, tracker.bias());
+    if (frames == 0) frame.setPose_T_w_c(reader.groundTruth().front().T_w_x);
+    EXPECT_EQ(frame.imu_from_last_frame.has_value(), frames > 0) << "frame " << frames;
+    const TrackingState state = tracker.track(frame);
+    ++frames;
+    if (state != TrackingState::kOk) continue;
+    ++ok;
+    if (tracker.stats().used_imu) ++imu_frames;
+    estimate.push_back({frame.t_s(), tracker.T_w_c()});
+  }
+  const eval::AteResult ate =
+      eval::computeAte(eval::associateTrajectories(reader.groundTruth(), estimate), false);
+  std::printf("IMU-predicted frames %d of %d, ok %d, ATE rmse %.4f m max %.4f m\n", imu_frames, frames, ok,
+              ate.error_m.rmse, ate.error_m.max);
+  EXPECT_EQ(ok, frames);
+  EXPECT_EQ(imu_frames, frames - 10);
+  EXPECT_LT(ate.error_m.rmse, 0.05);
 }
 
 TEST_F(TrackerOnSimulatedSequence, BlackFramesMakeTheTrackerLostWithoutCrashing) {

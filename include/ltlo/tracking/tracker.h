@@ -47,6 +47,10 @@ struct TrackerOptions {
   int max_local_keyframes = 60;
   /// bf = fx * virtual baseline (px m) for the RGB-D edges of the pose optimisation
   double bf_px_m = 40.0;
+  /// After setImuInitialised(): also optimise the pose with the inertial link to the last frame
+  /// (held fixed). Off by default: not yet validated (see the report of the tracking branch); the
+  /// IMU then only predicts the pose and seeds the search.
+  bool inertial_pose_optimisation = false;
 };
 
 /// Per-frame numbers for logs and tests.
