@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -318,8 +319,9 @@ void Tracker::updateLocalMap(const map::Frame& frame) {
     }
   }
   std::vector<std::pair<map::KeyFrameId, int>> ordered(counter.begin(), counter.end());
-  std::sort(ordered.begin(), ordered.end(),
-            [](const auto& a, const auto& b) { return a.second != b.second ? a.second > b.second : a.first < b.first; });
+  std::sort(ordered.begin(), ordered.end(), [](const auto& a, const auto& b) {
+    return a.second != b.second ? a.second > b.second : a.first < b.first;
+  });
   for (const auto& [kf, count] : ordered) {
     if (static_cast<int>(local_keyframes_.size()) >= options_.max_local_keyframes) break;
     if (in_local.insert(kf).second) local_keyframes_.push_back(kf);
