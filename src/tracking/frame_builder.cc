@@ -1,0 +1,40 @@
+#include "ltlo/tracking/frame_builder.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include "ltlo/core/assert.h"
+
+namespace ltlo::tracking {
+
+FrameBuilder::FrameBuilder(const OrbOptions& orb, const SensorCalib& calib, const FrameBuilderOptions& options)
+    : extractor_(orb), calib_(calib), options_(options) {
+  LTLO_ASSERT(options_.min_depth_m >= 0.0 && options_.max_depth_m > options_.min_depth_m,
+              "depth range [" << options_.min_depth_m << ", " << options_.max_depth_m << "] m is empty");
+}
+
+map::Frame FrameBuilder::build(const io::RgbdImuFrame& input, const imu::ImuBias& bias) const {
+  cv::Mat gray;
+  if (input.color_bgr.channels() == 3) {
+    cv::cvtColor(input.color_bgr, gray, cv::COLOR_BGR2GRAY);
+  } else {
+    gray = input.color_bgr;
+  }
+  LTLO_ASSERT(gray.type() == CV_8UC1, "frame " << input.index << " (" << input.color_path
+                                               << "): expected an 8-bit image, OpenCV type " << gray.type());
+  features::OrbFeatures features = extractor_.extract(gray);
+  std::vector<float> depths = map::depthsAtKeypoints(input.depth_m, features.keypoints);
+  for (float& d : depths) {
+    if (d < options_.min_depth_m || d > options_.max_depth_m) d = 0.0f;
+  }
+  const SE3 T_b_c = calib_.has_imu ? calib_.imu.T_b_c : SE3();
+  map::Frame frame(input.t_s, calib_.camera.camera, T_b_c, std::move(features), std::move(depths),
+                   extractor_.scaleFactors());
+  if (calib_.has_imu && input.imu.size() >= 2) {
+    imu::Preintegrated pim(bias, imu::ImuNoise::fromCalib(calib_.imu));
+    pim.integrate(input.imu);
+    frame.imu_from_last_frame = std::move(pim);
+  }
+  return frame;
+}
+
+}  // namespace ltlo::tracking

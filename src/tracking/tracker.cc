@@ -1,0 +1,503 @@
+#include "ltlo/tracking/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "ltlo/core/assert.h"
+#include "ltlo/core/log.h"
+#include "ltlo/features/matching.h"
+#include "ltlo/imu/inertial_residual.h"
+#include "ltlo/optim/pose_only_problem.h"
+
+namespace ltlo::tracking {
+
+namespace {
+
+/// Fewest matches before the pose is optimised (below: the search window is widened once).
+constexpr int kMinMatchesToOptimise = 20;
+
+bool isMatched(const map::Frame& frame, int i) {
+  const auto k = static_cast<std::size_t>(i);
+  return frame.map_points[k].valid() && !frame.outliers[k];
+}
+
+}  // namespace
+
+const char* trackingStateName(TrackingState state) {
+  switch (state) {
+    case TrackingState::kNotInitialised: return "not-initialised";
+    case TrackingState::kOk: return "ok";
+    case TrackingState::kLost: return "lost";
+  }
+  return "?";
+}
+
+Tracker::Tracker(map::Map& map, const TrackerOptions& options, std::vector<float> level_sigma2)
+    : map_(map), options_(options), level_sigma2_(std::move(level_sigma2)) {
+  LTLO_ASSERT(!level_sigma2_.empty(), "the tracker needs the per-level keypoint variances");
+}
+
+void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w) {
+  imu_initialised_ = true;
+  bias_ = bias;
+  g_w_ = g_w;
+}
+
+TrackingState Tracker::track(map::Frame& frame) {
+  stats_ = TrackingStats();
+  if (state_ == TrackingState::kNotInitialised) {
+    state_ = initialise(frame);
+    return state_;
+  }
+  LTLO_ASSERT(last_frame_.has_value(), "tracking without a last frame");
+  std::fill(frame.map_points.begin(), frame.map_points.end(), map::MapPointId());
+  std::fill(frame.outliers.begin(), frame.outliers.end(), false);
+
+  // Accumulate the IMU since the last keyframe even across lost frames (system/ needs the chain).
+  if (frame.imu_from_last_frame) {
+    if (!imu_since_keyframe_) {
+      imu_since_keyframe_ = *frame.imu_from_last_frame;
+    } else {
+      imu_since_keyframe_->append(*frame.imu_from_last_frame);
+    }
+  }
+
+  const SE3 T_w_b_pred = predictPose_T_w_b(frame);
+  frame.setPose_T_w_b(T_w_b_pred);
+  // After a loss the prediction is older: search wider.
+  const double radius_scale = state_ == TrackingState::kLost ? 2.0 : 1.0;
+  int matches = matchLastFrame(frame, radius_scale);
+  if (matches < kMinMatchesToOptimise) {
+    std::fill(frame.map_points.begin(), frame.map_points.end(), map::MapPointId());
+    matches = matchLastFrame(frame, 2.0 * radius_scale);
+  }
+  stats_.last_frame_matches = matches;
+  if (matches >= kMinMatchesToOptimise) {
+    stats_.last_frame_inliers = optimisePose(frame, T_w_b_pred, true);
+  }
+  // Local map from the frame's current matches (or the last frame's, if it matched nothing).
+  updateLocalMap(stats_.last_frame_inliers >= kMinMatchesToOptimise ? frame : *last_frame_);
+  stats_.local_map_matches = searchLocalMap(frame);
+  int inliers = 0;
+  if (stats_.local_map_matches >= kMinMatchesToOptimise) {
+    inliers = optimisePose(frame, frame.T_w_b(), false);
+  }
+  stats_.inliers = inliers;
+  frame.reference_keyframe = reference_kf_;
+  if (inliers < options_.min_inliers) {
+    if (state_ != TrackingState::kLost) {
+      log::warn("tracking lost at t = ", frame.t_s(), " s: ", inliers, " inliers (", options_.min_inliers,
+                " needed), ", frame.numKeypoints(), " keypoints");
+    }
+    state_ = TrackingState::kLost;
+    return state_;
+  }
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    if (!isMatched(frame, i)) continue;
+    if (auto point = map_.mapPoint(frame.map_points[static_cast<std::size_t>(i)])) point->increaseFound();
+  }
+  // Overlap with the reference keyframe (ORB-SLAM's measure): pose inliers over the reference
+  // keyframe's established points (seen by >= 2 keyframes, >= 3 once the map has more than 2);
+  // fresh single-view points do not count, so a new keyframe does not lower it by itself.
+  if (auto ref = map_.keyFrame(reference_kf_)) {
+    const int min_observations = map_.numKeyFrames() <= 2 ? 2 : 3;
+    int established = 0;
+    for (const map::MapPointId id : ref->mapPoints()) {
+      if (!id.valid()) continue;
+      const auto point = map_.mapPoint(id);
+      if (point && !point->isBad() && point->numObservations() >= min_observations) ++established;
+    }
+    stats_.overlap = established == 0 ? 1.0 : std::min(1.0, static_cast<double>(inliers) / established);
+  }
+
+  const SE3 T_w_c = frame.T_w_c();
+  velocity_T_last_cur_ = last_frame_->T_w_c().inverse() * T_w_c;
+  last_T_w_c_ = T_w_c;
+  last_frame_ = frame;
+  ++frames_since_keyframe_;
+  state_ = TrackingState::kOk;
+  if (needNewKeyFrame()) {
+    createKeyFrame();
+    frame.map_points = last_frame_->map_points;
+    frame.outliers = last_frame_->outliers;
+  }
+  return state_;
+}
+
+TrackingState Tracker::initialise(map::Frame& frame) {
+  int with_depth = 0;
+  for (const int i : frame.staticKeypoints()) {
+    if (frame.depth_m(i) > 0.0f) ++with_depth;
+  }
+  if (with_depth < options_.min_init_features) {
+    log::debug("initialisation: ", with_depth, " static keypoints with depth, ", options_.min_init_features,
+               " needed");
+    return TrackingState::kNotInitialised;
+  }
+  if (!frame.hasPose()) frame.setPose_T_w_b(SE3());
+  std::fill(frame.map_points.begin(), frame.map_points.end(), map::MapPointId());
+  std::fill(frame.outliers.begin(), frame.outliers.end(), false);
+  last_T_w_c_ = frame.T_w_c();
+  last_frame_ = frame;
+  imu_since_keyframe_.reset();
+  velocity_T_last_cur_.reset();
+  // Every static keypoint with depth becomes a map point (close_depth_m does not apply here).
+  const double saved_close = options_.close_depth_m;
+  options_.close_depth_m = std::numeric_limits<double>::infinity();
+  createKeyFrame();
+  options_.close_depth_m = saved_close;
+  frame.map_points = last_frame_->map_points;
+  frame.reference_keyframe = reference_kf_;
+  log::info("tracking initialised at t = ", frame.t_s(), " s with ", map_.numMapPoints(), " map points");
+  return TrackingState::kOk;
+}
+
+SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
+  const map::Frame& last = *last_frame_;
+  if (imu_initialised_ && frame.imu_from_last_frame && state_ == TrackingState::kOk) {
+    imu::NavState state_i;
+    state_i.R_w_b = last.T_w_b().rotationMatrix();
+    state_i.p_w_b = last.T_w_b().translation();
+    state_i.v_w_b = last.v_w_b();
+    const imu::NavState state_j = imu::predict(state_i, *frame.imu_from_last_frame, bias_, g_w_);
+    frame.setVelocity(state_j.v_w_b);
+    frame.setBias(bias_);
+    stats_.used_imu = true;
+    return SE3(Quat(normalizeRotation(state_j.R_w_b)), state_j.p_w_b);
+  }
+  // Constant velocity on T_w_c: the last inter-frame motion repeated (none after a loss).
+  SE3 T_w_c = last.T_w_c();
+  if (velocity_T_last_cur_ && state_ == TrackingState::kOk) T_w_c = T_w_c * *velocity_T_last_cur_;
+  return T_w_c * frame.T_b_c().inverse();
+}
+
+int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {
+  const map::Frame& last = *last_frame_;
+  const SE3 T_c_w = frame.T_w_c().inverse();
+  const PinholeCamera& camera = frame.camera();
+  features::RotationHistogram histogram;
+  std::vector<std::pair<int, int>> candidates_matched;  // (current keypoint, last keypoint)
+  std::vector<int> best_distance(static_cast<std::size_t>(frame.numKeypoints()), 257);
+  for (int j = 0; j < last.numKeypoints(); ++j) {
+    if (!isMatched(last, j)) continue;
+    const auto point = map_.mapPoint(last.map_points[static_cast<std::size_t>(j)]);
+    if (!point || point->isBad()) continue;
+    const Vec3 p_c = T_c_w * point->p_w();
+    if (p_c.z() <= 0.0) continue;
+    const Vec2 uv = camera.project(p_c);
+    if (!camera.isInImage(uv)) continue;
+    const features::Keypoint& kp_last = last.keypoints()[static_cast<std::size_t>(j)];
+    const int octave = kp_last.octave;
+    const float radius = static_cast<float>(options_.last_frame_radius_px * radius_scale *
+                                            last.scaleFactors()[static_cast<std::size_t>(octave)]);
+    const std::vector<int> area = frame.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()),
+                                                       radius, std::max(0, octave - 1), octave + 1);
+    const features::Descriptor& d_last = last.descriptors()[static_cast<std::size_t>(j)];
+    int best = -1, best_d = 257;
+    for (const int i : area) {
+      const int d = features::hammingDistance(d_last, frame.descriptors()[static_cast<std::size_t>(i)]);
+      if (d < best_d) {
+        best_d = d;
+        best = i;
+      }
+    }
+    if (best < 0 || best_d > options_.max_descriptor_distance) continue;
+    const auto b = static_cast<std::size_t>(best);
+    if (frame.map_points[b].valid() && best_distance[b] <= best_d) continue;  // keep the better one
+    frame.map_points[b] = point->id();
+    best_distance[b] = best_d;
+    candidates_matched.emplace_back(best, j);
+  }
+  // Rotation consistency over the final assignment.
+  std::vector<std::pair<int, int>> final_matches;
+  for (const auto& [i, j] : candidates_matched) {
+    if (frame.map_points[static_cast<std::size_t>(i)] == last.map_points[static_cast<std::size_t>(j)]) {
+      final_matches.emplace_back(i, j);
+    }
+  }
+  for (std::size_t k = 0; k < final_matches.size(); ++k) {
+    histogram.add(last.keypoints()[static_cast<std::size_t>(final_matches[k].second)].angle_deg,
+                  frame.keypoints()[static_cast<std::size_t>(final_matches[k].first)].angle_deg, static_cast<int>(k));
+  }
+  const std::vector<int> consistent = histogram.consistent();
+  std::vector<bool> keep(final_matches.size(), false);
+  for (const int k : consistent) keep[static_cast<std::size_t>(k)] = true;
+  int count = 0;
+  for (std::size_t k = 0; k < final_matches.size(); ++k) {
+    if (keep[k]) {
+      ++count;
+    } else {
+      frame.map_points[static_cast<std::size_t>(final_matches[k].first)] = map::MapPointId();
+    }
+  }
+  return count;
+}
+
+int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_outliers) {
+  optim::PoseOnlyProblem problem;
+  problem.model.camera = frame.camera();
+  problem.model.T_c_x = frame.T_b_c().inverse();
+  problem.model.bf_px_m = options_.bf_px_m;
+  problem.T_w_b_init = T_w_b_init;
+  problem.v_w_b_init = frame.v_w_b();
+  problem.bias_init = bias_;
+  std::vector<int> index;
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    if (!frame.map_points[k].valid()) continue;
+    const auto point = map_.mapPoint(frame.map_points[k]);
+    if (!point || point->isBad()) {
+      frame.map_points[k] = map::MapPointId();
+      continue;
+    }
+    optim::PoseObservation obs;
+    obs.p_w = point->p_w();
+    const features::Keypoint& kp = frame.keypoints()[k];
+    obs.uv = Vec2(kp.x_px, kp.y_px);
+    obs.depth_m = frame.depth_m(i);
+    obs.sigma_px = std::sqrt(level_sigma2_[std::min<std::size_t>(static_cast<std::size_t>(kp.octave),
+                                                                  level_sigma2_.size() - 1)]);
+    obs.static_weight = point->beta() * frame.segmentation().gammaOf(frame.clusterOf(i));
+    problem.observations.push_back(obs);
+    index.push_back(i);
+  }
+  if (problem.observations.empty()) return 0;
+  if (options_.inertial_pose_optimisation && imu_initialised_ && stats_.used_imu && frame.imu_from_last_frame) {
+    optim::InertialLink link;
+    link.T_w_b_prev = last_frame_->T_w_b();
+    link.v_w_b_prev = last_frame_->v_w_b();
+    link.bias_prev = bias_;
+    link.pim = std::make_shared<const imu::Preintegrated>(*frame.imu_from_last_frame);
+    link.g_w = g_w_;
+    problem.inertial = link;
+  }
+  const optim::PoseOnlyResult result = optim::optimizePose(problem);
+  frame.setPose_T_w_b(result.T_w_b);
+  if (problem.inertial) {
+    frame.setVelocity(result.v_w_b);
+    frame.setBias(result.bias);
+  } else if (last_frame_) {
+    const double dt_s = frame.t_s() - last_frame_->t_s();
+    if (dt_s > 0.0) frame.setVelocity((result.T_w_b.translation() - last_frame_->T_w_b().translation()) / dt_s);
+  }
+  int inliers = 0;
+  for (std::size_t k = 0; k < index.size(); ++k) {
+    const auto i = static_cast<std::size_t>(index[k]);
+    if (result.inliers[k]) {
+      frame.outliers[i] = false;
+      ++inliers;
+    } else if (drop_outliers) {
+      frame.map_points[i] = map::MapPointId();
+      frame.outliers[i] = false;
+    } else {
+      frame.outliers[i] = true;
+    }
+  }
+  return inliers;
+}
+
+void Tracker::updateLocalMap(const map::Frame& frame) {
+  // Keyframes observing the frame's matched points, weighted by how many they share.
+  std::unordered_map<map::KeyFrameId, int> counter;
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    if (!isMatched(frame, i)) continue;
+    const auto point = map_.mapPoint(frame.map_points[static_cast<std::size_t>(i)]);
+    if (!point || point->isBad()) continue;
+    for (const auto& [kf, index] : point->observations()) ++counter[kf];
+  }
+  local_keyframes_.clear();
+  std::unordered_set<map::KeyFrameId> in_local;
+  map::KeyFrameId best;
+  int best_count = 0;
+  for (const auto& [kf, count] : counter) {
+    if (count > best_count || (count == best_count && kf < best)) {
+      best_count = count;
+      best = kf;
+    }
+  }
+  std::vector<std::pair<map::KeyFrameId, int>> ordered(counter.begin(), counter.end());
+  std::sort(ordered.begin(), ordered.end(), [](const auto& a, const auto& b) {
+    return a.second != b.second ? a.second > b.second : a.first < b.first;
+  });
+  for (const auto& [kf, count] : ordered) {
+    if (static_cast<int>(local_keyframes_.size()) >= options_.max_local_keyframes) break;
+    if (in_local.insert(kf).second) local_keyframes_.push_back(kf);
+  }
+  if (best.valid()) reference_kf_ = best;
+  // Always include the reference keyframe and the neighbours of the first local keyframes.
+  if (reference_kf_.valid() && in_local.insert(reference_kf_).second) local_keyframes_.push_back(reference_kf_);
+  const std::vector<map::KeyFrameId> seeds = local_keyframes_;
+  for (const map::KeyFrameId id : seeds) {
+    if (static_cast<int>(local_keyframes_.size()) >= options_.max_local_keyframes) break;
+    const auto kf = map_.keyFrame(id);
+    if (!kf) continue;
+    for (const map::KeyFrameId neighbour : kf->bestCovisibles(10)) {
+      if (in_local.insert(neighbour).second) {
+        local_keyframes_.push_back(neighbour);
+        break;  // one new neighbour per seed, as in ORB-SLAM
+      }
+    }
+  }
+  // Their points.
+  local_points_.clear();
+  std::unordered_set<map::MapPointId> seen;
+  for (const map::KeyFrameId id : local_keyframes_) {
+    const auto kf = map_.keyFrame(id);
+    if (!kf) continue;
+    for (const map::MapPointId point : kf->mapPoints()) {
+      if (point.valid() && seen.insert(point).second) local_points_.push_back(point);
+    }
+  }
+  map_.setReferenceMapPoints(local_points_);
+}
+
+int Tracker::searchLocalMap(map::Frame& frame) {
+  std::unordered_set<map::MapPointId> already;
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    if (isMatched(frame, i)) already.insert(frame.map_points[static_cast<std::size_t>(i)]);
+  }
+  const SE3 T_w_c = frame.T_w_c();
+  const SE3 T_c_w = T_w_c.inverse();
+  const Vec3 centre_w = T_w_c.translation();
+  const PinholeCamera& camera = frame.camera();
+  std::vector<int> best_distance(static_cast<std::size_t>(frame.numKeypoints()), 257);
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    if (isMatched(frame, i)) best_distance[static_cast<std::size_t>(i)] = -1;  // keep last-frame matches
+  }
+  for (const map::MapPointId id : local_points_) {
+    if (already.count(id)) continue;
+    const auto point = map_.mapPoint(id);
+    if (!point || point->isBad()) continue;
+    const Vec3 p_w = point->p_w();
+    const Vec3 p_c = T_c_w * p_w;
+    if (p_c.z() <= 0.0) continue;
+    const Vec2 uv = camera.project(p_c);
+    if (!camera.isInImage(uv)) continue;
+    const Vec3 ray_w = p_w - centre_w;
+    const double distance_m = ray_w.norm();
+    if (point->maxDistance_m() > 0.0 &&
+        (distance_m < 0.8 * point->minDistance_m() || distance_m > 1.2 * point->maxDistance_m())) {
+      continue;
+    }
+    const Vec3 normal_w = point->normal_w();
+    const double view_cos = normal_w.squaredNorm() > 0.0 ? ray_w.dot(normal_w) / distance_m : 1.0;
+    if (view_cos < 0.5) continue;
+    point->increaseVisible();
+    const int level = point->predictScale(distance_m, frame.scaleFactors());
+    const double window = view_cos > 0.998 ? 2.5 : 4.0;
+    const float radius = static_cast<float>(options_.local_map_radius_px * window / 2.5 *
+                                            frame.scaleFactors()[static_cast<std::size_t>(level)]);
+    const std::vector<int> area = frame.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()),
+                                                       radius, std::max(0, level - 1), level);
+    const features::Descriptor descriptor = point->descriptor();
+    int best = -1, best_d = 257, second_d = 257, best_level = -1, second_level = -1;
+    for (const int i : area) {
+      const auto k = static_cast<std::size_t>(i);
+      if (best_distance[k] < 0) continue;  // matched to the last frame
+      const int d = features::hammingDistance(descriptor, frame.descriptors()[k]);
+      const int octave = frame.keypoints()[k].octave;
+      if (d < best_d) {
+        second_d = best_d;
+        second_level = best_level;
+        best_d = d;
+        best = i;
+        best_level = octave;
+      } else if (d < second_d) {
+        second_d = d;
+        second_level = octave;
+      }
+    }
+    if (best < 0 || best_d > options_.max_descriptor_distance) continue;
+    if (best_level == second_level && best_d > options_.local_map_ratio * second_d) continue;
+    const auto b = static_cast<std::size_t>(best);
+    if (best_d >= best_distance[b]) continue;
+    frame.map_points[b] = id;
+    frame.outliers[b] = false;
+    best_distance[b] = best_d;
+  }
+  int count = 0;
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    if (isMatched(frame, i)) ++count;
+  }
+  return count;
+}
+
+bool Tracker::needNewKeyFrame() const {
+  if (state_ != TrackingState::kOk || !last_frame_) return false;
+  if (frames_since_keyframe_ < options_.min_frames_between_keyframes) return false;
+  const KeyFrameOptions& kf = options_.keyframe;
+  const bool interval = last_frame_->t_s() - last_keyframe_t_s_ >= kf.max_interval_s;
+  const bool low_overlap = stats_.overlap < kf.max_overlap;
+  const bool weak = stats_.inliers < kf.min_tracked_points;
+  return (interval || low_overlap || weak) && stats_.inliers > 15;
+}
+
+std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {
+  LTLO_ASSERT(last_frame_.has_value(), "createKeyFrame() before any tracked frame");
+  map::Frame& frame = *last_frame_;
+  if (imu_since_keyframe_) frame.imu_from_last_keyframe = imu_since_keyframe_;
+  const std::shared_ptr<map::KeyFrame> kf = map_.createKeyFrame(frame);
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    if (!frame.map_points[k].valid()) continue;
+    if (frame.outliers[k]) {
+      frame.map_points[k] = map::MapPointId();
+      frame.outliers[k] = false;
+      continue;
+    }
+    const auto point = map_.mapPoint(frame.map_points[k]);
+    if (!point || !map_.addObservation(*kf, i, *point)) {
+      frame.map_points[k] = map::MapPointId();
+      continue;
+    }
+    map_.updateNormalAndDistances(*point);
+    map_.updateDescriptor(*point);
+  }
+  const int created = addNewMapPoints(*kf, frame);
+  map_.updateConnections(*kf);
+  if (last_kf_.valid()) {
+    kf->setPreviousKeyFrame(last_kf_);
+    if (const auto previous = map_.keyFrame(last_kf_)) previous->setNextKeyFrame(kf->id());
+    kf->setImuFromPrevious(imu_since_keyframe_);
+  }
+  imu_since_keyframe_.reset();
+  last_kf_ = kf->id();
+  reference_kf_ = kf->id();
+  frame.reference_keyframe = kf->id();
+  last_keyframe_t_s_ = frame.t_s();
+  frames_since_keyframe_ = 0;
+  ++num_keyframes_;
+  log::debug("keyframe ", kf->id(), " at t = ", frame.t_s(), " s: ", kf->numObservations(), " points (", created,
+             " new)");
+  if (local_mapping_) local_mapping_(map_, kf);
+  return kf;
+}
+
+int Tracker::addNewMapPoints(map::KeyFrame& kf, map::Frame& frame) {
+  std::vector<std::pair<float, int>> by_depth;
+  for (const int i : frame.staticKeypoints()) {
+    const float depth = frame.depth_m(i);
+    if (depth > 0.0f && !frame.map_points[static_cast<std::size_t>(i)].valid()) by_depth.emplace_back(depth, i);
+  }
+  std::sort(by_depth.begin(), by_depth.end());
+  const SE3 T_w_c = frame.T_w_c();
+  int created = 0;
+  for (const auto& [depth, i] : by_depth) {
+    if (depth > options_.close_depth_m && created >= options_.min_new_points) break;
+    const auto point = map_.createMapPoint(T_w_c * frame.p_c(i), kf.id());
+    if (!map_.addObservation(kf, i, *point)) {
+      map_.eraseMapPoint(point->id());
+      continue;
+    }
+    map_.updateNormalAndDistances(*point);
+    map_.updateDescriptor(*point);
+    frame.map_points[static_cast<std::size_t>(i)] = point->id();
+    ++created;
+  }
+  return created;
+}
+
+}  // namespace ltlo::tracking
