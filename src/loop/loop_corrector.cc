@@ -67,16 +67,16 @@ LoopCorrespondences findLoopCorrespondences(const map::KeyFrame& current, const 
   return out;
 }
 
-std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate,
-                                      const map::Map& map, const LoopOptions& options, Se3RansacResult* ransac_out) {
+std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate, const map::Map& map,
+                                      const LoopOptions& options, Se3RansacResult* ransac_out) {
   const LoopCorrespondences found = findLoopCorrespondences(current, candidate, map);
   Se3RansacOptions ransac_options;
   ransac_options.min_inliers = options.min_inliers;
   ransac_options.seed = static_cast<std::uint32_t>(current.id().value * 7919u + candidate.id().value);
   const Se3RansacResult ransac = estimateSe3Ransac(found.correspondences, ransac_options);
   if (ransac_out != nullptr) *ransac_out = ransac;
-  log::debug("loop: kf ", current.id(), " vs ", candidate.id(), ": ", found.correspondences.size(),
-             " 3-D matches, ", ransac.num_inliers, " inliers");
+  log::debug("loop: kf ", current.id(), " vs ", candidate.id(), ": ", found.correspondences.size(), " 3-D matches, ",
+             ransac.num_inliers, " inliers");
   if (!ransac.success) return std::nullopt;
   LoopClosure loop;
   loop.current = current.id();
@@ -93,8 +93,8 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
   LoopCorrectionResult result;
   const std::shared_ptr<map::KeyFrame> current = map.keyFrame(loop.current);
   const std::shared_ptr<map::KeyFrame> loop_kf = map.keyFrame(loop.loop);
-  LTLO_ASSERT(current && loop_kf, "correctLoop: keyframe " << loop.current << " or " << loop.loop
-                                                            << " is not in map " << map.id());
+  LTLO_ASSERT(current && loop_kf,
+              "correctLoop: keyframe " << loop.current << " or " << loop.loop << " is not in map " << map.id());
 
   // Pre-loop state: poses and the edges whose relative poses stay measurements.
   const std::vector<std::shared_ptr<map::KeyFrame>> keyframes = map.keyFrames();
@@ -157,8 +157,8 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
   std::vector<optim::PoseGraphEdge> edges;
   for (const map::EssentialEdge& e : map::essentialGraphEdges(map)) {
     if (node_of.count(e.from) == 0 || node_of.count(e.to) == 0) continue;
-    const bool existed = old_edges.count(orderedPair(e.from, e.to)) > 0 && T_w_b_old.count(e.from) > 0 &&
-                         T_w_b_old.count(e.to) > 0;
+    const bool existed =
+        old_edges.count(orderedPair(e.from, e.to)) > 0 && T_w_b_old.count(e.from) > 0 && T_w_b_old.count(e.to) > 0;
     const std::unordered_map<map::KeyFrameId, SE3>& poses = existed ? T_w_b_old : T_w_b_input;
     optim::PoseGraphEdge edge;
     edge.id_i = node_of.at(e.from);

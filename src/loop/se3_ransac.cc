@@ -1,9 +1,8 @@
 #include "ltlo/loop/se3_ransac.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <random>
-
-#include <Eigen/SVD>
 
 #include "ltlo/core/assert.h"
 

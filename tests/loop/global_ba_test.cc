@@ -1,9 +1,9 @@
 // Full vision-only BA on a synthetic map: exact RGB-D observations, perturbed poses and points.
-#include <random>
+#include "ltlo/loop/global_ba.h"
 
 #include <gtest/gtest.h>
 
-#include "ltlo/loop/global_ba.h"
+#include <random>
 
 namespace ltlo::loop {
 namespace {
@@ -57,7 +57,8 @@ TEST(GlobalBundleAdjustment, RecoversPerturbedPosesAndPoints) {
     double pose = 0.0, point = 0.0;
     for (int k = 0; k < kNumKeyFrames; ++k) {
       pose += (kfs[static_cast<std::size_t>(k)]->T_w_b().translation() -
-               T_w_b_true[static_cast<std::size_t>(k)].translation()).norm();
+               T_w_b_true[static_cast<std::size_t>(k)].translation())
+                  .norm();
     }
     for (int i = 0; i < kNumPoints; ++i) {
       point += (points[static_cast<std::size_t>(i)]->p_w() - p_w_true[static_cast<std::size_t>(i)]).norm();
@@ -67,10 +68,11 @@ TEST(GlobalBundleAdjustment, RecoversPerturbedPosesAndPoints) {
   const auto [pose_before, point_before] = errors();
   const GlobalBaResult result = runGlobalBundleAdjustment(map);
   const auto [pose_after, point_after] = errors();
-  std::printf("[ GBA      ] %d keyframes, %d points, %d observations, %d outliers: mean keyframe error %.2e -> %.2e m, "
-              "mean point error %.2e -> %.2e m\n",
-              result.keyframes, result.points, result.observations, result.outliers, pose_before, pose_after,
-              point_before, point_after);
+  std::printf(
+      "[ GBA      ] %d keyframes, %d points, %d observations, %d outliers: mean keyframe error %.2e -> %.2e m, "
+      "mean point error %.2e -> %.2e m\n",
+      result.keyframes, result.points, result.observations, result.outliers, pose_before, pose_after, point_before,
+      point_after);
   EXPECT_EQ(result.observations, kNumKeyFrames * kNumPoints);
   EXPECT_EQ(result.outliers, 0);
   EXPECT_LT(pose_after, 1e-4);

@@ -1,12 +1,13 @@
 // Loop correction on a synthetic map: keyframes on a circle with drift accumulated over the second
 // half, points shared by consecutive keyframes, a loop between the last and the first keyframe with
 // the true relative pose (fixed seeds, no images).
-#include <cmath>
-#include <random>
+#include "ltlo/loop/loop_corrector.h"
 
 #include <gtest/gtest.h>
 
-#include "ltlo/loop/loop_corrector.h"
+#include <cmath>
+#include <random>
+
 #include "ltlo/map/map.h"
 
 namespace ltlo::loop {
@@ -129,7 +130,7 @@ TEST(LoopCorrector, EssentialGraphRemovesDrift) {
   loop.loop = first.id();
   loop.T_w_b_current_corrected = scene.T_w_b_true.back();  // the first keyframe is at its true pose
   for (int n = 0; n < 10; ++n) {
-    loop.matches.push_back(LoopMatch{n, first.mapPoint(n)});                                // holds a point: fuse
+    loop.matches.push_back(LoopMatch{n, first.mapPoint(n)});                                    // holds a point: fuse
     loop.matches.push_back(LoopMatch{scene.next_keypoint.back() + n, first.mapPoint(10 + n)});  // free keypoint
   }
   const LoopCorrectionResult result = correctLoop(scene.map, loop);
@@ -137,11 +138,12 @@ TEST(LoopCorrector, EssentialGraphRemovesDrift) {
   const double end_after = endToStartError_m(scene);
   const double mean_after = meanPositionError_m(scene);
   const double points_after = meanPointError_m(scene);
-  std::printf("[ LOOP     ] end-to-start error %.4f -> %.4f m (%.1fx), mean keyframe position error %.4f -> %.4f m "
-              "(%.1fx), mean point error %.4f -> %.4f m; window %d, fused %d, added %d, %d edges, chi2 %.3g -> %.3g\n",
-              end_before, end_after, end_before / end_after, mean_before, mean_after, mean_before / mean_after,
-              points_before, points_after, result.window_size, result.fused_points, result.added_observations,
-              result.graph_edges, result.initial_cost, result.final_cost);
+  std::printf(
+      "[ LOOP     ] end-to-start error %.4f -> %.4f m (%.1fx), mean keyframe position error %.4f -> %.4f m "
+      "(%.1fx), mean point error %.4f -> %.4f m; window %d, fused %d, added %d, %d edges, chi2 %.3g -> %.3g\n",
+      end_before, end_after, end_before / end_after, mean_before, mean_after, mean_before / mean_after, points_before,
+      points_after, result.window_size, result.fused_points, result.added_observations, result.graph_edges,
+      result.initial_cost, result.final_cost);
   EXPECT_GT(end_before, 0.1);
   EXPECT_LT(end_after, end_before / 5.0);
   EXPECT_LT(mean_after, mean_before);

@@ -1,9 +1,9 @@
 // Loop detection and geometric verification through the map API: a candidate keyframe holding map
 // points and a current keyframe seeing the same descriptors from a drifted pose (fixed seeds, tiny
 // vocabulary trained on the test's own descriptors, no images).
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "bow/vocabulary.h"
 #include "ltlo/loop/loop_corrector.h"
@@ -33,8 +33,8 @@ void buildLoopScene(LoopScene& scene) {
   std::uniform_int_distribution<std::uint64_t> bits;
   const SE3 T_w_b_candidate(so3Exp(Vec3(0.0, 0.1, 0.0)), Vec3(0.0, 0.0, 0.0));
   scene.T_w_b_current_true = SE3(so3Exp(Vec3(0.0, 0.2, 0.05)), Vec3(0.15, -0.05, 0.1));
-  const SE3 T_w_b_current_drifted = SE3::exp((Vec6() << 0.0, 0.0, 0.08, 0.3, 0.2, 0.0).finished()) *
-                                    scene.T_w_b_current_true;
+  const SE3 T_w_b_current_drifted =
+      SE3::exp((Vec6() << 0.0, 0.0, 0.08, 0.3, 0.2, 0.0).finished()) * scene.T_w_b_current_true;
 
   features::OrbFeatures candidate_features, current_features;
   std::vector<float> candidate_depths, current_depths;

@@ -1,10 +1,10 @@
 // SE3 RANSAC on synthetic 3-D-3-D correspondences (fixed seeds).
-#include <cmath>
-#include <random>
+#include "ltlo/loop/se3_ransac.h"
 
 #include <gtest/gtest.h>
 
-#include "ltlo/loop/se3_ransac.h"
+#include <cmath>
+#include <random>
 
 namespace ltlo::loop {
 namespace {

@@ -20,7 +20,7 @@ struct GlobalBaResult {
   int keyframes = 0;
   int points = 0;
   int observations = 0;
-  int outliers = 0;        ///< observations failing the chi2 test at the end (left linked)
+  int outliers = 0;  ///< observations failing the chi2 test at the end (left linked)
   double initial_chi2 = 0.0;
   double final_chi2 = 0.0;
 };

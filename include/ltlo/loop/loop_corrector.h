@@ -45,16 +45,15 @@ struct LoopClosure {
 
 /// Geometric verification: correspondences, RANSAC (min inliers from LoopOptions, inlier test from
 /// the depth noise of the current keypoint), nullopt when rejected.
-std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate,
-                                      const map::Map& map, const LoopOptions& options,
-                                      Se3RansacResult* ransac_out = nullptr);
+std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate, const map::Map& map,
+                                      const LoopOptions& options, Se3RansacResult* ransac_out = nullptr);
 
 struct LoopCorrectionResult {
-  int window_size = 0;          ///< keyframes moved with the current one
-  int fused_points = 0;         ///< current points replaced by loop points
-  int added_observations = 0;   ///< loop points newly observed by the current keyframe
-  int graph_edges = 0;          ///< essential-graph edges optimised
-  double initial_cost = 0.0;    ///< of the pose graph
+  int window_size = 0;         ///< keyframes moved with the current one
+  int fused_points = 0;        ///< current points replaced by loop points
+  int added_observations = 0;  ///< loop points newly observed by the current keyframe
+  int graph_edges = 0;         ///< essential-graph edges optimised
+  double initial_cost = 0.0;   ///< of the pose graph
   double final_cost = 0.0;
 };
 
