@@ -8,6 +8,7 @@
 #include "bow/vocabulary.h"
 #include "ltlo/loop/loop_corrector.h"
 #include "ltlo/loop/loop_detector.h"
+#include "ltlo/loop/map_merger.h"
 #include "ltlo/map/keyframe_database.h"
 
 namespace ltlo::loop {
@@ -27,7 +28,8 @@ struct LoopScene {
   std::unique_ptr<bow::Vocabulary> vocabulary;
 };
 
-void buildLoopScene(LoopScene& scene) {
+/// The candidate goes into `candidate_map`, the current keyframe into `current_map`.
+void buildLoopScene(LoopScene& scene, map::Map& candidate_map, map::Map& current_map) {
   std::mt19937 rng(23);
   std::uniform_real_distribution<float> u(20.0f, 620.0f), v(20.0f, 460.0f), depth(1.0f, 4.0f);
   std::uniform_int_distribution<std::uint64_t> bits;
@@ -75,18 +77,18 @@ void buildLoopScene(LoopScene& scene) {
   map::Frame current(10.0, kCamera, SE3(), current_features, current_depths, scales);
   current.setPose_T_w_b(T_w_b_current_drifted);
   current.computeBow(*scene.vocabulary);
-  scene.candidate = scene.map.createKeyFrame(candidate);
-  scene.current = scene.map.createKeyFrame(current);
+  scene.candidate = candidate_map.createKeyFrame(candidate);
+  scene.current = current_map.createKeyFrame(current);
   for (int i = 0; i < kNumMapPoints; ++i) {
     const std::shared_ptr<map::MapPoint> point =
-        scene.map.createMapPoint(p_w[static_cast<std::size_t>(i)], scene.candidate->id());
-    ASSERT_TRUE(scene.map.addObservation(*scene.candidate, i, *point));
+        candidate_map.createMapPoint(p_w[static_cast<std::size_t>(i)], scene.candidate->id());
+    ASSERT_TRUE(candidate_map.addObservation(*scene.candidate, i, *point));
   }
 }
 
 TEST(LoopVerification, RecoversTheCurrentPoseFromThreeDMatches) {
   LoopScene scene;
-  buildLoopScene(scene);
+  buildLoopScene(scene, scene.map, scene.map);
   LoopOptions options;
   Se3RansacResult ransac;
   const std::optional<LoopClosure> loop = verifyLoop(*scene.current, *scene.candidate, scene.map, options, &ransac);
@@ -102,7 +104,7 @@ TEST(LoopVerification, RecoversTheCurrentPoseFromThreeDMatches) {
 
 TEST(LoopVerification, RejectsBelowTheMinimumInliers) {
   LoopScene scene;
-  buildLoopScene(scene);
+  buildLoopScene(scene, scene.map, scene.map);
   LoopOptions options;
   options.min_inliers = kNumMapPoints - kNumWrong + 1;
   EXPECT_FALSE(verifyLoop(*scene.current, *scene.candidate, scene.map, options).has_value());
@@ -110,7 +112,7 @@ TEST(LoopVerification, RejectsBelowTheMinimumInliers) {
 
 TEST(LoopDetector, NeedsThreeConsistentQueriesAndAStaticImage) {
   LoopScene scene;
-  buildLoopScene(scene);
+  buildLoopScene(scene, scene.map, scene.map);
   map::KeyFrameDatabase database(scene.vocabulary->numWords());
   database.add(scene.candidate);
   LoopOptions options;
@@ -126,6 +128,30 @@ TEST(LoopDetector, NeedsThreeConsistentQueriesAndAStaticImage) {
   const std::vector<std::shared_ptr<map::KeyFrame>> found = detector.detect(*scene.current, scene.map, database);
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0]->id(), scene.candidate->id());
+}
+
+TEST(MapMerger, MergesTheCurrentMapIntoTheRecognisedOne) {
+  LoopScene scene;
+  // The vocabulary is made by the scene; the atlas database is sized generously (unused here).
+  map::Atlas atlas(100000);
+  map::Map& old_map = atlas.activeMap();
+  map::Map& new_map = atlas.createNewMap();
+  buildLoopScene(scene, old_map, new_map);
+  ASSERT_EQ(atlas.numMaps(), 2u);
+  const std::optional<MergeResult> merged = mergeAtPlace(atlas, *scene.current, *scene.candidate, LoopOptions());
+  ASSERT_TRUE(merged.has_value());
+  const SE3 error = scene.T_w_b_current_true.inverse() * scene.current->T_w_b();
+  std::printf("[ MERGE    ] %d inliers, %d points fused/added, current pose error after merge %.2e m / %.2e rad\n",
+              merged->inliers, merged->correction.fused_points + merged->correction.added_observations,
+              error.translation().norm(), error.log().head<3>().norm());
+  EXPECT_EQ(atlas.numMaps(), 1u);
+  EXPECT_EQ(scene.current->mapId(), old_map.id());
+  EXPECT_EQ(merged->target, old_map.id());
+  EXPECT_EQ(merged->correction.added_observations, kNumMapPoints - kNumWrong);
+  EXPECT_LT(error.translation().norm(), 1e-6);
+  EXPECT_LT(error.log().head<3>().norm(), 1e-6);
+  // Same map now: a second merge is refused.
+  EXPECT_FALSE(mergeAtPlace(atlas, *scene.current, *scene.candidate, LoopOptions()).has_value());
 }
 
 }  // namespace
