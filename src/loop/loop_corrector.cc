@@ -69,8 +69,11 @@ LoopCorrespondences findLoopCorrespondences(const map::KeyFrame& current, const 
 
 std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate, const map::Map& map,
                                       const LoopOptions& options, Se3RansacResult* ransac_out) {
-  const LoopCorrespondences found = findLoopCorrespondences(current, candidate, map);
+  LoopCorrespondences found = findLoopCorrespondences(current, candidate, map);
   Se3RansacOptions ransac_options;
+  // The depth-noise gate grows with depth^2; Loop.InlierThreshold caps the inlier distance.
+  const double max_sigma_m = options.inlier_threshold_m / std::sqrt(ransac_options.chi2_3d);
+  for (Correspondence3d& c : found.correspondences) c.sigma_m = std::min(c.sigma_m, max_sigma_m);
   ransac_options.min_inliers = options.min_inliers;
   ransac_options.seed = static_cast<std::uint32_t>(current.id().value * 7919u + candidate.id().value);
   const Se3RansacResult ransac = estimateSe3Ransac(found.correspondences, ransac_options);

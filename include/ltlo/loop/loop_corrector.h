@@ -43,8 +43,9 @@ struct LoopClosure {
   std::vector<LoopMatch> matches;  ///< inliers only
 };
 
-/// Geometric verification: correspondences, RANSAC (min inliers from LoopOptions, inlier test from
-/// the depth noise of the current keypoint), nullopt when rejected.
+/// Geometric verification: correspondences, RANSAC (Loop.MinInliers; inlier gate chi2(3) on the
+/// depth noise of the current keypoint, the distance capped at Loop.InlierThreshold), nullopt when
+/// rejected. Reads the map only (thread-safe).
 std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate, const map::Map& map,
                                       const LoopOptions& options, Se3RansacResult* ransac_out = nullptr);
 
@@ -61,6 +62,7 @@ struct LoopCorrectionResult {
 /// that existed before the correction keep their pre-loop relative pose; new ones (the loop edge,
 /// connections made by fusion) take the corrected poses. Points move with the keyframe that
 /// corrected them in the window, else with their reference keyframe (else first observer).
+/// Call with local mapping paused (it moves poses and points and changes the graph).
 LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int iterations = 20);
 
 }  // namespace ltlo::loop
