@@ -1,0 +1,214 @@
+#include "ltlo/loop/loop_corrector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
+
+#include "ltlo/core/assert.h"
+#include "ltlo/core/log.h"
+#include "ltlo/map/essential_graph.h"
+#include "ltlo/optim/pose_graph.h"
+
+namespace ltlo::loop {
+
+namespace {
+
+features::OrbFeatures featuresOf(const map::KeyFrame& kf) {
+  features::OrbFeatures f;
+  f.keypoints = kf.keypoints();
+  f.descriptors = kf.descriptors();
+  return f;
+}
+
+std::pair<map::KeyFrameId, map::KeyFrameId> orderedPair(map::KeyFrameId a, map::KeyFrameId b) {
+  return a < b ? std::make_pair(a, b) : std::make_pair(b, a);
+}
+
+}  // namespace
+
+LoopCorrespondences findLoopCorrespondences(const map::KeyFrame& current, const map::KeyFrame& candidate,
+                                            const map::Map& map, std::size_t num_covisibles,
+                                            const features::GuidedMatchOptions& matching) {
+  LoopCorrespondences out;
+  std::vector<std::shared_ptr<map::KeyFrame>> loop_side;
+  if (std::shared_ptr<map::KeyFrame> self = map.keyFrame(candidate.id())) loop_side.push_back(self);
+  for (const map::KeyFrameId id : candidate.bestCovisibles(num_covisibles)) {
+    if (id == current.id()) continue;
+    if (std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id)) loop_side.push_back(kf);
+  }
+  const features::OrbFeatures current_features = featuresOf(current);
+  std::vector<bool> keypoint_used(static_cast<std::size_t>(current.numKeypoints()), false);
+  std::unordered_set<map::MapPointId> point_used;
+  for (const std::shared_ptr<map::KeyFrame>& kf : loop_side) {
+    if (kf->isBad() || !kf->hasBow() || !current.hasBow()) continue;
+    const features::OrbFeatures loop_features = featuresOf(*kf);
+    const std::vector<features::Match> matches =
+        features::matchByBow(current.featureVector(), current_features, kf->featureVector(), loop_features, matching);
+    for (const features::Match& m : matches) {
+      if (keypoint_used[static_cast<std::size_t>(m.query)] || current.depth_m(m.query) <= 0.0f) continue;
+      const map::MapPointId point_id = kf->mapPoint(m.train);
+      if (!point_id.valid() || point_used.count(point_id) > 0) continue;
+      const std::shared_ptr<map::MapPoint> point = map.mapPoint(point_id);
+      if (!point || point->isBad()) continue;
+      keypoint_used[static_cast<std::size_t>(m.query)] = true;
+      point_used.insert(point_id);
+      Correspondence3d c;
+      c.p_a = current.p_c(m.query);
+      c.p_b = point->p_w();
+      c.sigma_m = std::sqrt(2.0) * depthSigma_m(current.depth_m(m.query));  // both ends see similar depths
+      out.correspondences.push_back(c);
+      out.matches.push_back(LoopMatch{m.query, point_id});
+    }
+  }
+  return out;
+}
+
+std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate, const map::Map& map,
+                                      const LoopOptions& options, Se3RansacResult* ransac_out) {
+  LoopCorrespondences found = findLoopCorrespondences(current, candidate, map);
+  Se3RansacOptions ransac_options;
+  // The depth-noise gate grows with depth^2; Loop.InlierThreshold caps the inlier distance.
+  const double max_sigma_m = options.inlier_threshold_m / std::sqrt(ransac_options.chi2_3d);
+  for (Correspondence3d& c : found.correspondences) c.sigma_m = std::min(c.sigma_m, max_sigma_m);
+  ransac_options.min_inliers = options.min_inliers;
+  ransac_options.seed = static_cast<std::uint32_t>(current.id().value * 7919u + candidate.id().value);
+  const Se3RansacResult ransac = estimateSe3Ransac(found.correspondences, ransac_options);
+  if (ransac_out != nullptr) *ransac_out = ransac;
+  log::debug("loop: kf ", current.id(), " vs ", candidate.id(), ": ", found.correspondences.size(), " 3-D matches, ",
+             ransac.num_inliers, " inliers");
+  if (!ransac.success) return std::nullopt;
+  LoopClosure loop;
+  loop.current = current.id();
+  loop.loop = candidate.id();
+  const SE3 T_c_w = ransac.T_a_b;
+  loop.T_w_b_current_corrected = T_c_w.inverse() * current.T_b_c().inverse();
+  for (std::size_t k = 0; k < found.matches.size(); ++k) {
+    if (ransac.inliers[k]) loop.matches.push_back(found.matches[k]);
+  }
+  return loop;
+}
+
+LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int iterations) {
+  LoopCorrectionResult result;
+  const std::shared_ptr<map::KeyFrame> current = map.keyFrame(loop.current);
+  const std::shared_ptr<map::KeyFrame> loop_kf = map.keyFrame(loop.loop);
+  LTLO_ASSERT(current && loop_kf,
+              "correctLoop: keyframe " << loop.current << " or " << loop.loop << " is not in map " << map.id());
+
+  // Pre-loop state: poses and the edges whose relative poses stay measurements.
+  const std::vector<std::shared_ptr<map::KeyFrame>> keyframes = map.keyFrames();
+  std::unordered_map<map::KeyFrameId, SE3> T_w_b_old;
+  for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) T_w_b_old[kf->id()] = kf->T_w_b();
+  std::set<std::pair<map::KeyFrameId, map::KeyFrameId>> old_edges;
+  for (const map::EssentialEdge& e : map::essentialGraphEdges(map)) old_edges.insert(orderedPair(e.from, e.to));
+
+  // 1. The current keyframe's covisible window moves rigidly with it: T_new = C * T_old.
+  const SE3 C = loop.T_w_b_current_corrected * T_w_b_old.at(current->id()).inverse();
+  std::vector<std::shared_ptr<map::KeyFrame>> window{current};
+  for (const auto& [id, weight] : current->covisibles()) {
+    if (id == loop_kf->id()) continue;
+    if (std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id); kf && !kf->isBad()) window.push_back(kf);
+  }
+  result.window_size = static_cast<int>(window.size());
+  std::unordered_map<map::MapPointId, map::KeyFrameId> corrected_by;
+  for (const std::shared_ptr<map::KeyFrame>& kf : window) {
+    for (const map::MapPointId point_id : kf->mapPoints()) {
+      if (!point_id.valid() || corrected_by.count(point_id) > 0) continue;
+      const std::shared_ptr<map::MapPoint> point = map.mapPoint(point_id);
+      if (!point || point->isBad()) continue;
+      point->setPosition(C * point->p_w());
+      corrected_by[point_id] = kf->id();
+    }
+    kf->setPose_T_w_b(C * kf->T_w_b());
+  }
+
+  // 2. Fusion: the current keyframe's keypoints take the loop points.
+  for (const LoopMatch& match : loop.matches) {
+    const std::shared_ptr<map::MapPoint> loop_point = map.mapPoint(match.loop_point);
+    if (!loop_point || loop_point->isBad()) continue;
+    const map::MapPointId existing = current->mapPoint(match.keypoint);
+    if (existing == match.loop_point) continue;
+    if (existing.valid()) {
+      if (map.replaceMapPoint(existing, match.loop_point)) ++result.fused_points;
+    } else if (!loop_point->indexIn(current->id()) && map.addObservation(*current, match.keypoint, *loop_point)) {
+      ++result.added_observations;
+    }
+  }
+  for (const std::shared_ptr<map::KeyFrame>& kf : window) map.updateConnections(*kf);
+  current->addLoopEdge(loop_kf->id());
+  loop_kf->addLoopEdge(current->id());
+
+  // 3. Essential graph with the loop keyframe fixed.
+  std::vector<std::shared_ptr<map::KeyFrame>> nodes_kf = map.keyFrames();
+  std::unordered_map<map::KeyFrameId, int> node_of;
+  std::vector<optim::PoseGraphNode> nodes;
+  std::unordered_map<map::KeyFrameId, SE3> T_w_b_input;
+  for (const std::shared_ptr<map::KeyFrame>& kf : nodes_kf) {
+    if (kf->isBad()) continue;
+    optim::PoseGraphNode node;
+    node.id = static_cast<int>(nodes.size());
+    node.T_w_b = kf->T_w_b();
+    node.fixed = kf->id() == loop_kf->id();
+    node_of[kf->id()] = node.id;
+    T_w_b_input[kf->id()] = node.T_w_b;
+    nodes.push_back(node);
+  }
+  std::vector<optim::PoseGraphEdge> edges;
+  for (const map::EssentialEdge& e : map::essentialGraphEdges(map)) {
+    if (node_of.count(e.from) == 0 || node_of.count(e.to) == 0) continue;
+    const bool existed =
+        old_edges.count(orderedPair(e.from, e.to)) > 0 && T_w_b_old.count(e.from) > 0 && T_w_b_old.count(e.to) > 0;
+    const std::unordered_map<map::KeyFrameId, SE3>& poses = existed ? T_w_b_old : T_w_b_input;
+    optim::PoseGraphEdge edge;
+    edge.id_i = node_of.at(e.from);
+    edge.id_j = node_of.at(e.to);
+    edge.T_i_j = poses.at(e.from).inverse() * poses.at(e.to);
+    edges.push_back(edge);
+  }
+  result.graph_edges = static_cast<int>(edges.size());
+  const optim::PoseGraphResult optimised = optim::optimizePoseGraph(nodes, edges, iterations);
+  result.initial_cost = optimised.summary.initial_chi2;
+  result.final_cost = optimised.summary.final_chi2;
+
+  // 4. Write back poses; points move with their keyframe's correction.
+  std::unordered_map<map::KeyFrameId, SE3> correction;  // T_new * T_input^-1
+  for (const std::shared_ptr<map::KeyFrame>& kf : nodes_kf) {
+    const auto it = node_of.find(kf->id());
+    if (it == node_of.end()) continue;
+    const SE3& T_new = optimised.nodes[static_cast<std::size_t>(it->second)].T_w_b;
+    correction[kf->id()] = T_new * T_w_b_input.at(kf->id()).inverse();
+    kf->setPose_T_w_b(T_new);
+  }
+  for (const std::shared_ptr<map::MapPoint>& point : map.mapPoints()) {
+    if (point->isBad()) continue;
+    map::KeyFrameId by;
+    if (const auto it = corrected_by.find(point->id()); it != corrected_by.end()) {
+      by = it->second;
+    } else {
+      by = point->referenceKeyFrame();
+    }
+    if (!by.valid() || correction.count(by) == 0) {
+      const std::map<map::KeyFrameId, int> observations = point->observations();
+      by = map::KeyFrameId();
+      for (const auto& [id, index] : observations) {
+        if (correction.count(id) > 0) {
+          by = id;
+          break;
+        }
+      }
+    }
+    if (!by.valid()) continue;
+    point->setPosition(correction.at(by) * point->p_w());
+  }
+  map.bumpVersion();
+  log::info("loop closed: kf ", loop.current, " -> kf ", loop.loop, ", window ", result.window_size, ", fused ",
+            result.fused_points, ", graph ", result.graph_edges, " edges, chi2 ", result.initial_cost, " -> ",
+            result.final_cost);
+  return result;
+}
+
+}  // namespace ltlo::loop
