@@ -8,6 +8,7 @@
 #include "ltlo/core/assert.h"
 #include "ltlo/optim/inertial_edges.h"
 #include "ltlo/optim/vertices.h"
+#include "observation_edge.h"
 
 namespace ltlo::optim {
 
@@ -24,28 +25,7 @@ struct KeyFrameVertices {
   VertexAccBias* acc_bias = nullptr;
 };
 
-struct ObservationEdge {
-  sparse_opt::EdgeBase* edge = nullptr;
-  RgbdEdge* rgbd = nullptr;
-  MonoEdge* mono = nullptr;
-  double threshold = 0.0;
-
-  // Evaluates the edge; unweighted chi2 and whether the point is in front of the camera.
-  double unweightedChi2(bool* depth_positive) const {
-    edge->computeError();
-    if (rgbd != nullptr) {
-      *depth_positive = rgbd->isDepthPositive();
-      return rgbd->unweightedChi2();
-    }
-    *depth_positive = mono->isDepthPositive();
-    return mono->unweightedChi2();
-  }
-  bool passes() const {
-    bool depth_positive = false;
-    const double chi2 = unweightedChi2(&depth_positive);
-    return depth_positive && chi2 <= threshold;
-  }
-};
+using ObservationEdge = ReprojectionObservation<RgbdEdge, MonoEdge>;
 
 }  // namespace
 

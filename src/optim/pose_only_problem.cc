@@ -9,6 +9,7 @@
 #include "ltlo/optim/inertial_edges.h"
 #include "ltlo/optim/pose_edges.h"
 #include "ltlo/optim/vertices.h"
+#include "observation_edge.h"
 
 namespace ltlo::optim {
 
@@ -29,24 +30,7 @@ enum VertexId : int {
   kPrevAccBias = 7,
 };
 
-// One reprojection edge of either kind, with what the rejection test needs.
-struct ObservationEdge {
-  sparse_opt::EdgeBase* edge = nullptr;
-  RgbdEdge* rgbd = nullptr;
-  MonoEdge* mono = nullptr;
-  double threshold = 0.0;
-
-  // Unweighted chi2 at the current estimate and whether the point is in front of the camera.
-  double unweightedChi2(bool* depth_positive) const {
-    edge->computeError();
-    if (rgbd != nullptr) {
-      *depth_positive = rgbd->isDepthPositive();
-      return rgbd->unweightedChi2();
-    }
-    *depth_positive = mono->isDepthPositive();
-    return mono->unweightedChi2();
-  }
-};
+using ObservationEdge = ReprojectionObservation<RgbdEdge, MonoEdge>;
 
 template <typename V>
 V* addVertex(sparse_opt::Graph& graph, std::unique_ptr<V> vertex, bool fixed) {
