@@ -269,4 +269,35 @@ bool KeyFrame::setBad() {
   return true;
 }
 
+std::shared_ptr<KeyFrame> KeyFrame::culledParent() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return culled_parent_;
+}
+
+SE3 KeyFrame::T_parent_this() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return T_parent_this_;
+}
+
+void KeyFrame::setCulledParent(std::shared_ptr<KeyFrame> parent, const SE3& T_parent_this) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  culled_parent_ = std::move(parent);
+  T_parent_this_ = T_parent_this;
+}
+
+SE3 latestPose_T_w_b(const KeyFrame& kf) {
+  // Walk up the culled chain (each link is older and was alive when its child was culled).
+  SE3 T_last_kf;  // T_{last visited}^-1 T_kf, composed right to left
+  const KeyFrame* current = &kf;
+  std::shared_ptr<KeyFrame> hold;
+  while (current->isBad()) {
+    std::shared_ptr<KeyFrame> parent = current->culledParent();
+    if (!parent) break;  // culled without a parent: its pose at culling time is all we have
+    T_last_kf = current->T_parent_this() * T_last_kf;
+    hold = std::move(parent);
+    current = hold.get();
+  }
+  return current->T_w_b() * T_last_kf;
+}
+
 }  // namespace ltlo::map

@@ -134,7 +134,10 @@ void Map::updateConnections(KeyFrame& kf) {
   kf.replaceConnections(weights);
 
   if (kf.parent().valid() || isOrigin(kf.id()) || kf.isBad()) return;
+  // The parent is the best covisible among the older keyframes (ids grow with creation), so the
+  // tree never forms a cycle, whatever order connections are updated in.
   for (const auto& [candidate_id, w] : kf.covisibles()) {  // best first; skip any culled meanwhile
+    if (!(candidate_id < kf.id())) continue;
     const std::shared_ptr<KeyFrame> candidate = keyFrame(candidate_id);
     if (candidate && candidate->addChild(kf.id())) {
       kf.setParent(candidate_id);
@@ -200,6 +203,9 @@ bool Map::eraseKeyFrame(KeyFrameId id) {
   // Spanning-tree repair: grow the set of possible parents from kf's parent; at each step attach the
   // child with the strongest covisibility edge to any member, which then becomes a member itself.
   const KeyFrameId parent_id = kf->parent();
+  if (const std::shared_ptr<KeyFrame> parent_at_culling = keyFrame(parent_id)) {
+    kf->setCulledParent(parent_at_culling, parent_at_culling->T_w_b().inverse() * kf->T_w_b());
+  }
   std::vector<KeyFrameId> orphans = kf->children();
   std::set<KeyFrameId> parent_candidates{parent_id};
   while (!orphans.empty()) {

@@ -11,6 +11,32 @@ namespace {
 
 using Covisibles = std::vector<std::pair<KeyFrameId, int>>;
 
+TEST(KeyFrameOwnership, CulledKeyFramesFollowTheCorrectionsOfTheKeyFramesThatRemain) {
+  Map map;
+  test::SceneBuilder scene(map, 3);
+  const SE3 T_w_a(so3ExpQuat(Vec3(0.0, 0.1, 0.0)), Vec3(0.0, 0.0, 0.0));
+  const SE3 T_w_b(so3ExpQuat(Vec3(0.0, 0.2, 0.05)), Vec3(0.5, 0.0, 0.1));
+  const SE3 T_w_c(so3ExpQuat(Vec3(0.1, 0.3, 0.0)), Vec3(1.0, 0.2, 0.0));
+  const std::shared_ptr<KeyFrame> a = scene.addKeyFrame(T_w_a);
+  const std::shared_ptr<KeyFrame> b = scene.addKeyFrame(T_w_b);
+  const std::shared_ptr<KeyFrame> c = scene.addKeyFrame(T_w_c);
+  scene.share({a, b, c}, 30);
+  scene.share({b, c}, 20);  // c's best covisible (its parent) is b
+  for (const auto& kf : {a, b, c}) map.updateConnections(*kf);
+  ASSERT_EQ(c->parent(), b->id());
+  ASSERT_TRUE(map.eraseKeyFrame(c->id()));
+  ASSERT_TRUE(map.eraseKeyFrame(b->id()));
+  ASSERT_EQ(c->culledParent(), b);
+  ASSERT_EQ(b->culledParent(), a);
+  EXPECT_LT((latestPose_T_w_b(*c).log() - T_w_c.log()).norm(), 1e-12);
+  // A correction of the live keyframe moves both culled ones rigidly with it.
+  const SE3 correction(so3ExpQuat(Vec3(0.0, 0.0, 0.3)), Vec3(0.2, -0.1, 0.05));
+  a->setPose_T_w_b(correction * T_w_a);
+  EXPECT_LT((latestPose_T_w_b(*b).log() - (correction * T_w_b).log()).norm(), 1e-12);
+  EXPECT_LT((latestPose_T_w_b(*c).log() - (correction * T_w_c).log()).norm(), 1e-12);
+  EXPECT_LT((latestPose_T_w_b(*a).log() - (correction * T_w_a).log()).norm(), 1e-12);
+}
+
 TEST(KeyFrameOwnership, CulledKeyFrameIsBadAndGoneButHolderKeepsItValid) {
   Map map;
   test::SceneBuilder scene(map, 1);

@@ -1,6 +1,7 @@
 #pragma once
 /// KeyFrame: a Frame promoted into the map. Shared by tracking, local mapping and loop closing
 /// (and read by the optimiser); the Map owns it through shared_ptr.
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <unordered_map>
@@ -107,8 +108,16 @@ class KeyFrame {
 
   bool isBad() const;
 
+  // ---- culling ----
+  /// Set by Map::eraseKeyFrame: the spanning-tree parent at culling time (nullptr when it had none)
+  /// and this keyframe's body pose relative to it, T_parent_this = T_w_parent^-1 T_w_this. Frames
+  /// that used a culled keyframe as reference follow this chain to a live keyframe.
+  std::shared_ptr<KeyFrame> culledParent() const;
+  SE3 T_parent_this() const;
+
  private:
   friend class Map;
+  void setCulledParent(std::shared_ptr<KeyFrame> parent, const SE3& T_parent_this);
   /// Map-side writers (Map keeps both ends of each link consistent).
   bool setMapPoint(int i, MapPointId point);    ///< false on a bad keyframe
   void eraseMapPoint(int i, MapPointId point);  ///< only if keypoint i still holds `point`
@@ -153,6 +162,13 @@ class KeyFrame {
   std::vector<KeyFrameId> children_;
   std::vector<KeyFrameId> loop_edges_;
   bool bad_ = false;
+  std::shared_ptr<KeyFrame> culled_parent_;
+  SE3 T_parent_this_;
 };
+
+/// The keyframe's current body pose, also once culled: a culled keyframe's pose is its culled
+/// parent's current pose composed with T_parent_this (recursively), so frames referenced to it follow
+/// later corrections (loop closure, merge, BA) of the keyframes that remain.
+SE3 latestPose_T_w_b(const KeyFrame& kf);
 
 }  // namespace ltlo::map

@@ -58,7 +58,7 @@ class Map {
 
   /// Recomputes the covisibility edges of `kf` from the points it shares with other keyframes
   /// (weights >= kMinCovisibilityWeight, or the single strongest edge), updates the other ends, and
-  /// gives `kf` a spanning-tree parent (its best covisible) if it has none and is not an origin.
+  /// gives `kf` a spanning-tree parent (its best older covisible) if it has none and is not an origin.
   void updateConnections(KeyFrame& kf);
   /// Representative descriptor of `point` from its observations (MapPoint::medianDescriptorIndex).
   void updateDescriptor(MapPoint& point);

@@ -1,0 +1,80 @@
+#pragma once
+/// LoopCloser (namespace ltlo::loop): the loop-closing thread. For every keyframe local mapping has
+/// processed: place recognition on the static keyframes (LoopDetector), geometric verification
+/// (verifyLoop), and either a loop correction in the same map (correctLoop with local mapping paused,
+/// then a vision-only full BA in its own thread) or a merge with another Atlas map (mergeAtPlace).
+/// The keyframe then enters the keyframe database.
+///
+/// Threads: local mapping calls insertKeyFrame(); the loop thread runs run(); the full BA runs in a
+/// thread the closer starts and joins (a newer loop aborts it). System calls requestFinish() and joins.
+/// Thread-safe public API; the closer owns its queue, detector and event list.
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "ltlo/core/settings.h"
+#include "ltlo/core/timing.h"
+#include "ltlo/loop/global_ba.h"
+#include "ltlo/map/atlas.h"
+#include "ltlo/map/keyframe.h"
+
+namespace ltlo::loop {
+
+struct LoopCloserOptions {
+  LoopOptions loop;  ///< enabled, consistency, inliers, full BA iterations, static ratio
+  /// Virtual stereo baseline of the RGB-D edges of the full BA (m).
+  double virtual_baseline_m = 0.08;
+  bool run_global_ba = true;       ///< full BA after each loop (in its own thread)
+  std::size_t queue_capacity = 64;
+};
+
+/// Pause/resume of local mapping around a correction (System wires LocalMapper::pause/resume).
+struct MappingControl {
+  std::function<void()> pause;
+  std::function<void()> resume;
+};
+
+/// One accepted loop or merge (for logs, metrics.json and tests).
+struct LoopEvent {
+  bool merge = false;  ///< across maps
+  double t_s = 0.0;    ///< time of the current keyframe
+  map::KeyFrameId current;
+  map::KeyFrameId loop;
+  map::MapId map;      ///< the map kept (merge target)
+  int inliers = 0;
+  double correction_m = 0.0;  ///< |translation| of the current keyframe's correction
+};
+
+class LoopCloser {
+ public:
+  /// `timing` (may be nullptr) receives "loop.keyframe", "loop.correction", "loop.global_ba".
+  LoopCloser(map::Atlas& atlas, const LoopCloserOptions& options, MappingControl mapping,
+             TimingStats* timing = nullptr);
+  LoopCloser(const LoopCloser&) = delete;
+  LoopCloser& operator=(const LoopCloser&) = delete;
+  ~LoopCloser();  ///< joins a running full BA
+
+  /// Queues a processed keyframe (local-mapping thread).
+  void insertKeyFrame(std::shared_ptr<map::KeyFrame> kf);
+  /// Detection, verification, correction/merge and database insertion of one keyframe, in the
+  /// calling thread (tests, single-threaded runs; the full BA then runs synchronously too).
+  void processKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);
+
+  /// Loop thread: processes queued keyframes until requestFinish(), drains the queue, waits for
+  /// the full BA and returns. Exceptions are logged and end the loop.
+  void run();
+  void requestFinish();
+
+  std::vector<LoopEvent> events() const;
+  int numLoops() const;   ///< same-map loops corrected
+  int numMerges() const;  ///< maps merged
+  bool globalBaRunning() const;
+  /// Blocks until no full BA is running (tests; System before writing the map).
+  void waitForGlobalBa();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ltlo::loop

@@ -1,0 +1,108 @@
+#pragma once
+/// LocalMapper (namespace ltlo::mapping): the local-mapping thread. For every keyframe tracking
+/// inserted into the map (with its matched and new close RGB-D points already linked): recent
+/// map-point culling, duplicate fusion with the covisible neighbours, local (visual-inertial) bundle
+/// adjustment over a sliding window of covisible keyframes, keyframe culling, and the IMU
+/// initialisation (inertial-only optimisation of gravity direction, velocities and biases; scale is
+/// known from depth) followed by VI-BA refinements. Processed keyframes go on to loop closing.
+///
+/// Threads: tracking calls insertKeyFrame(); the mapping thread runs run(); loop closing calls
+/// pause()/resume(); System calls requestFinish() and joins. Thread-safe public API; the mapper owns
+/// its queue and counters, the Atlas owns the maps (lock order in map/atlas.h; the mapper holds no
+/// lock of its own while calling into the map).
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <vector>
+
+#include "ltlo/core/blocking_queue.h"
+#include "ltlo/core/eigen_types.h"
+#include "ltlo/core/settings.h"
+#include "ltlo/core/timing.h"
+#include "ltlo/imu/imu_types.h"
+#include "ltlo/map/atlas.h"
+#include "ltlo/map/keyframe.h"
+
+namespace ltlo::mapping {
+
+struct LocalMapperOptions {
+  LocalMappingOptions local_mapping;  ///< window size, BA iterations, redundancy for culling
+  ImuInitOptions imu_init;            ///< when and how the IMU is initialised
+  bool use_imu = true;                ///< false: visual-only BA, no IMU initialisation
+  /// bf = fx * virtual baseline (px m) of the RGB-D reprojection edges (as tracking's).
+  double bf_px_m = 40.0;
+  int ba_threads = 1;                 ///< linearisation threads of the local BA
+  std::size_t queue_capacity = 64;    ///< keyframes waiting; insertKeyFrame blocks beyond
+};
+
+/// The IMU state tracking needs once the IMU is initialised. g_w is expressed in the world frame
+/// of the run (the map is not rotated at initialisation; a new map started after tracking loss is
+/// started at the predicted pose in the same world frame, so g_w stays valid for every map and the
+/// IMU stays initialised). generation grows at every update (first initialisation, each VI-BA
+/// refinement), so tracking can tell a new estimate from an old one.
+struct ImuState {
+  bool initialised = false;
+  imu::ImuBias bias;
+  Vec3 g_w = Vec3(0.0, 0.0, -9.81);
+  std::uint64_t generation = 0;
+};
+
+struct LocalMapperCounters {
+  int keyframes_processed = 0;
+  int culled_keyframes = 0;
+  int culled_points = 0;
+  int fused_points = 0;
+  int local_ba_runs = 0;
+  int imu_initialisations = 0;  ///< including refinements
+};
+
+class LocalMapper {
+ public:
+  /// `level_sigma2` is OrbExtractor::levelSigma2(); `timing` (may be nullptr) receives the stages
+  /// "mapping.keyframe" (whole processing), "mapping.local_ba", "mapping.imu_init".
+  LocalMapper(map::Atlas& atlas, const LocalMapperOptions& options, std::vector<float> level_sigma2,
+              TimingStats* timing = nullptr);
+  LocalMapper(const LocalMapper&) = delete;
+  LocalMapper& operator=(const LocalMapper&) = delete;
+  ~LocalMapper();
+
+  // ---- tracking thread ----
+  /// Queues a keyframe (blocks when the queue is full) and aborts a running local BA so the new
+  /// keyframe is taken soon (ORB-SLAM's abort flag).
+  void insertKeyFrame(std::shared_ptr<map::KeyFrame> kf);
+  std::size_t queuedKeyFrames() const;
+  /// The latest IMU estimate.
+  ImuState imuState() const;
+
+  // ---- synchronous use (tests, single-threaded runs) ----
+  /// The whole processing of one keyframe, in the calling thread.
+  void processKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);
+
+  // ---- mapping thread ----
+  /// Processes queued keyframes until requestFinish(); then drains the queue and returns.
+  /// Exceptions from processing are logged with the keyframe id and end the loop (System reports it).
+  void run();
+  void requestFinish();
+  bool finished() const;
+
+  // ---- loop closing ----
+  /// Blocks until the mapper is between keyframes and holds there (aborting a running BA);
+  /// returns at once when run() is not running. Tracking may go on inserting (queued).
+  void pause();
+  void resume();
+
+  /// Called in the mapping thread after each processed keyframe (System forwards it to loop closing).
+  void setKeyFrameProcessedCallback(std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback);
+
+  LocalMapperCounters counters() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ltlo::mapping
