@@ -1,0 +1,241 @@
+// rgbd_inertial / rgbd: SLAM on one RGB-D(-inertial) sequence; writes the run outputs.
+//
+//   rgbd_inertial --settings YAML --sequence DIR --out DIR [--vocabulary FILE] [--no-imu]
+//                 [--single-thread] [--max-frames N] [--progress-every N]
+//   rgbd          (the same program without the IMU: TUM RGB-D with config_yaml/tum_rgbd.yaml)
+//
+// The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
+// from the Camera.* / IMU.* keys of the settings file (TUM RGB-D, OpenLORIS). Outputs in --out:
+// trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists.
+// Ctrl-C (or SIGTERM), a bad frame or an error part-way stop the run, shut the threads down and
+// still write the outputs of the frames processed. Exit status: 0 done (also when interrupted),
+// 2 bad input (files, settings), 1 any other error.
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "bow/vocabulary.h"
+#include "ltlo/core/errors.h"
+#include "ltlo/core/log.h"
+#include "ltlo/core/progress.h"
+#include "ltlo/core/settings.h"
+#include "ltlo/io/sequence_reader.h"
+#include "ltlo/system/run_outputs.h"
+#include "ltlo/system/system.h"
+
+#ifndef LTLO_PROGRAM_NAME
+#define LTLO_PROGRAM_NAME "rgbd_inertial"
+#endif
+#ifndef LTLO_PROGRAM_USES_IMU
+#define LTLO_PROGRAM_USES_IMU 1
+#endif
+
+namespace {
+
+using namespace ltlo;
+namespace fs = std::filesystem;
+
+constexpr const char* kProgram = LTLO_PROGRAM_NAME;
+constexpr const char* kShippedVocabulary = "Vocabulary/ltlo_orb_k10_L5.bin";
+
+std::atomic<bool> g_stop_requested{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler needs a lock-free flag");
+
+extern "C" void onStopSignal(int signal_number) {
+  g_stop_requested.store(true);
+  std::signal(signal_number, SIG_DFL);  // a second Ctrl-C ends the program at once
+}
+
+struct Arguments {
+  std::string settings_path;
+  std::string sequence_dir;
+  std::string out_dir;
+  std::string vocabulary_path;
+  bool no_imu = !LTLO_PROGRAM_USES_IMU;
+  bool single_thread = false;
+  long max_frames = 0;
+  long progress_every = 100;
+};
+
+/// The shipped vocabulary: $LTLO_SOURCE_DIR, then next to the executable's build tree
+/// (<root>/build/bin/<program> -> <root>), then the source tree this program was built from, then
+/// the working directory.
+std::string defaultVocabularyPath() {
+  std::vector<fs::path> roots;
+  if (const char* env = std::getenv("LTLO_SOURCE_DIR")) roots.emplace_back(env);
+  std::error_code error;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", error);
+  if (!error) {
+    roots.push_back(exe.parent_path().parent_path().parent_path());
+    roots.push_back(exe.parent_path().parent_path());
+  }
+#ifdef LTLO_SOURCE_DIR_AT_BUILD
+  roots.emplace_back(LTLO_SOURCE_DIR_AT_BUILD);
+#endif
+  roots.push_back(fs::current_path(error));
+  for (const fs::path& root : roots) {
+    const fs::path candidate = root / kShippedVocabulary;
+    if (fs::is_regular_file(candidate, error)) return candidate.string();
+  }
+  throw InputError(kShippedVocabulary, 0, "shipped vocabulary not found (give --vocabulary FILE)");
+}
+
+/// Settings and reader options: the calibration from DIR/calib.yaml when present, else from the
+/// settings file (then also handed to the reader, which has no calib.yaml to read).
+struct RunSetup {
+  Settings settings;
+  io::SequenceReaderOptions reader_options;
+};
+RunSetup loadSetup(const Arguments& args) {
+  RunSetup setup;
+  const fs::path calib_path = fs::path(args.sequence_dir) / "calib.yaml";
+  const bool has_calib_file = fs::is_regular_file(calib_path);
+  setup.settings = Settings::load(args.settings_path, has_calib_file ? calib_path.string() : "");
+  setup.reader_options.sequence = setup.settings.sequence;
+  if (!has_calib_file) setup.reader_options.calib_override = setup.settings.calib;
+  return setup;
+}
+
+std::string frameName(const io::SequenceReader& reader, int index) {
+  if (index < 0 || index >= reader.frameCount()) return "frame " + std::to_string(index);
+  const io::FrameFiles& files = reader.frameFiles(index);
+  return "frame " + std::to_string(index) + " (t = " + std::to_string(files.t_s) + " s, " + files.color_path + ")";
+}
+
+int run(const Arguments& args) {
+  const auto start = std::chrono::steady_clock::now();
+  const RunSetup setup = loadSetup(args);
+  setup.settings.log();
+  io::SequenceReader reader = io::SequenceReader::open(args.sequence_dir, setup.reader_options);
+  const std::string vocabulary_path = args.vocabulary_path.empty() ? defaultVocabularyPath() : args.vocabulary_path;
+  log::info(kProgram, ": vocabulary ", vocabulary_path);
+  auto vocabulary = std::make_shared<const bow::Vocabulary>(bow::Vocabulary::load(vocabulary_path));
+
+  system::SystemOptions options;
+  options.use_imu = !args.no_imu;
+  options.threaded = !args.single_thread;
+  if (options.use_imu && (!setup.settings.calib.has_imu || !reader.hasImu())) {
+    log::warn(kProgram, ": the sequence has no IMU ", setup.settings.calib.has_imu ? "data" : "calibration",
+              "; running RGB-D only");
+    options.use_imu = false;
+  }
+  system::System slam(setup.settings, vocabulary, options);
+
+  std::signal(SIGINT, onStopSignal);
+  std::signal(SIGTERM, onStopSignal);
+
+  const long total = args.max_frames > 0 ? std::min<long>(args.max_frames, reader.frameCount()) : reader.frameCount();
+  ProgressReporter progress({"frames", total, ProgressReporter::Style::kSilent});
+  int exit_code = 0;
+  std::string failure;
+  int frames = 0;
+  try {
+    while (!g_stop_requested.load() && frames < total) {
+      std::optional<io::RgbdImuFrame> input = reader.next();
+      if (!input) break;
+      const tracking::TrackingState state = slam.trackFrame(*input);
+      ++frames;
+      progress.frameDone();
+      if (args.progress_every > 0 && frames % args.progress_every == 0) {
+        const system::SystemCounts counts = slam.counts();
+        log::info(ProgressReporter::formatStatus("frames", progress.status()), " | ",
+                  tracking::trackingStateName(state), " | keyframes ", counts.keyframes, " | maps ", counts.maps,
+                  " | loops ", counts.loops, " | merges ", counts.merges);
+      }
+    }
+  } catch (const InputError& e) {
+    failure = "bad input at " + frameName(reader, frames) + ": " + e.what();
+    exit_code = 2;
+  } catch (const ConfigError& e) {
+    failure = "bad settings at " + frameName(reader, frames) + ": " + e.what();
+    exit_code = 2;
+  } catch (const std::exception& e) {
+    failure = "error at " + frameName(reader, frames) + ": " + e.what();
+    exit_code = 1;
+  }
+  if (!failure.empty()) log::error(kProgram, ": ", failure);
+  const bool interrupted = g_stop_requested.load() || !failure.empty();
+  progress.finish();
+
+  slam.shutdown();
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  system::RunReport report = slam.report(wall_s);
+  report.interrupted = interrupted;
+  const system::WrittenOutputs written = system::writeRunOutputs(
+      args.out_dir, report, reader.groundTruth(), setup.settings.local_mapping.min_point_beta);
+
+  const system::SystemCounts& counts = report.counts;
+  std::printf("frames %d\nframes_with_pose %d\nframes_tracked %d\nkeyframes %d\nmap_points %d\nstatic_points %d\n"
+              "maps %d\nmaps_created %d\nloops %d\nmerges %d\nwall_s %.3f\nfps %.2f\npeak_memory_mb %.1f\n",
+              counts.frames, counts.frames_with_pose, counts.frames_tracked, counts.keyframes, counts.map_points,
+              written.static_points, counts.maps, counts.maps_created, counts.loops, counts.merges, wall_s,
+              wall_s > 0.0 ? counts.frames / wall_s : 0.0, report.peak_memory_mb);
+  if (written.has_metrics && written.metrics.has("ate_rmse_m")) {
+    std::printf("ate_rmse_m %.6f\nrpe_trans_rmse_m_s %.6f\nrpe_rot_rmse_deg_s %.6f\n",
+                written.metrics.number("ate_rmse_m"), written.metrics.number("rpe_trans_rmse_m_s"),
+                written.metrics.number("rpe_rot_rmse_deg_s"));
+  }
+  if (counts.frames > counts.frames_with_pose) {
+    log::warn(kProgram, ": ", counts.frames - counts.frames_with_pose,
+              " frame(s) before the first initialisation have no pose");
+  }
+  std::printf("outputs %s\n", args.out_dir.c_str());
+  if (!failure.empty()) {
+    std::fprintf(stderr, "%s: stopped after %d frames (%s); outputs written to %s\n", kProgram, frames,
+                 failure.c_str(), args.out_dir.c_str());
+  } else if (g_stop_requested.load()) {
+    std::fprintf(stderr, "%s: interrupted after %d frames; outputs written to %s\n", kProgram, frames,
+                 args.out_dir.c_str());
+  }
+  std::fflush(stdout);
+  return exit_code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{LTLO_PROGRAM_USES_IMU ? "RGB-D-inertial SLAM on a sequence; writes the run outputs"
+                                     : "RGB-D SLAM (no IMU) on a sequence; writes the run outputs"};
+  Arguments args;
+  app.add_option("--settings", args.settings_path, "settings YAML (config_yaml/*.yaml)")->required();
+  app.add_option("--sequence", args.sequence_dir, "sequence folder (DATA_FORMAT.md, TUM RGB-D, OpenLORIS)")
+      ->required();
+  app.add_option("--out", args.out_dir, "output folder (created)")->required();
+  app.add_option("--vocabulary", args.vocabulary_path, "ORB vocabulary (default: the shipped one)");
+  app.add_flag("--no-imu", args.no_imu, "ignore the IMU (RGB-D only; always so for rgbd)");
+  app.add_flag("--single-thread", args.single_thread,
+               "run local mapping and loop closing in the tracking thread (deterministic)");
+  app.add_option("--max-frames", args.max_frames, "stop after N frames (0: all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--progress-every", args.progress_every, "progress line every N frames (0: none)")
+      ->check(CLI::NonNegativeNumber);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  log::initFromEnvironment();
+  try {
+    return run(args);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "%s: %s\n", kProgram, e.what());
+    return 2;
+  } catch (const ConfigError& e) {
+    std::fprintf(stderr, "%s: %s\n", kProgram, e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: error: %s\n", kProgram, e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,49 @@
+#pragma once
+/// The outputs of a run (DESIGN.md "Outputs of a run"), written from what System reports:
+///   trajectory.txt   TUM "t tx ty tz qx qy qz qw", camera pose T_w_c, every frame with a pose
+///   keyframes.txt    "# t tx ty tz qx qy qz qw id map static_area_ratio", T_w_c, by time
+///   static_map.ply   binary little-endian PLY: float x y z, uchar red green blue, float beta
+///                    (world frame of the active map, points with beta >= the threshold)
+///   metrics.json     when ground truth is given: ATE / RPE, frame counts, per-stage median/p95
+///                    times, peak memory, wall time, FPS, maps, loops, merges, keyframes, points
+/// Readers for keyframes.txt and static_map.ply round-trip the writers (tests, tools). Writers
+/// and readers throw InputError naming the file (and line) on failure.
+#include <string>
+#include <vector>
+
+#include "ltlo/io/metrics_json.h"
+#include "ltlo/io/trajectory_io.h"
+#include "ltlo/system/run_records.h"
+
+namespace ltlo::system {
+
+void writeTrajectory(const std::string& path, const std::vector<FramePose>& trajectory);
+/// The trajectory as TUM poses (T_w_c).
+io::Trajectory toTumTrajectory(const std::vector<FramePose>& trajectory);
+
+void writeKeyFrames(const std::string& path, const std::vector<KeyFrameRecord>& keyframes);
+std::vector<KeyFrameRecord> readKeyFrames(const std::string& path);
+
+/// Writes the points with beta >= min_beta; returns how many.
+int writeStaticMapPly(const std::string& path, const std::vector<MapPointRecord>& points, double min_beta);
+/// Reads a PLY written by writeStaticMapPly (exactly that vertex layout).
+std::vector<MapPointRecord> readStaticMapPly(const std::string& path);
+
+/// metrics.json values: ATE (SE3 alignment) and RPE of the trajectory against `ground_truth` when
+/// it is not empty and at least 3 poses match, then counts, timing, memory, wall time and FPS.
+io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& ground_truth);
+
+/// Files written by writeRunOutputs (paths) and the metrics (empty without ground truth).
+struct WrittenOutputs {
+  std::vector<std::string> files;
+  io::Metrics metrics;
+  bool has_metrics = false;
+  int static_points = 0;
+};
+
+/// Creates `out_dir` and writes trajectory.txt, keyframes.txt, static_map.ply and, with ground
+/// truth, metrics.json.
+WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
+                               const io::Trajectory& ground_truth, double min_beta);
+
+}  // namespace ltlo::system

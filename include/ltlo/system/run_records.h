@@ -1,0 +1,66 @@
+#pragma once
+/// Plain records of a run's results (System produces them, run_outputs.h writes them).
+#include <cstdint>
+#include <vector>
+
+#include "ltlo/core/eigen_types.h"
+#include "ltlo/core/lie.h"
+#include "ltlo/core/timing.h"
+#include "ltlo/map/ids.h"
+
+namespace ltlo::system {
+
+/// Camera pose of one input frame, from its reference keyframe's latest pose (so loop corrections
+/// and merges after the frame was tracked move it along).
+struct FramePose {
+  double t_s = 0.0;
+  SE3 T_w_c;
+  bool tracked = false;  ///< tracked against the map (false: predicted while lost)
+  map::MapId map;        ///< map of the reference keyframe now (after merges)
+};
+
+/// One keyframe of the Atlas at the time of the query.
+struct KeyFrameRecord {
+  double t_s = 0.0;
+  SE3 T_w_c;
+  std::uint64_t id = 0;
+  std::uint64_t map = 0;
+  double static_area_ratio = 1.0;
+};
+
+/// One map point for static_map.ply.
+struct MapPointRecord {
+  Vec3 p_w = Vec3::Zero();
+  std::uint8_t red = 128, green = 128, blue = 128;  ///< sampled in the reference keyframe's image
+  double beta = 1.0;                                ///< static score
+};
+
+struct SystemCounts {
+  int frames = 0;             ///< frames given to trackFrame
+  int frames_with_pose = 0;   ///< frames with a pose (all frames after the first initialisation)
+  int frames_tracked = 0;     ///< frames tracked against the map
+  int maps = 0;               ///< maps of the Atlas holding content (Atlas::numMaps)
+  int maps_created = 0;       ///< maps started after tracking loss
+  int loops = 0;              ///< same-map loops corrected
+  int merges = 0;             ///< maps merged
+  int keyframes = 0;          ///< keyframes of all maps
+  int map_points = 0;         ///< map points of all maps
+  bool imu_initialised = false;
+};
+
+/// Everything a run produced, gathered once after System::shutdown().
+struct RunReport {
+  std::vector<FramePose> trajectory;
+  std::vector<KeyFrameRecord> keyframes;
+  std::vector<MapPointRecord> map_points;
+  SystemCounts counts;
+  std::vector<StageTiming> timing;
+  double wall_s = 0.0;          ///< whole run (reading + SLAM), s
+  double peak_memory_mb = 0.0;  ///< peak resident set size, MB
+  bool interrupted = false;     ///< stopped early (signal or error)
+};
+
+/// Peak resident set size of this process so far, MB (getrusage ru_maxrss).
+double peakMemoryMb();
+
+}  // namespace ltlo::system

@@ -1,0 +1,176 @@
+#pragma once
+/// System (namespace ltlo::system): the whole SLAM pipeline of one run. It owns the Atlas and the
+/// three stages (DESIGN.md "Threads and data flow"):
+///   tracking        in the caller's thread (trackFrame): ORB + depth (FrameBuilder), the depth
+///                   over-segmentation seam (DepthClustering, all clusters static for now), BoW,
+///                   Tracker::track;
+///   local mapping   LocalMapper::run in a thread started here;
+///   loop closing    LoopCloser::run in a thread started here (it starts and joins its full-BA
+///                   thread itself).
+/// Keyframes flow tracking -> local mapping (Tracker callback -> LocalMapper::insertKeyFrame) ->
+/// loop closing (LocalMapper callback -> LoopCloser::insertKeyFrame), each through the receiver's
+/// bounded queue. Loop closing pauses local mapping around a correction (MappingControl ->
+/// LocalMapper::pause/resume). The IMU state flows back by polling: every frame the tracker reads
+/// LocalMapper::imuState() and takes a new estimate when its generation changes.
+///
+/// Ownership and locks: System owns the Atlas, the Tracker, the LocalMapper, the LoopCloser, the
+/// two std::threads and the per-run records (frame references, keyframe colours) behind
+/// records_mutex_. The map structures follow the lock order of ltlo/map/atlas.h
+///   Atlas::mutex_ -> Map::topology_mutex_ -> Map::mutex_ -> KeyFrame::mutex_ -> MapPoint::mutex_;
+/// records_mutex_ is a leaf: it is never held while calling into the map, a queue or another stage.
+/// Threads are started in the constructor (loop closing first, then local mapping) and joined in
+/// reverse data-flow order by shutdown(): local mapping first (it drains its queue and hands the
+/// last keyframes on), then loop closing (it drains, then waits for a running full BA).
+///
+/// With SystemOptions::threaded == false no thread is started: after every keyframe, trackFrame
+/// runs LocalMapper::processKeyFrame and LoopCloser::processKeyFrame itself (deterministic; tests).
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ltlo/core/eigen_types.h"
+#include "ltlo/core/lie.h"
+#include "ltlo/core/settings.h"
+#include "ltlo/core/timing.h"
+#include "ltlo/io/sequence_reader.h"
+#include "ltlo/map/ids.h"
+#include "ltlo/system/run_records.h"
+#include "ltlo/tracking/tracker.h"
+
+namespace bow {
+class Vocabulary;
+}
+
+namespace ltlo::map {
+class Atlas;
+class Frame;
+class KeyFrame;
+}  // namespace ltlo::map
+namespace ltlo::mapping {
+class LocalMapper;
+}
+namespace ltlo::loop {
+class LoopCloser;
+}
+namespace ltlo::segmentation {
+class DepthClustering;
+}
+namespace ltlo::tracking {
+class FrameBuilder;
+}
+
+namespace ltlo::system {
+
+struct SystemOptions {
+  /// false: RGB-D only (the frames' IMU samples are ignored, no IMU initialisation). The IMU is
+  /// also unused when the calibration has none.
+  bool use_imu = true;
+  /// false: local mapping and loop closing run synchronously inside trackFrame after each keyframe
+  /// (deterministic, for tests); true: each in its own thread.
+  bool threaded = true;
+};
+
+/// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
+/// the result accessors may be called from that thread at any time (they read the map through its
+/// thread-safe API) and give the final results after shutdown().
+class System {
+ public:
+  /// `settings.calib` is the sensor calibration of the frames to come. Throws ConfigError on a
+  /// calibration the pipeline cannot use.
+  System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> vocabulary,
+         const SystemOptions& options = {});
+  System(const System&) = delete;
+  System& operator=(const System&) = delete;
+  /// Calls shutdown().
+  ~System();
+
+  /// Tracks one frame (caller's thread). Throws SystemError when a mapping or loop thread has
+  /// stopped on an error (the log names it), std::logic_error after shutdown().
+  tracking::TrackingState trackFrame(const io::RgbdImuFrame& input);
+
+  /// Stops and joins local mapping, then loop closing (which waits for its full BA). Idempotent.
+  void shutdown();
+  bool isShutDown() const { return shut_down_; }
+
+  /// Every frame with a pose, in input order.
+  std::vector<FramePose> trajectory() const;
+  /// Live keyframes of every map, by time.
+  std::vector<KeyFrameRecord> keyFrames() const;
+  /// Map points of the active map (the map tracking ended in; other maps have their own world
+  /// frame) with colour and beta.
+  std::vector<MapPointRecord> mapPoints() const;
+  SystemCounts counts() const;
+  /// Everything above plus the timing and the peak memory (call after shutdown()); `wall_s` is
+  /// the caller's measurement of the run.
+  RunReport report(double wall_s) const;
+  tracking::TrackingState state() const;
+
+  /// Stage durations of all threads ("tracking.*", "mapping.*", "loop.*").
+  TimingStats& timing() { return timing_; }
+  const TimingStats& timing() const { return timing_; }
+  const Settings& settings() const { return settings_; }
+  bool usesImu() const { return use_imu_; }
+
+ private:
+  /// Per-frame record: the reference keyframe and the camera relative to its body frame
+  /// (T_refb_c = T_w_b(ref)^-1 T_w_c at tracking time), or an absolute pose without one.
+  struct FrameRecord {
+    double t_s = 0.0;
+    std::shared_ptr<const map::KeyFrame> reference;
+    SE3 T_refb_c;  ///< with a reference
+    SE3 T_w_c;     ///< without one
+    bool tracked = false;
+  };
+
+  void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
+  void processPendingKeyFrames();                                 // synchronous mode
+  void pollImuState();
+  void checkWorkers() const;
+
+  const Settings settings_;
+  const SystemOptions options_;
+  const std::shared_ptr<const bow::Vocabulary> vocabulary_;
+  bool use_imu_ = true;
+
+  TimingStats timing_;
+  std::unique_ptr<map::Atlas> atlas_;  // first member built, last destroyed (after the workers)
+  std::unique_ptr<tracking::FrameBuilder> builder_;
+  std::unique_ptr<segmentation::DepthClustering> clustering_;
+  std::unique_ptr<tracking::Tracker> tracker_;
+  std::unique_ptr<mapping::LocalMapper> mapper_;
+  std::unique_ptr<loop::LoopCloser> closer_;
+  std::thread mapping_thread_;
+  std::thread loop_thread_;
+  std::atomic<bool> finishing_{false};        ///< shutdown() asked the workers to finish
+  std::atomic<bool> mapping_stopped_{false};  ///< LocalMapper::run returned
+  std::atomic<bool> loop_stopped_{false};     ///< LoopCloser::run returned
+  bool shut_down_ = false;
+
+  // Tracking-thread state.
+  const io::RgbdImuFrame* current_input_ = nullptr;  ///< during trackFrame (keyframe colours)
+  std::vector<std::shared_ptr<map::KeyFrame>> pending_keyframes_;  ///< synchronous mode
+  std::uint64_t imu_generation_ = 0;
+  int frames_ = 0;
+  int frames_tracked_ = 0;
+
+  mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
+  std::vector<FrameRecord> records_;
+  /// BGR colour of every keypoint of each keyframe, sampled when the keyframe was created.
+  std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours_;
+};
+
+/// A worker thread stopped on an error; the run ends in an orderly shutdown.
+class SystemError : public std::runtime_error {
+ public:
+  explicit SystemError(const std::string& message) : std::runtime_error(message) {}
+};
+
+}  // namespace ltlo::system

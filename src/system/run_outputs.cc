@@ -1,0 +1,269 @@
+#include "ltlo/system/run_outputs.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "ltlo/core/errors.h"
+#include "ltlo/core/log.h"
+#include "ltlo/eval/trajectory_metrics.h"
+
+namespace ltlo::system {
+namespace {
+
+constexpr const char* kKeyFramesHeader = "# t tx ty tz qx qy qz qw id map static_area_ratio";
+constexpr const char* kPlyVertexLayout[] = {"property float x",     "property float y",
+                                            "property float z",     "property uchar red",
+                                            "property uchar green", "property uchar blue",
+                                            "property float beta"};
+constexpr std::size_t kPlyVertexBytes = 3 * 4 + 3 + 4;
+
+bool hostIsLittleEndian() {
+  const std::uint16_t probe = 1;
+  unsigned char first = 0;
+  std::memcpy(&first, &probe, 1);
+  return first == 1;
+}
+
+template <typename T>
+void appendLittleEndian(std::string* bytes, T value) {
+  char raw[sizeof(T)];
+  std::memcpy(raw, &value, sizeof(T));
+  if (!hostIsLittleEndian()) std::reverse(raw, raw + sizeof(T));
+  bytes->append(raw, sizeof(T));
+}
+
+template <typename T>
+T readLittleEndian(const char* raw) {
+  char copy[sizeof(T)];
+  std::memcpy(copy, raw, sizeof(T));
+  if (!hostIsLittleEndian()) std::reverse(copy, copy + sizeof(T));
+  T value;
+  std::memcpy(&value, copy, sizeof(T));
+  return value;
+}
+
+/// "tracking.frame" -> "tracking_frame" (flat metric keys).
+std::string metricKey(std::string stage) {
+  std::replace(stage.begin(), stage.end(), '.', '_');
+  return stage;
+}
+
+}  // namespace
+
+double peakMemoryMb() {
+  rusage usage{};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0.0;
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
+}
+
+io::Trajectory toTumTrajectory(const std::vector<FramePose>& trajectory) {
+  io::Trajectory tum;
+  tum.reserve(trajectory.size());
+  for (const FramePose& pose : trajectory) tum.push_back({pose.t_s, pose.T_w_c});
+  return tum;
+}
+
+void writeTrajectory(const std::string& path, const std::vector<FramePose>& trajectory) {
+  io::writeTumTrajectory(path, toTumTrajectory(trajectory));
+}
+
+void writeKeyFrames(const std::string& path, const std::vector<KeyFrameRecord>& keyframes) {
+  std::ofstream out(path);
+  if (!out) throw InputError(path, 0, "cannot open for writing");
+  out << kKeyFramesHeader << '\n';
+  for (const KeyFrameRecord& kf : keyframes) {
+    const Quat& q = kf.T_w_c.quaternion();
+    const Vec3& t = kf.T_w_c.translation();
+    out << std::fixed << std::setprecision(9) << kf.t_s << std::defaultfloat << std::setprecision(17) << ' '
+        << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w()
+        << ' ' << kf.id << ' ' << kf.map << ' ' << kf.static_area_ratio << '\n';
+  }
+  if (!out) throw InputError(path, 0, "write failed");
+}
+
+std::vector<KeyFrameRecord> readKeyFrames(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, 0, "cannot open");
+  std::vector<KeyFrameRecord> keyframes;
+  std::string line;
+  int line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double t_s = 0.0, tx = 0.0, ty = 0.0, tz = 0.0, qx = 0.0, qy = 0.0, qz = 0.0, qw = 0.0, ratio = 0.0;
+    std::uint64_t id = 0, map = 0;
+    std::string extra;
+    if (!(fields >> t_s >> tx >> ty >> tz >> qx >> qy >> qz >> qw >> id >> map >> ratio) || (fields >> extra)) {
+      throw InputError(path, line_number, "expected 't tx ty tz qx qy qz qw id map static_area_ratio', got '" +
+                                              line + "'");
+    }
+    const Quat q(qw, qx, qy, qz);
+    if (!std::isfinite(q.norm()) || std::abs(q.norm() - 1.0) > 1e-6) {
+      throw InputError(path, line_number, "quaternion is not unit (norm " + std::to_string(q.norm()) + ")");
+    }
+    KeyFrameRecord kf;
+    kf.t_s = t_s;
+    kf.T_w_c = SE3(q, Vec3(tx, ty, tz));
+    kf.id = id;
+    kf.map = map;
+    kf.static_area_ratio = ratio;
+    keyframes.push_back(kf);
+  }
+  return keyframes;
+}
+
+int writeStaticMapPly(const std::string& path, const std::vector<MapPointRecord>& points, double min_beta) {
+  std::string body;
+  int count = 0;
+  for (const MapPointRecord& point : points) {
+    if (point.beta < min_beta) continue;
+    for (int k = 0; k < 3; ++k) appendLittleEndian(&body, static_cast<float>(point.p_w[k]));
+    body.push_back(static_cast<char>(point.red));
+    body.push_back(static_cast<char>(point.green));
+    body.push_back(static_cast<char>(point.blue));
+    appendLittleEndian(&body, static_cast<float>(point.beta));
+    ++count;
+  }
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw InputError(path, 0, "cannot open for writing");
+  out << "ply\nformat binary_little_endian 1.0\n"
+      << "comment LTLO-SLAM static map points (world frame of the active map, m), beta = static score\n"
+      << "element vertex " << count << '\n';
+  for (const char* property : kPlyVertexLayout) out << property << '\n';
+  out << "end_header\n";
+  out.write(body.data(), static_cast<std::streamsize>(body.size()));
+  if (!out) throw InputError(path, 0, "write failed");
+  return count;
+}
+
+std::vector<MapPointRecord> readStaticMapPly(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "cannot open");
+  std::string line;
+  int line_number = 0;
+  long count = -1;
+  std::size_t property = 0;
+  auto next = [&]() -> bool {
+    if (!std::getline(in, line)) return false;
+    ++line_number;
+    return true;
+  };
+  if (!next() || line != "ply") throw InputError(path, 1, "not a PLY file (first line '" + line + "')");
+  if (!next() || line != "format binary_little_endian 1.0") {
+    throw InputError(path, line_number, "expected 'format binary_little_endian 1.0', got '" + line + "'");
+  }
+  while (next() && line != "end_header") {
+    if (line.rfind("comment", 0) == 0) continue;
+    if (line.rfind("element vertex ", 0) == 0) {
+      count = std::stol(line.substr(15));
+      continue;
+    }
+    if (property >= std::size(kPlyVertexLayout) || line != kPlyVertexLayout[property]) {
+      throw InputError(path, line_number, "unexpected header line '" + line + "'");
+    }
+    ++property;
+  }
+  if (line != "end_header") throw InputError(path, line_number, "no end_header");
+  if (count < 0 || property != std::size(kPlyVertexLayout)) {
+    throw InputError(path, line_number, "header lacks the vertex element or its properties");
+  }
+  std::string body(static_cast<std::size_t>(count) * kPlyVertexBytes, '\0');
+  in.read(body.data(), static_cast<std::streamsize>(body.size()));
+  if (in.gcount() != static_cast<std::streamsize>(body.size())) {
+    throw InputError(path, 0, "truncated: " + std::to_string(count) + " vertices announced");
+  }
+  std::vector<MapPointRecord> points(static_cast<std::size_t>(count));
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const char* raw = body.data() + i * kPlyVertexBytes;
+    MapPointRecord& point = points[i];
+    for (int k = 0; k < 3; ++k) point.p_w[k] = readLittleEndian<float>(raw + 4 * k);
+    point.red = static_cast<std::uint8_t>(raw[12]);
+    point.green = static_cast<std::uint8_t>(raw[13]);
+    point.blue = static_cast<std::uint8_t>(raw[14]);
+    point.beta = readLittleEndian<float>(raw + 15);
+  }
+  return points;
+}
+
+io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& ground_truth) {
+  io::Metrics metrics;
+  if (!ground_truth.empty()) {
+    const eval::MatchedTrajectories matched =
+        eval::associateTrajectories(ground_truth, toTumTrajectory(report.trajectory));
+    metrics.set("num_matched", static_cast<int>(matched.est.size()));
+    if (matched.est.size() >= 3) {
+      const eval::AteResult ate = eval::computeAte(matched, /*with_scale=*/false);
+      const eval::RpeResult rpe = eval::computeRpe(matched, ate.S_gt_est);
+      metrics.set("ate_rmse_m", ate.error_m.rmse);
+      metrics.set("ate_mean_m", ate.error_m.mean);
+      metrics.set("ate_median_m", ate.error_m.median);
+      metrics.set("ate_max_m", ate.error_m.max);
+      metrics.set("rpe_trans_rmse_m_s", rpe.trans_m_s.rmse);
+      metrics.set("rpe_rot_rmse_deg_s", rpe.rot_deg_s.rmse);
+      metrics.set("rpe_trans_rmse_m_frame", rpe.trans_m_frame.rmse);
+      metrics.set("rpe_rot_rmse_deg_frame", rpe.rot_deg_frame.rmse);
+    } else {
+      log::warn("metrics: only ", matched.est.size(), " poses match the ground truth; no ATE/RPE");
+    }
+  }
+  const SystemCounts& c = report.counts;
+  metrics.set("frames", c.frames);
+  metrics.set("frames_with_pose", c.frames_with_pose);
+  metrics.set("frames_tracked", c.frames_tracked);
+  metrics.set("frames_without_pose", c.frames - c.frames_with_pose);
+  metrics.set("interrupted", report.interrupted ? 1 : 0);
+  metrics.set("imu_initialised", c.imu_initialised ? 1 : 0);
+  metrics.set("maps", c.maps);
+  metrics.set("maps_created", c.maps_created);
+  metrics.set("loops", c.loops);
+  metrics.set("merges", c.merges);
+  metrics.set("keyframes", c.keyframes);
+  metrics.set("map_points", c.map_points);
+  metrics.set("wall_s", report.wall_s);
+  metrics.set("fps", report.wall_s > 0.0 ? c.frames / report.wall_s : 0.0);
+  metrics.set("peak_memory_mb", report.peak_memory_mb);
+  for (const StageTiming& stage : report.timing) {
+    const std::string key = metricKey(stage.stage);
+    metrics.set(key + "_count", static_cast<int64_t>(stage.count));
+    metrics.set(key + "_median_ms", 1e3 * stage.median_s);
+    metrics.set(key + "_p95_ms", 1e3 * stage.p95_s);
+    metrics.set(key + "_max_ms", 1e3 * stage.max_s);
+  }
+  return metrics;
+}
+
+WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
+                               const io::Trajectory& ground_truth, double min_beta) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  fs::create_directories(out_dir, error);
+  if (error) throw InputError(out_dir, 0, "cannot create the output folder: " + error.message());
+  WrittenOutputs written;
+  const std::string trajectory_path = (fs::path(out_dir) / "trajectory.txt").string();
+  writeTrajectory(trajectory_path, report.trajectory);
+  written.files.push_back(trajectory_path);
+  const std::string keyframes_path = (fs::path(out_dir) / "keyframes.txt").string();
+  writeKeyFrames(keyframes_path, report.keyframes);
+  written.files.push_back(keyframes_path);
+  const std::string ply_path = (fs::path(out_dir) / "static_map.ply").string();
+  written.static_points = writeStaticMapPly(ply_path, report.map_points, min_beta);
+  written.files.push_back(ply_path);
+  if (!ground_truth.empty()) {
+    written.metrics = computeRunMetrics(report, ground_truth);
+    written.has_metrics = true;
+    const std::string metrics_path = (fs::path(out_dir) / "metrics.json").string();
+    written.metrics.writeJson(metrics_path);
+    written.files.push_back(metrics_path);
+  }
+  return written;
+}
+
+}  // namespace ltlo::system

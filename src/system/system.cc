@@ -1,0 +1,346 @@
+#include "ltlo/system/system.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+#include "bow/vocabulary.h"
+#include "ltlo/core/assert.h"
+#include "ltlo/core/errors.h"
+#include "ltlo/core/log.h"
+#include "ltlo/loop/loop_closer.h"
+#include "ltlo/map/atlas.h"
+#include "ltlo/map/cluster_segmentation.h"
+#include "ltlo/map/keyframe.h"
+#include "ltlo/mapping/local_mapper.h"
+#include "ltlo/segmentation/depth_clustering.h"
+#include "ltlo/segmentation/static_scores.h"
+#include "ltlo/tracking/frame_builder.h"
+
+namespace ltlo::system {
+namespace {
+
+/// BGR of the image pixel nearest to each keypoint (level-0 coordinates, clamped to the image).
+std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector<features::Keypoint>& keypoints) {
+  std::vector<cv::Vec3b> colours(keypoints.size(), cv::Vec3b(128, 128, 128));
+  if (color_bgr.empty() || color_bgr.type() != CV_8UC3) return colours;
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    const int col = std::clamp(static_cast<int>(std::lround(keypoints[i].x_px)), 0, color_bgr.cols - 1);
+    const int row = std::clamp(static_cast<int>(std::lround(keypoints[i].y_px)), 0, color_bgr.rows - 1);
+    colours[i] = color_bgr.at<cv::Vec3b>(row, col);
+  }
+  return colours;
+}
+
+/// The segmentation seam: depth clusters as the frame's cluster labels, every gamma 1 (static)
+/// until the static-score estimation of the segmentation issue lands.
+map::ClusterSegmentation clusterSegmentation(const segmentation::ClusterMap& clusters) {
+  map::ClusterSegmentation seam;
+  seam.labels = clusters.labels;
+  seam.gamma = segmentation::StaticScores::allStatic(clusters.num_clusters).values();
+  return seam;
+}
+
+}  // namespace
+
+System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> vocabulary,
+               const SystemOptions& options)
+    : settings_(settings), options_(options), vocabulary_(std::move(vocabulary)) {
+  LTLO_ASSERT(vocabulary_ != nullptr && vocabulary_->numWords() > 0, "System needs a loaded vocabulary");
+  use_imu_ = options_.use_imu && settings_.calib.has_imu;
+  SensorCalib calib = settings_.calib;
+  if (!use_imu_) calib.has_imu = false;  // frames are then built without preintegration
+
+  atlas_ = std::make_unique<map::Atlas>(vocabulary_->numWords());
+  builder_ = std::make_unique<tracking::FrameBuilder>(settings_.orb, calib);
+  clustering_ = std::make_unique<segmentation::DepthClustering>(
+      segmentation::DepthClusteringOptions::from(settings_.segmentation, settings_.dense));
+  const std::vector<float> level_sigma2 = builder_->extractor().levelSigma2();
+
+  tracking::TrackerOptions tracker_options;
+  tracker_options.keyframe = settings_.keyframe;
+  tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
+  tracker_->setVocabulary(vocabulary_.get());
+  tracker_->setLocalMappingCallback(
+      [this](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { onNewKeyFrame(kf); });
+
+  mapping::LocalMapperOptions mapper_options;
+  mapper_options.local_mapping = settings_.local_mapping;
+  mapper_options.imu_init = settings_.imu_init;
+  mapper_options.use_imu = use_imu_;
+  mapper_options.bf_px_m = tracker_options.bf_px_m;
+  mapper_ = std::make_unique<mapping::LocalMapper>(*atlas_, mapper_options, level_sigma2, &timing_);
+
+  loop::LoopCloserOptions closer_options;
+  closer_options.loop = settings_.loop;
+  // The same RGB-D edge weighting as tracking and local BA: bf = fx * baseline.
+  closer_options.virtual_baseline_m = tracker_options.bf_px_m / calib.camera.camera.fx();
+  loop::MappingControl mapping_control{[this] { mapper_->pause(); }, [this] { mapper_->resume(); }};
+  closer_ = std::make_unique<loop::LoopCloser>(*atlas_, closer_options, std::move(mapping_control), &timing_);
+
+  if (options_.threaded) {
+    mapper_->setKeyFrameProcessedCallback([this](const std::shared_ptr<map::KeyFrame>& kf) {
+      if (!loop_stopped_.load()) closer_->insertKeyFrame(kf);
+    });
+    // Started downstream first, so every receiver runs before anything is sent to it.
+    loop_thread_ = std::thread([this] {
+      log::setThreadName("loop");
+      closer_->run();
+      loop_stopped_.store(true);
+      if (!finishing_.load()) log::error("loop closing stopped before shutdown (see the error above)");
+    });
+    mapping_thread_ = std::thread([this] {
+      log::setThreadName("mapping");
+      mapper_->run();
+      mapping_stopped_.store(true);
+      if (!finishing_.load()) log::error("local mapping stopped before shutdown (see the error above)");
+    });
+  }
+  log::info("system: ", options_.threaded ? "threaded" : "synchronous", ", ",
+            use_imu_ ? "RGB-D-inertial" : "RGB-D only", ", vocabulary of ", vocabulary_->numWords(), " words");
+}
+
+System::~System() {
+  try {
+    shutdown();
+  } catch (const std::exception& e) {
+    log::error("system shutdown: ", e.what());
+  }
+}
+
+void System::checkWorkers() const {
+  if (!options_.threaded || finishing_.load()) return;
+  if (mapping_stopped_.load()) throw SystemError("the local-mapping thread stopped on an error");
+  if (loop_stopped_.load()) throw SystemError("the loop-closing thread stopped on an error");
+}
+
+void System::pollImuState() {
+  if (!use_imu_) return;
+  const mapping::ImuState imu = mapper_->imuState();
+  if (!imu.initialised || imu.generation == imu_generation_) return;
+  if (!tracker_->imuInitialised()) {
+    log::info("IMU initialised: b_g = ", imu.bias.b_g.transpose(), ", b_a = ", imu.bias.b_a.transpose(),
+              ", g_w = ", imu.g_w.transpose());
+  }
+  tracker_->setImuInitialised(imu.bias, imu.g_w);
+  imu_generation_ = imu.generation;
+}
+
+void System::onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) {
+  if (current_input_ != nullptr) {
+    std::vector<cv::Vec3b> colours = sampleColours(current_input_->color_bgr, kf->keypoints());
+    std::lock_guard<std::mutex> lock(records_mutex_);
+    colours_[kf->id().value] = std::move(colours);
+  }
+  if (!options_.threaded) {
+    pending_keyframes_.push_back(kf);
+  } else if (!mapping_stopped_.load()) {
+    mapper_->insertKeyFrame(kf);
+  }
+}
+
+void System::processPendingKeyFrames() {
+  while (!pending_keyframes_.empty()) {
+    std::vector<std::shared_ptr<map::KeyFrame>> keyframes = std::move(pending_keyframes_);
+    pending_keyframes_.clear();
+    for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) {
+      mapper_->processKeyFrame(kf);
+      if (!kf->isBad()) closer_->processKeyFrame(kf);
+    }
+  }
+}
+
+tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
+  if (shut_down_) throw std::logic_error("System::trackFrame after shutdown()");
+  checkWorkers();
+  ScopedTimer frame_timer(timing_, "tracking.frame");
+  pollImuState();
+
+  map::Frame frame = [&] {
+    ScopedTimer timer(timing_, "tracking.orb");
+    return builder_->build(input, tracker_->bias());
+  }();
+  if (!input.depth_m.empty()) {
+    ScopedTimer timer(timing_, "tracking.segmentation");
+    const segmentation::ClusterMap clusters = clustering_->cluster(input.depth_m, builder_->calib().camera.camera);
+    frame.setSegmentation(clusterSegmentation(clusters), settings_.segmentation.static_threshold);
+  }
+  {
+    ScopedTimer timer(timing_, "tracking.bow");
+    frame.computeBow(*vocabulary_);
+  }
+
+  tracking::TrackingState state = tracking::TrackingState::kNotInitialised;
+  {
+    ScopedTimer timer(timing_, "tracking.track");
+    current_input_ = &input;
+    try {
+      state = tracker_->track(frame);
+    } catch (...) {
+      current_input_ = nullptr;
+      throw;
+    }
+    current_input_ = nullptr;
+  }
+
+  ++frames_;
+  if (frame.hasPose()) {
+    FrameRecord record;
+    record.t_s = input.t_s;
+    record.tracked = tracker_->frameTracked();
+    const SE3 T_w_c = frame.T_w_c();
+    if (std::shared_ptr<map::KeyFrame> reference = tracker_->referenceKeyFramePtr()) {
+      record.T_refb_c = map::latestPose_T_w_b(*reference).inverse() * T_w_c;
+      record.reference = std::move(reference);
+    } else {
+      record.T_w_c = T_w_c;
+    }
+    if (record.tracked) ++frames_tracked_;
+    std::lock_guard<std::mutex> lock(records_mutex_);
+    records_.push_back(std::move(record));
+  }
+  frame_timer.stop();
+
+  if (!options_.threaded) {
+    processPendingKeyFrames();
+    pollImuState();
+  }
+  return state;
+}
+
+void System::shutdown() {
+  if (shut_down_) return;
+  shut_down_ = true;
+  finishing_.store(true);
+  if (options_.threaded) {
+    mapper_->requestFinish();
+    if (mapping_thread_.joinable()) mapping_thread_.join();
+    closer_->requestFinish();
+    if (loop_thread_.joinable()) loop_thread_.join();
+  } else {
+    closer_->waitForGlobalBa();
+  }
+  log::info("system shut down: ", frames_, " frames, ", closer_->numLoops(), " loops, ", closer_->numMerges(),
+            " merges, ", atlas_->numMaps(), " map(s)");
+}
+
+std::vector<FramePose> System::trajectory() const {
+  std::vector<FrameRecord> records;
+  {
+    std::lock_guard<std::mutex> lock(records_mutex_);
+    records = records_;
+  }
+  // Keyframe poses are read outside records_mutex_ (it is a leaf lock).
+  std::vector<FramePose> poses;
+  poses.reserve(records.size());
+  for (const FrameRecord& record : records) {
+    FramePose pose;
+    pose.t_s = record.t_s;
+    pose.tracked = record.tracked;
+    if (record.reference) {
+      pose.T_w_c = map::latestPose_T_w_b(*record.reference) * record.T_refb_c;
+      pose.map = record.reference->mapId();
+    } else {
+      pose.T_w_c = record.T_w_c;
+    }
+    poses.push_back(pose);
+  }
+  return poses;
+}
+
+std::vector<KeyFrameRecord> System::keyFrames() const {
+  std::vector<KeyFrameRecord> keyframes;
+  for (const map::MapId map_id : atlas_->mapIds()) {
+    const map::Map* map = atlas_->map(map_id);
+    if (map == nullptr) continue;
+    for (const std::shared_ptr<map::KeyFrame>& kf : map->keyFrames()) {
+      if (kf->isBad()) continue;
+      KeyFrameRecord record;
+      record.t_s = kf->t_s();
+      record.T_w_c = kf->T_w_c();
+      record.id = kf->id().value;
+      record.map = kf->mapId().value;
+      record.static_area_ratio = kf->staticAreaRatio();
+      keyframes.push_back(record);
+    }
+  }
+  std::sort(keyframes.begin(), keyframes.end(),
+            [](const KeyFrameRecord& a, const KeyFrameRecord& b) { return a.t_s < b.t_s; });
+  return keyframes;
+}
+
+std::vector<MapPointRecord> System::mapPoints() const {
+  struct PointSource {
+    MapPointRecord record;
+    std::vector<std::pair<std::uint64_t, int>> observations;  // reference keyframe first
+  };
+  std::vector<PointSource> sources;
+  for (const std::shared_ptr<map::MapPoint>& point : atlas_->activeMap().mapPoints()) {
+    if (point->isBad()) continue;
+    PointSource source;
+    source.record.p_w = point->p_w();
+    source.record.beta = point->beta();
+    const map::KeyFrameId reference = point->referenceKeyFrame();
+    if (const std::optional<int> index = point->indexIn(reference)) {
+      source.observations.emplace_back(reference.value, *index);
+    }
+    for (const auto& [kf, index] : point->observations()) source.observations.emplace_back(kf.value, index);
+    sources.push_back(std::move(source));
+  }
+  std::vector<MapPointRecord> points;
+  points.reserve(sources.size());
+  std::lock_guard<std::mutex> lock(records_mutex_);
+  for (PointSource& source : sources) {
+    for (const auto& [kf, index] : source.observations) {
+      const auto found = colours_.find(kf);
+      if (found == colours_.end() || index < 0 || index >= static_cast<int>(found->second.size())) continue;
+      const cv::Vec3b bgr = found->second[static_cast<std::size_t>(index)];
+      source.record.blue = bgr[0];
+      source.record.green = bgr[1];
+      source.record.red = bgr[2];
+      break;
+    }
+    points.push_back(source.record);
+  }
+  return points;
+}
+
+SystemCounts System::counts() const {
+  SystemCounts counts;
+  counts.frames = frames_;
+  {
+    std::lock_guard<std::mutex> lock(records_mutex_);
+    counts.frames_with_pose = static_cast<int>(records_.size());
+  }
+  counts.frames_tracked = frames_tracked_;
+  const std::vector<map::MapId> map_ids = atlas_->mapIds();
+  counts.maps = static_cast<int>(map_ids.size());
+  counts.maps_created = tracker_->numMapsCreated();
+  counts.loops = closer_->numLoops();
+  counts.merges = closer_->numMerges();
+  for (const map::MapId map_id : map_ids) {
+    if (const map::Map* map = atlas_->map(map_id)) {
+      counts.keyframes += static_cast<int>(map->numKeyFrames());
+      counts.map_points += static_cast<int>(map->numMapPoints());
+    }
+  }
+  counts.imu_initialised = tracker_->imuInitialised();
+  return counts;
+}
+
+RunReport System::report(double wall_s) const {
+  RunReport report;
+  report.trajectory = trajectory();
+  report.keyframes = keyFrames();
+  report.map_points = mapPoints();
+  report.counts = counts();
+  report.timing = timing_.stages();
+  report.wall_s = wall_s;
+  report.peak_memory_mb = peakMemoryMb();
+  return report;
+}
+
+tracking::TrackingState System::state() const { return tracker_->state(); }
+
+}  // namespace ltlo::system

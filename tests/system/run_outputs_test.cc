@@ -1,0 +1,204 @@
+// Run outputs (issue 6): trajectory.txt, keyframes.txt and static_map.ply round-trip their
+// writers, the PLY keeps only points with beta >= the threshold, metrics.json carries ATE against
+// ground truth and the run's counts and timing, and bad files are rejected with the file named.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "ltlo/core/errors.h"
+#include "ltlo/io/trajectory_io.h"
+#include "ltlo/system/run_outputs.h"
+
+namespace ltlo::system {
+namespace {
+
+namespace fs = std::filesystem;
+
+class RunOutputs : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("ltlo_run_outputs_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  fs::path dir_;
+};
+
+SE3 randomPose(std::mt19937& rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  return SE3(so3ExpQuat(Vec3(normal(rng), normal(rng), normal(rng))), Vec3(normal(rng), normal(rng), normal(rng)));
+}
+
+TEST_F(RunOutputs, KeyFramesRoundTrip) {
+  std::mt19937 rng(3);
+  std::vector<KeyFrameRecord> keyframes;
+  for (int i = 0; i < 20; ++i) {
+    KeyFrameRecord kf;
+    kf.t_s = 1.0 + 0.1 * i;
+    kf.T_w_c = randomPose(rng);
+    kf.id = static_cast<std::uint64_t>(3 * i + 1);
+    kf.map = static_cast<std::uint64_t>(i / 7);
+    kf.static_area_ratio = 0.05 * i;
+    keyframes.push_back(kf);
+  }
+  writeKeyFrames(path("keyframes.txt"), keyframes);
+  std::ifstream in(path("keyframes.txt"));
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "# t tx ty tz qx qy qz qw id map static_area_ratio");
+
+  const std::vector<KeyFrameRecord> read = readKeyFrames(path("keyframes.txt"));
+  ASSERT_EQ(read.size(), keyframes.size());
+  for (std::size_t i = 0; i < read.size(); ++i) {
+    EXPECT_NEAR(read[i].t_s, keyframes[i].t_s, 1e-9);
+    EXPECT_LT((read[i].T_w_c.translation() - keyframes[i].T_w_c.translation()).norm(), 1e-12);
+    EXPECT_LT(read[i].T_w_c.quaternion().angularDistance(keyframes[i].T_w_c.quaternion()), 1e-12);
+    EXPECT_EQ(read[i].id, keyframes[i].id);
+    EXPECT_EQ(read[i].map, keyframes[i].map);
+    EXPECT_DOUBLE_EQ(read[i].static_area_ratio, keyframes[i].static_area_ratio);
+  }
+}
+
+TEST_F(RunOutputs, KeyFramesReaderNamesTheBadLine) {
+  {
+    std::ofstream out(path("bad.txt"));
+    out << "# t tx ty tz qx qy qz qw id map static_area_ratio\n";
+    out << "1.0 0 0 0 0 0 0 1 4 0 1.0\n";
+    out << "1.1 0 0 0 0 0 0 1 five 0 1.0\n";
+  }
+  try {
+    readKeyFrames(path("bad.txt"));
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.txt:3:"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(RunOutputs, StaticMapPlyRoundTripKeepsStaticPointsOnly) {
+  std::vector<MapPointRecord> points;
+  for (int i = 0; i < 50; ++i) {
+    MapPointRecord point;
+    point.p_w = Vec3(0.25 * i, -0.5 * i, 1.0 + 0.125 * i);  // exact in float
+    point.red = static_cast<std::uint8_t>(5 * i);
+    point.green = static_cast<std::uint8_t>(255 - 5 * i);
+    point.blue = static_cast<std::uint8_t>(i);
+    point.beta = (i % 5 == 0) ? 0.25 : 0.75;  // every fifth point dynamic
+    points.push_back(point);
+  }
+  EXPECT_EQ(writeStaticMapPly(path("map.ply"), points, 0.5), 40);
+  const std::vector<MapPointRecord> read = readStaticMapPly(path("map.ply"));
+  ASSERT_EQ(read.size(), 40u);
+  std::size_t k = 0;
+  for (const MapPointRecord& point : points) {
+    if (point.beta < 0.5) continue;
+    EXPECT_EQ(read[k].p_w, point.p_w);
+    EXPECT_EQ(read[k].red, point.red);
+    EXPECT_EQ(read[k].green, point.green);
+    EXPECT_EQ(read[k].blue, point.blue);
+    EXPECT_DOUBLE_EQ(read[k].beta, point.beta);
+    ++k;
+  }
+  // An ASCII header is readable by any PLY viewer; the first line says what it is.
+  std::ifstream in(path("map.ply"));
+  std::string first, second;
+  std::getline(in, first);
+  std::getline(in, second);
+  EXPECT_EQ(first, "ply");
+  EXPECT_EQ(second, "format binary_little_endian 1.0");
+}
+
+TEST_F(RunOutputs, TruncatedPlyIsRejected) {
+  std::vector<MapPointRecord> points(3);
+  writeStaticMapPly(path("map.ply"), points, 0.0);
+  fs::resize_file(path("map.ply"), fs::file_size(path("map.ply")) - 5);
+  EXPECT_THROW(readStaticMapPly(path("map.ply")), InputError);
+}
+
+/// A run report whose trajectory is the ground truth moved by a fixed offset plus a known error
+/// on every other frame.
+RunReport syntheticReport(const io::Trajectory& ground_truth, double error_m) {
+  RunReport report;
+  const SE3 T_est_gt(so3ExpQuat(Vec3(0.0, 0.0, 0.3)), Vec3(1.0, 2.0, 0.5));
+  for (std::size_t i = 0; i < ground_truth.size(); ++i) {
+    FramePose pose;
+    pose.t_s = ground_truth[i].t_s;
+    const Vec3 error = (i % 2 == 0 ? 1.0 : -1.0) * error_m * Vec3::UnitX();
+    pose.T_w_c = T_est_gt * SE3(ground_truth[i].T_w_x.quaternion(), ground_truth[i].T_w_x.translation() + error);
+    pose.tracked = true;
+    report.trajectory.push_back(pose);
+  }
+  report.counts.frames = static_cast<int>(ground_truth.size()) + 2;
+  report.counts.frames_with_pose = static_cast<int>(ground_truth.size());
+  report.counts.frames_tracked = static_cast<int>(ground_truth.size()) - 1;
+  report.counts.maps = 1;
+  report.counts.loops = 2;
+  report.counts.keyframes = 7;
+  report.counts.map_points = 900;
+  report.timing = {StageTiming{"tracking.frame", 10, 0.2, 0.02, 0.018, 0.03, 0.04}};
+  report.wall_s = 2.0;
+  report.peak_memory_mb = 123.0;
+  return report;
+}
+
+io::Trajectory circleGroundTruth(int n) {
+  io::Trajectory gt;
+  for (int i = 0; i < n; ++i) {
+    const double a = 0.1 * i;
+    gt.push_back({0.1 * i, SE3(so3ExpQuat(Vec3(0.0, 0.0, a)), Vec3(std::cos(a), std::sin(a), 0.1 * std::sin(3 * a)))});
+  }
+  return gt;
+}
+
+TEST_F(RunOutputs, MetricsCarryAteCountsAndTiming) {
+  const io::Trajectory gt = circleGroundTruth(40);
+  const RunReport report = syntheticReport(gt, 0.01);
+  const io::Metrics metrics = computeRunMetrics(report, gt);
+  // Alternating +-1 cm along one axis: after the best rigid alignment the rmse stays ~1 cm.
+  EXPECT_NEAR(metrics.number("ate_rmse_m"), 0.01, 1e-3);
+  EXPECT_NEAR(metrics.number("ate_max_m"), 0.01, 2e-3);
+  EXPECT_EQ(metrics.number("num_matched"), 40);
+  EXPECT_EQ(metrics.number("frames"), 42);
+  EXPECT_EQ(metrics.number("frames_with_pose"), 40);
+  EXPECT_EQ(metrics.number("frames_without_pose"), 2);
+  EXPECT_EQ(metrics.number("frames_tracked"), 39);
+  EXPECT_EQ(metrics.number("loops"), 2);
+  EXPECT_EQ(metrics.number("keyframes"), 7);
+  EXPECT_EQ(metrics.number("map_points"), 900);
+  EXPECT_NEAR(metrics.number("fps"), 21.0, 1e-12);
+  EXPECT_NEAR(metrics.number("tracking_frame_median_ms"), 18.0, 1e-9);
+  EXPECT_NEAR(metrics.number("tracking_frame_p95_ms"), 30.0, 1e-9);
+  EXPECT_NEAR(metrics.number("peak_memory_mb"), 123.0, 1e-12);
+}
+
+TEST_F(RunOutputs, WriteRunOutputsWritesEveryFileAndTheTrajectoryReadsBack) {
+  const io::Trajectory gt = circleGroundTruth(30);
+  RunReport report = syntheticReport(gt, 0.0);
+  report.keyframes.push_back(KeyFrameRecord{0.0, SE3(), 0, 0, 1.0});
+  report.map_points.resize(4);
+  const WrittenOutputs written = writeRunOutputs(path("run"), report, gt, 0.5);
+  ASSERT_EQ(written.files.size(), 4u);
+  for (const std::string& file : written.files) EXPECT_TRUE(fs::is_regular_file(file)) << file;
+  EXPECT_TRUE(written.has_metrics);
+  EXPECT_LT(written.metrics.number("ate_rmse_m"), 1e-9);
+  EXPECT_EQ(written.static_points, 4);
+  const io::Trajectory trajectory = io::readTumTrajectory(path("run/trajectory.txt"));
+  ASSERT_EQ(trajectory.size(), gt.size());
+  EXPECT_LT((trajectory[5].T_w_x.translation() - report.trajectory[5].T_w_c.translation()).norm(), 1e-12);
+
+  // Without ground truth there is no metrics.json.
+  const WrittenOutputs without = writeRunOutputs(path("run2"), report, io::Trajectory(), 0.5);
+  EXPECT_EQ(without.files.size(), 3u);
+  EXPECT_FALSE(fs::exists(path("run2/metrics.json")));
+}
+
+TEST(PeakMemory, IsPositive) { EXPECT_GT(peakMemoryMb(), 1.0); }
+
+}  // namespace
+}  // namespace ltlo::system
