@@ -161,7 +161,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     ScopedTimer timer(timing_, "tracking.orb");
     return builder_->build(input, tracker_->bias());
   }();
-  if (!input.depth_m.empty()) {
+  if (options_.segment_depth && !input.depth_m.empty()) {
     ScopedTimer timer(timing_, "tracking.segmentation");
     const segmentation::ClusterMap clusters = clustering_->cluster(input.depth_m, builder_->calib().camera.camera);
     frame.setSegmentation(clusterSegmentation(clusters), settings_.segmentation.static_threshold);
