@@ -154,6 +154,15 @@ void System::processPendingKeyFrames() {
 tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   if (shut_down_) throw std::logic_error("System::trackFrame after shutdown()");
   checkWorkers();
+  const PinholeCamera& camera = builder_->calib().camera.camera;
+  for (const cv::Mat* image : {&input.color_bgr, &input.depth_m}) {
+    if (!image->empty() && (image->cols != camera.width() || image->rows != camera.height())) {
+      throw InputError(image == &input.color_bgr ? input.color_path : input.depth_path, 0,
+                       "image is " + std::to_string(image->cols) + "x" + std::to_string(image->rows) +
+                           " but the calibration says " + std::to_string(camera.width()) + "x" +
+                           std::to_string(camera.height()));
+    }
+  }
   ScopedTimer frame_timer(timing_, "tracking.frame");
   pollImuState();
 

@@ -13,6 +13,7 @@
 #include <memory>
 
 #include "bow/vocabulary.h"
+#include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/eval/trajectory_metrics.h"
@@ -195,6 +196,24 @@ TEST_F(SystemEndToEnd, LongTermOcclusionRunsWithAPoseForEveryFrame) {
   EXPECT_GE(result.counts.frames_with_pose, result.frames - 15);
   EXPECT_EQ(static_cast<int>(result.trajectory.size()), result.counts.frames_with_pose);
   EXPECT_LT(result.ate_rmse_m, 0.5);  // no dynamic segmentation yet: only a sanity bound
+}
+
+TEST_F(SystemEndToEnd, FrameOfTheWrongSizeIsBadInput) {
+  const std::string dir = sequence(sim::Scenario::kStatic, kStaticSeconds, kStaticSeed);
+  System system(settingsFor(dir), *vocabulary_, SystemOptions{true, false, false});
+  io::RgbdImuFrame input;
+  input.color_bgr = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
+  input.depth_m = cv::Mat(480, 640, CV_32F, cv::Scalar(0.0f));
+  input.color_path = "rgb/0.000000.png";
+  try {
+    system.trackFrame(input);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("rgb/0.000000.png: image is 640x480 but the calibration says 320x240"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(system.counts().frames, 0);
 }
 
 }  // namespace

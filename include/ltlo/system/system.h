@@ -97,7 +97,8 @@ class System {
   /// Calls shutdown().
   ~System();
 
-  /// Tracks one frame (caller's thread). Throws SystemError when a mapping or loop thread has
+  /// Tracks one frame (caller's thread). Throws InputError when the images do not have the
+  /// calibration's size, SystemError when a mapping or loop thread has
   /// stopped on an error (the log names it), std::logic_error after shutdown().
   tracking::TrackingState trackFrame(const io::RgbdImuFrame& input);
 
