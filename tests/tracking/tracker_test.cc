@@ -10,6 +10,7 @@
 #include "ltlo/eval/trajectory_metrics.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/io/sequence_reader.h"
+#include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
 #include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/sim/simulator.h"
@@ -55,8 +56,8 @@ class TrackerOnSimulatedSequence : public ::testing::Test {
   static RunResult run(const Tracker::LocalMappingCallback& callback) {
     io::SequenceReader reader = io::SequenceReader::open(dir_->string());
     const FrameBuilder builder(orbOptions(), reader.calib());
-    map::Map map;
-    Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+    map::Atlas atlas(1);
+    Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
     tracker.setLocalMappingCallback(callback);
     RunResult result;
     io::Trajectory estimate;
@@ -123,8 +124,9 @@ TEST_F(TrackerOnSimulatedSequence, VisualOdometryTracksEveryFrameWithinCentimetr
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   ASSERT_TRUE(reader.hasGroundTruth());
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  map::Map& map = atlas.activeMap();
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   int callbacks = 0;
   tracker.setLocalMappingCallback([&](map::Map& m, const std::shared_ptr<map::KeyFrame>& kf) {
     ++callbacks;
@@ -185,8 +187,9 @@ TEST_F(TrackerOnSimulatedSequence, ImuHookPredictsWithPreintegrationAfterInitial
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   ASSERT_TRUE(reader.calib().has_imu);
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  map::Map& map = atlas.activeMap();
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   io::Trajectory estimate;
   int frames = 0, ok = 0, imu_frames = 0;
   while (auto input = reader.next()) {
@@ -215,8 +218,9 @@ TEST_F(TrackerOnSimulatedSequence, ImuHookPredictsWithPreintegrationAfterInitial
 TEST_F(TrackerOnSimulatedSequence, BlackFramesMakeTheTrackerLostWithoutCrashing) {
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  map::Map& map = atlas.activeMap();
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   std::vector<TrackingState> states;
   for (int k = 0; k < 20; ++k) {
     auto input = reader.next();
@@ -238,8 +242,9 @@ TEST_F(TrackerOnSimulatedSequence, BlackFramesMakeTheTrackerLostWithoutCrashing)
 TEST_F(TrackerOnSimulatedSequence, FramesWithoutDepthTrackOnTwoDimensionalMatches) {
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  map::Map& map = atlas.activeMap();
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   std::vector<TrackingState> states;
   int keyframes_at_gap = 0;
   for (int k = 0; k < 25; ++k) {
@@ -268,8 +273,9 @@ TEST(Tracker, BlackFirstFrameDoesNotInitialise) {
   input.depth_m = cv::Mat(240, 320, CV_32F, cv::Scalar(1.0f));
   map::Frame frame = builder.build(input);
   EXPECT_EQ(frame.numKeypoints(), 0);
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  map::Map& map = atlas.activeMap();
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   EXPECT_EQ(tracker.track(frame), TrackingState::kNotInitialised);
   EXPECT_EQ(map.numKeyFrames(), 0u);
 }
