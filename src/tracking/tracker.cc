@@ -292,6 +292,36 @@ TrackingState Tracker::initialise(map::Frame& frame) {
 }
 
 SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
+  if (imu_initialised_ && frame.imu_from_last_frame && state_ == TrackingState::kOk && last_kf_ptr_ &&
+      !last_kf_ptr_->isBad() && imu_since_keyframe_) {
+    // Map updated: when local mapping (or a correction) changed the last keyframe's pose, velocity
+    // or bias, predict from the keyframe with the preintegration since it (which includes this
+    // frame's samples) -- the keyframe's state is better than the last frame's.
+    const SE3 T_w_b_kf = last_kf_ptr_->T_w_b();
+    const Vec3 v_w_b_kf = last_kf_ptr_->v_w_b();
+    const imu::ImuBias bias_kf = last_kf_ptr_->bias();
+    const bool bias_changed = (bias_kf.b_a - last_kf_bias_seen_.b_a).norm() > 0.0 ||
+                              (bias_kf.b_g - last_kf_bias_seen_.b_g).norm() > 0.0;
+    const bool updated = (T_w_b_kf.translation() - last_kf_T_w_b_seen_.translation()).norm() > 0.0 ||
+                         (T_w_b_kf.quaternion().coeffs() - last_kf_T_w_b_seen_.quaternion().coeffs()).norm() > 0.0 ||
+                         (v_w_b_kf - last_kf_v_w_b_seen_).norm() > 0.0 || bias_changed;
+    if (updated) {
+      last_kf_T_w_b_seen_ = T_w_b_kf;
+      last_kf_v_w_b_seen_ = v_w_b_kf;
+      last_kf_bias_seen_ = bias_kf;
+      if (bias_changed) bias_ = bias_kf;
+      imu::NavState state_kf;
+      state_kf.R_w_b = T_w_b_kf.rotationMatrix();
+      state_kf.p_w_b = T_w_b_kf.translation();
+      state_kf.v_w_b = v_w_b_kf;
+      const imu::NavState state_j = imu::predict(state_kf, *imu_since_keyframe_, bias_, g_w_);
+      frame.setVelocity(state_j.v_w_b);
+      frame.setBias(bias_);
+      stats_.used_imu = true;
+      stats_.imu_from_keyframe = true;
+      return SE3(Quat(normalizeRotation(state_j.R_w_b)), state_j.p_w_b);
+    }
+  }
   if (imu_initialised_ && frame.imu_from_last_frame) {
     // Preintegration from the previous frame's state (tracked or predicted), Forster et al. (2017)
     // eq. 26-28 through imu::predict.
@@ -424,7 +454,13 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
     frame.setBias(result.bias);
   } else if (last_frame_) {
     const double dt_s = frame.t_s() - last_frame_->t_s();
-    if (dt_s > 0.0) frame.setVelocity((result.T_w_b.translation() - last_frame_->T_w_b().translation()) / dt_s);
+    if (dt_s > 0.0) {
+      const Vec3 v_difference = (result.T_w_b.translation() - last_frame_->T_w_b().translation()) / dt_s;
+      // With the IMU predicting, frame.v_w_b() holds the preintegrated velocity: a complementary
+      // filter keeps it and corrects it slowly towards the (noisy, 0.1-0.3 m/s) finite difference.
+      frame.setVelocity(stats_.used_imu ? frame.v_w_b() + options_.velocity_gain * (v_difference - frame.v_w_b())
+                                        : v_difference);
+    }
   }
   int inliers = 0;
   for (std::size_t k = 0; k < index.size(); ++k) {
@@ -618,6 +654,10 @@ std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {
   }
   imu_since_keyframe_.reset();
   last_kf_ = kf->id();
+  last_kf_ptr_ = kf;
+  last_kf_T_w_b_seen_ = kf->T_w_b();
+  last_kf_v_w_b_seen_ = kf->v_w_b();
+  last_kf_bias_seen_ = kf->bias();
   reference_kf_ = kf->id();
   reference_kf_ptr_ = kf;
   frame.reference_keyframe = kf->id();

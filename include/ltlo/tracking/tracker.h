@@ -75,6 +75,11 @@ struct TrackerOptions {
   /// drifted to 0.24 m ATE. It needs velocities from VI bundle adjustment (mapping) or a prior on the
   /// previous state. Off, the IMU predicts the pose and seeds the search only.
   bool inertial_pose_optimisation = false;
+  /// Without inertial_pose_optimisation, an IMU-predicted frame's velocity is the predicted one
+  /// corrected by this share of (finite difference of the optimised positions - predicted): a
+  /// complementary filter (1: the plain finite difference). It sets the velocity the IMU
+  /// prediction starts from, e.g. over a blackout.
+  double velocity_gain = 0.1;
 
   // ---- tracking loss ----
   /// While lost, the constant-velocity model keeps predicting for this long after the last tracked
@@ -97,6 +102,8 @@ struct TrackingStats {
   int inliers = 0;             ///< pose inliers after the local-map step
   double overlap = 0.0;        ///< share of the reference keyframe's points tracked
   bool used_imu = false;       ///< the IMU predicted the pose
+  /// the IMU prediction started from the last keyframe (local mapping had updated its state)
+  bool imu_from_keyframe = false;
   bool relocalised = false;    ///< the frame was relocalised (BoW + RANSAC)
   bool new_map = false;        ///< the frame started a new map
   bool map_refreshed = false;  ///< the last frame's pose was re-derived (map version / active map)
@@ -197,6 +204,13 @@ class Tracker {
   map::KeyFrameId reference_kf_;
   std::shared_ptr<map::KeyFrame> reference_kf_ptr_;
   map::KeyFrameId last_kf_;
+  std::shared_ptr<map::KeyFrame> last_kf_ptr_;
+  /// The last keyframe's state as the tracker last saw it: a difference means local mapping (or a
+  /// correction) updated it, and the IMU then predicts from the keyframe (ORB-SLAM3's map-updated
+  /// prediction) instead of the last frame.
+  SE3 last_kf_T_w_b_seen_;
+  Vec3 last_kf_v_w_b_seen_ = Vec3::Zero();
+  imu::ImuBias last_kf_bias_seen_;
   bool frame_tracked_ = false;
   int maps_created_ = 0;
   // Map-change detection: the active map and its version seen by the last frame.
