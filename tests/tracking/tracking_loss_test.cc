@@ -53,15 +53,22 @@ class TrackingLoss : public ::testing::Test {
     while (auto input = reader.next()) inputs_->push_back(*input);
     ground_truth_ = new io::Trajectory(reader.groundTruth());
     fs::remove_all(dir);
-    const char* root = std::getenv("LTLO_SOURCE_DIR");
-    const std::string path = std::string(root ? root : ".") + "/Vocabulary/ltlo_orb_k10_L5.bin";
-    if (fs::exists(path)) vocabulary_ = new bow::Vocabulary(bow::Vocabulary::load(path));
+  }
+  /// The shipped vocabulary, loaded on first use (nullptr when not found).
+  static const bow::Vocabulary* vocabulary() {
+    if (vocabulary_ == nullptr) {
+      const char* root = std::getenv("LTLO_SOURCE_DIR");
+      const std::string path = std::string(root ? root : ".") + "/Vocabulary/ltlo_orb_k10_L5.bin";
+      if (fs::exists(path)) vocabulary_ = new bow::Vocabulary(bow::Vocabulary::load(path));
+    }
+    return vocabulary_;
   }
   static void TearDownTestSuite() {
     delete calib_;
     delete inputs_;
     delete ground_truth_;
     delete vocabulary_;
+    vocabulary_ = nullptr;
   }
   static FrameBuilder builder() {
     OrbOptions orb;
@@ -116,7 +123,7 @@ struct TrackerRun {
 class TrackingLossRuns : public TrackingLoss {
  protected:
   std::unique_ptr<TrackerRun> makeRun(bool with_vocabulary, const TrackerOptions& options = TrackerOptions()) {
-    const bool use = with_vocabulary && vocabulary_ != nullptr;
+    const bool use = with_vocabulary && vocabulary() != nullptr;
     auto run = std::make_unique<TrackerRun>(use ? vocabulary_->numWords() : 1);
     run->tracker = std::make_unique<Tracker>(run->atlas, options, builder_.extractor().levelSigma2());
     if (use) {
@@ -249,7 +256,7 @@ TEST_F(TrackingLossRuns, AfterBlackFramesWithoutPredictionANewMapStartsAtThePred
 }
 
 TEST_F(TrackingLossRuns, AfterBlackFramesWithoutPredictionRelocalisationFindsTheOldMap) {
-  if (vocabulary_ == nullptr) GTEST_SKIP() << "needs Vocabulary/ltlo_orb_k10_L5.bin (LTLO_SOURCE_DIR)";
+  if (vocabulary() == nullptr) GTEST_SKIP() << "needs Vocabulary/ltlo_orb_k10_L5.bin (LTLO_SOURCE_DIR)";
   TrackerOptions options;
   options.max_prediction_s = 0.0;
   std::unique_ptr<TrackerRun> run = makeRun(true, options);
@@ -347,14 +354,15 @@ TEST_F(TrackingLossRuns, FramesWithoutDepthForOneAndAHalfSecondsEachGetAPose) {
 }
 
 TEST_F(TrackingLossRuns, LostFrameAtAMappedPlaceRelocalisesWithinTwoCentimetres) {
-  if (vocabulary_ == nullptr) GTEST_SKIP() << "needs Vocabulary/ltlo_orb_k10_L5.bin (LTLO_SOURCE_DIR)";
+  if (vocabulary() == nullptr) GTEST_SKIP() << "needs Vocabulary/ltlo_orb_k10_L5.bin (LTLO_SOURCE_DIR)";
   std::unique_ptr<TrackerRun> run = makeRun(true);
   constexpr int kTracked = 60;
   for (int k = 0; k < kTracked; ++k) ASSERT_TRUE(step(*run, k).tracked) << "frame " << k;
   std::printf("database: %zu keyframes\n", run->atlas.keyFrameDatabase().size());
-  // Revisits of places mapped earlier (frames 10 and 5: 1.6-1.8 s, ~0.8 m back along the path),
-  // then forward again (frame 55 after frame 10); none of them is a keyframe.
-  for (const int revisit : {10, 55, 5}) {
+  // A revisit of a place mapped 1.6 s earlier (frame 10, ~0.8 m back along the path), then forward
+  // again (frame 55 after frame 10); neither is a keyframe. (Frame 5 after frame 55 is found by the
+  // motion model's wide windows from the held pose, so it is not a relocalisation test.)
+  for (const int revisit : {10, 55}) {
     run->tracker->forceLost();
     const FrameRecord r = step(*run, revisit);
     const double error_m = translationError_m(r.T_w_c, groundTruth(revisit));
