@@ -380,6 +380,10 @@ TEST_F(TrackingLossRuns, MapMergeAndCorrectionBetweenFramesMoveTheTrackerIntoThe
   std::unique_ptr<TrackerRun> run = makeRun(false);
   map::Atlas& atlas = run->atlas;
   for (int k = 0; k < 40; ++k) ASSERT_TRUE(step(*run, k).tracked) << "frame " << k;
+  // System's bookkeeping of frame 39: its reference keyframe and the pose relative to it.
+  const std::shared_ptr<map::KeyFrame> ref_39 = run->tracker->referenceKeyFramePtr();
+  ASSERT_NE(ref_39, nullptr);
+  const SE3 T_refb_c_39 = ref_39->T_w_b().inverse() * run->records.back().T_w_c;
 
   // 1. Merge of the active map into another with a known T_target_source (the loop closer's
   //    Atlas::mergeMaps): the target becomes active, everything moved.
@@ -389,6 +393,9 @@ TEST_F(TrackingLossRuns, MapMergeAndCorrectionBetweenFramesMoveTheTrackerIntoThe
   const SE3 T_target_source((so3ExpQuat(Vec3(0.1, -0.2, 0.7))), Vec3(3.0, -1.0, 0.5));
   atlas.mergeMaps(source, target, T_target_source);
   ASSERT_EQ(atlas.activeMapId(), target);
+  const double bookkeeping_error_m = translationError_m(map::latestPose_T_w_b(*ref_39) * T_refb_c_39,
+                                                        T_target_source * run->records.back().T_w_c);
+  EXPECT_LT(bookkeeping_error_m, 1e-9);
   double max_merge_error = 0.0;
   for (int k = 40; k < 70; ++k) {
     const FrameRecord r = step(*run, k);
