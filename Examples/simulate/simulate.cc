@@ -31,6 +31,14 @@ int main(int argc, char** argv) {
   app.add_option("--height", height, "image height (px, default 480)")->check(CLI::Range(16, 4096));
   app.add_option("--config", config_path, "simulator YAML (default: built-in values)");
   app.add_flag("--noise-free", noise_free, "no sensor noise, biases, holes or exposure jitter");
+  std::vector<double> black_outage, no_depth_outage;
+  app.add_option("--black", black_outage,
+                 "START,DURATION (s): black colour and no depth while the IMU runs (forced tracking loss)")
+      ->delimiter(',')
+      ->expected(2);
+  app.add_option("--no-depth", no_depth_outage, "START,DURATION (s): frames without depth")
+      ->delimiter(',')
+      ->expected(2);
   app.add_option("--progress-every", progress_every, "progress line every N frames")
       ->check(CLI::Range(1, 1000000));
   try {
@@ -54,6 +62,11 @@ int main(int argc, char** argv) {
     if (fps > 0) options.fps = fps;
     if (width > 0) options.width_px = width;
     if (height > 0) options.height_px = height;
+    using Outage = ltlo::sim::SensorOutage;
+    if (!black_outage.empty())
+      options.outages.push_back({Outage::Kind::kBlack, black_outage[0], black_outage[1]});
+    if (!no_depth_outage.empty())
+      options.outages.push_back({Outage::Kind::kNoDepth, no_depth_outage[0], no_depth_outage[1]});
     ltlo::sim::writeSequence(options, out_dir, progress_every);
   } catch (const ltlo::ConfigError& e) {
     std::cerr << e.what() << "\n";

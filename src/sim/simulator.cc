@@ -161,6 +161,12 @@ SimFrame Simulator::renderFrame(int index) {
   effects_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   frame.t_s = t_s;
   frame.T_w_c = T_w_c_now;
+  for (const SensorOutage& outage : options_.outages) {
+    if (!outage.covers(t_s)) continue;
+    if (outage.kind == SensorOutage::Kind::kBlack) frame.bgr.setTo(cv::Scalar::all(0));
+    frame.depth_m.setTo(0.0f);
+    frame.depth_raw.setTo(0);
+  }
   return frame;
 }
 

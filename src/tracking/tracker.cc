@@ -11,6 +11,7 @@
 #include "ltlo/features/matching.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/optim/pose_only_problem.h"
+#include "bow/vocabulary.h"
 
 namespace ltlo::tracking {
 
@@ -35,8 +36,8 @@ const char* trackingStateName(TrackingState state) {
   return "?";
 }
 
-Tracker::Tracker(map::Map& map, const TrackerOptions& options, std::vector<float> level_sigma2)
-    : map_(map), options_(options), level_sigma2_(std::move(level_sigma2)) {
+Tracker::Tracker(map::Atlas& atlas, const TrackerOptions& options, std::vector<float> level_sigma2)
+    : atlas_(atlas), options_(options), level_sigma2_(std::move(level_sigma2)) {
   LTLO_ASSERT(!level_sigma2_.empty(), "the tracker needs the per-level keypoint variances");
 }
 
@@ -46,15 +47,41 @@ void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w) {
   g_w_ = g_w;
 }
 
+void Tracker::forceLost() {
+  if (state_ != TrackingState::kNotInitialised) state_ = TrackingState::kLost;
+}
+
+namespace {
+
+int staticKeypointsWithDepth(const map::Frame& frame) {
+  int with_depth = 0;
+  for (const int i : frame.staticKeypoints()) {
+    if (frame.depth_m(i) > 0.0f) ++with_depth;
+  }
+  return with_depth;
+}
+
+void clearMatches(map::Frame& frame) {
+  std::fill(frame.map_points.begin(), frame.map_points.end(), map::MapPointId());
+  std::fill(frame.outliers.begin(), frame.outliers.end(), false);
+}
+
+}  // namespace
+
 TrackingState Tracker::track(map::Frame& frame) {
   stats_ = TrackingStats();
+  frame_tracked_ = false;
   if (state_ == TrackingState::kNotInitialised) {
     state_ = initialise(frame);
+    frame_tracked_ = state_ == TrackingState::kOk;
     return state_;
   }
   LTLO_ASSERT(last_frame_.has_value(), "tracking without a last frame");
-  std::fill(frame.map_points.begin(), frame.map_points.end(), map::MapPointId());
-  std::fill(frame.outliers.begin(), frame.outliers.end(), false);
+  {
+    map::Map& active = activeMap();
+    if (active.id() != map_id_ || active.version() != map_version_) refreshAfterMapChange(active);
+  }
+  clearMatches(frame);
 
   // Accumulate the IMU since the last keyframe even across lost frames (system/ needs the chain).
   if (frame.imu_from_last_frame) {
@@ -65,8 +92,94 @@ TrackingState Tracker::track(map::Frame& frame) {
     }
   }
 
+  const bool was_lost = state_ == TrackingState::kLost;
   const SE3 T_w_b_pred = predictPose_T_w_b(frame);
+  const Vec3 v_w_b_pred = frame.v_w_b();
   frame.setPose_T_w_b(T_w_b_pred);
+  int inliers = trackWithMotionModel(frame, T_w_b_pred);
+  if (inliers < options_.min_inliers && vocabulary_ != nullptr) {
+    const int relocalised = relocalise(frame);
+    if (relocalised > 0) {
+      inliers = relocalised;
+      stats_.relocalised = true;
+    }
+  }
+  stats_.inliers = inliers;
+  frame.reference_keyframe = reference_kf_;
+  if (inliers < options_.min_inliers) {
+    if (state_ != TrackingState::kLost) {
+      log::warn("tracking lost at t = ", frame.t_s(), " s: ", inliers, " inliers (", options_.min_inliers,
+                " needed), ", frame.numKeypoints(), " keypoints");
+    }
+    state_ = TrackingState::kLost;
+    clearMatches(frame);
+    frame.setPose_T_w_b(T_w_b_pred);
+    frame.setVelocity(v_w_b_pred);
+    const double lost_for_s = frame.t_s() - last_tracked_t_s_;
+    if (options_.new_map_after_s >= 0.0 && lost_for_s >= options_.new_map_after_s &&
+        staticKeypointsWithDepth(frame) >= options_.min_init_features) {
+      // New map at the predicted pose: same world frame (gravity stays valid), old map kept.
+      map::Map& created = atlas_.createNewMap();
+      ++maps_created_;
+      log::warn("lost for ", lost_for_s, " s: new map ", created.id(), " at t = ", frame.t_s(), " s");
+      last_kf_ = map::KeyFrameId();
+      reference_kf_ = map::KeyFrameId();
+      reference_kf_ptr_.reset();
+      local_keyframes_.clear();
+      local_points_.clear();
+      velocity_T_last_cur_.reset();
+      state_ = initialise(frame);
+      LTLO_ASSERT(state_ == TrackingState::kOk, "new map not initialised");
+      stats_.new_map = true;
+      frame_tracked_ = true;
+      return state_;
+    }
+    recordFramePose(frame);
+    return state_;
+  }
+  const map::Map& active = activeMap();
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    if (!isMatched(frame, i)) continue;
+    if (auto point = active.mapPoint(frame.map_points[static_cast<std::size_t>(i)])) point->increaseFound();
+  }
+  // Overlap with the reference keyframe (ORB-SLAM's measure): pose inliers over the reference
+  // keyframe's established points (seen by >= 2 keyframes, >= 3 once the map has more than 2);
+  // fresh single-view points do not count, so a new keyframe does not lower it by itself.
+  if (auto ref = active.keyFrame(reference_kf_)) {
+    const int min_observations = active.numKeyFrames() <= 2 ? 2 : 3;
+    int established = 0;
+    for (const map::MapPointId id : ref->mapPoints()) {
+      if (!id.valid()) continue;
+      const auto point = active.mapPoint(id);
+      if (point && !point->isBad() && point->numObservations() >= min_observations) ++established;
+    }
+    stats_.overlap = established == 0 ? 1.0 : std::min(1.0, static_cast<double>(inliers) / established);
+  }
+
+  const SE3 T_w_c = frame.T_w_c();
+  // The motion since the previous frame is only known when both were tracked.
+  if (was_lost || stats_.relocalised) {
+    velocity_T_last_cur_.reset();
+    if (!imu_initialised_) frame.setVelocity(Vec3::Zero());
+  } else {
+    velocity_T_last_cur_ = last_frame_->T_w_c().inverse() * T_w_c;
+  }
+  last_frame_ = frame;
+  last_tracked_t_s_ = frame.t_s();
+  ++frames_since_keyframe_;
+  state_ = TrackingState::kOk;
+  frame_tracked_ = true;
+  if (needNewKeyFrame()) {
+    createKeyFrame();
+    frame.map_points = last_frame_->map_points;
+    frame.outliers = last_frame_->outliers;
+    frame.reference_keyframe = reference_kf_;
+  }
+  recordFramePose(frame);
+  return state_;
+}
+
+int Tracker::trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred) {
   // After a loss the prediction is older: search wider.
   const double radius_scale = state_ == TrackingState::kLost ? 2.0 : 1.0;
   int matches = matchLastFrame(frame, radius_scale);
@@ -85,61 +198,81 @@ TrackingState Tracker::track(map::Frame& frame) {
   if (stats_.local_map_matches >= kMinMatchesToOptimise) {
     inliers = optimisePose(frame, frame.T_w_b(), false);
   }
-  stats_.inliers = inliers;
-  frame.reference_keyframe = reference_kf_;
-  if (inliers < options_.min_inliers) {
-    if (state_ != TrackingState::kLost) {
-      log::warn("tracking lost at t = ", frame.t_s(), " s: ", inliers, " inliers (", options_.min_inliers,
-                " needed), ", frame.numKeypoints(), " keypoints");
-    }
-    state_ = TrackingState::kLost;
-    return state_;
-  }
-  for (int i = 0; i < frame.numKeypoints(); ++i) {
-    if (!isMatched(frame, i)) continue;
-    if (auto point = map_.mapPoint(frame.map_points[static_cast<std::size_t>(i)])) point->increaseFound();
-  }
-  // Overlap with the reference keyframe (ORB-SLAM's measure): pose inliers over the reference
-  // keyframe's established points (seen by >= 2 keyframes, >= 3 once the map has more than 2);
-  // fresh single-view points do not count, so a new keyframe does not lower it by itself.
-  if (auto ref = map_.keyFrame(reference_kf_)) {
-    const int min_observations = map_.numKeyFrames() <= 2 ? 2 : 3;
-    int established = 0;
-    for (const map::MapPointId id : ref->mapPoints()) {
-      if (!id.valid()) continue;
-      const auto point = map_.mapPoint(id);
-      if (point && !point->isBad() && point->numObservations() >= min_observations) ++established;
-    }
-    stats_.overlap = established == 0 ? 1.0 : std::min(1.0, static_cast<double>(inliers) / established);
-  }
+  return inliers;
+}
 
-  const SE3 T_w_c = frame.T_w_c();
-  velocity_T_last_cur_ = last_frame_->T_w_c().inverse() * T_w_c;
-  last_T_w_c_ = T_w_c;
-  last_frame_ = frame;
-  ++frames_since_keyframe_;
-  state_ = TrackingState::kOk;
-  if (needNewKeyFrame()) {
-    createKeyFrame();
-    frame.map_points = last_frame_->map_points;
-    frame.outliers = last_frame_->outliers;
+int Tracker::relocalise(map::Frame& frame) {
+  if (vocabulary_ == nullptr) return 0;
+  if (!frame.hasBow()) frame.computeBow(*vocabulary_);
+  map::Map& active = activeMap();
+  const std::vector<RelocalisationHypothesis> hypotheses =
+      relocalisationHypotheses(frame, active, atlas_.keyFrameDatabase(), options_.relocalisation);
+  const map::KeyFrameId reference_before = reference_kf_;
+  const std::shared_ptr<map::KeyFrame> reference_ptr_before = reference_kf_ptr_;
+  for (const RelocalisationHypothesis& hypothesis : hypotheses) {
+    clearMatches(frame);
+    for (const auto& [i, id] : hypothesis.matches) frame.map_points[static_cast<std::size_t>(i)] = id;
+    frame.setPose_T_w_c(hypothesis.T_w_c);
+    int inliers = optimisePose(frame, frame.T_w_b(), true);
+    if (inliers < options_.relocalisation.min_ransac_inliers) continue;
+    updateLocalMap(frame);
+    searchLocalMap(frame);
+    inliers = optimisePose(frame, frame.T_w_b(), false);
+    log::debug("relocalisation against keyframe ", hypothesis.keyframe, ": ", hypothesis.matches.size(),
+               " RANSAC inliers, ", inliers, " after the local map");
+    if (inliers >= options_.min_relocalisation_inliers) {
+      log::info("relocalised at t = ", frame.t_s(), " s against keyframe ", hypothesis.keyframe, " with ", inliers,
+                " inliers");
+      return inliers;
+    }
   }
-  return state_;
+  reference_kf_ = reference_before;
+  reference_kf_ptr_ = reference_ptr_before;
+  clearMatches(frame);
+  return 0;
+}
+
+void Tracker::recordFramePose(const map::Frame& frame) {
+  prev_T_w_b_ = frame.T_w_b();
+  prev_v_w_b_ = frame.v_w_b();
+  prev_t_s_ = frame.t_s();
+  last_T_w_c_ = frame.T_w_c();
+  if (reference_kf_ptr_) T_refb_c_last_ = reference_kf_ptr_->T_w_b().inverse() * last_T_w_c_;
+}
+
+void Tracker::refreshAfterMapChange(map::Map& map) {
+  stats_.map_refreshed = true;
+  if (reference_kf_ptr_) {
+    const SE3 T_w_c_new = map::latestPose_T_w_b(*reference_kf_ptr_) * T_refb_c_last_;
+    // The world correction of the last frame, applied to everything held in world coordinates.
+    const SE3 correction = T_w_c_new * last_T_w_c_.inverse();
+    const Mat3 R = correction.rotationMatrix();
+    last_T_w_c_ = T_w_c_new;
+    prev_T_w_b_ = correction * prev_T_w_b_;
+    prev_v_w_b_ = R * prev_v_w_b_;
+    if (last_frame_) {
+      last_frame_->setPose_T_w_b(correction * last_frame_->T_w_b());
+      last_frame_->setVelocity(R * last_frame_->v_w_b());
+    }
+    log::info("map ", map.id(), " changed (version ", map.version(), "): last pose moved by ",
+              correction.translation().norm(), " m");
+  }
+  map_id_ = map.id();
+  map_version_ = map.version();
 }
 
 TrackingState Tracker::initialise(map::Frame& frame) {
-  int with_depth = 0;
-  for (const int i : frame.staticKeypoints()) {
-    if (frame.depth_m(i) > 0.0f) ++with_depth;
-  }
+  const int with_depth = staticKeypointsWithDepth(frame);
   if (with_depth < options_.min_init_features) {
     log::debug("initialisation: ", with_depth, " static keypoints with depth, ", options_.min_init_features,
                " needed");
     return TrackingState::kNotInitialised;
   }
   if (!frame.hasPose()) frame.setPose_T_w_b(SE3());
-  std::fill(frame.map_points.begin(), frame.map_points.end(), map::MapPointId());
-  std::fill(frame.outliers.begin(), frame.outliers.end(), false);
+  clearMatches(frame);
+  map::Map& active = activeMap();
+  map_id_ = active.id();
+  map_version_ = active.version();
   last_T_w_c_ = frame.T_w_c();
   last_frame_ = frame;
   imu_since_keyframe_.reset();
@@ -151,30 +284,69 @@ TrackingState Tracker::initialise(map::Frame& frame) {
   options_.close_depth_m = saved_close;
   frame.map_points = last_frame_->map_points;
   frame.reference_keyframe = reference_kf_;
-  log::info("tracking initialised at t = ", frame.t_s(), " s with ", map_.numMapPoints(), " map points");
+  last_tracked_t_s_ = frame.t_s();
+  recordFramePose(frame);
+  log::info("tracking initialised at t = ", frame.t_s(), " s in map ", active.id(), " with ",
+            active.numMapPoints(), " map points");
   return TrackingState::kOk;
 }
 
 SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
-  const map::Frame& last = *last_frame_;
-  if (imu_initialised_ && frame.imu_from_last_frame && state_ == TrackingState::kOk) {
+  if (imu_initialised_ && frame.imu_from_last_frame && state_ == TrackingState::kOk && last_kf_ptr_ &&
+      !last_kf_ptr_->isBad() && imu_since_keyframe_) {
+    // Map updated: when local mapping (or a correction) changed the last keyframe's pose, velocity
+    // or bias, predict from the keyframe with the preintegration since it (which includes this
+    // frame's samples) -- the keyframe's state is better than the last frame's.
+    const SE3 T_w_b_kf = last_kf_ptr_->T_w_b();
+    const Vec3 v_w_b_kf = last_kf_ptr_->v_w_b();
+    const imu::ImuBias bias_kf = last_kf_ptr_->bias();
+    const bool bias_changed = (bias_kf.b_a - last_kf_bias_seen_.b_a).norm() > 0.0 ||
+                              (bias_kf.b_g - last_kf_bias_seen_.b_g).norm() > 0.0;
+    const bool updated = (T_w_b_kf.translation() - last_kf_T_w_b_seen_.translation()).norm() > 0.0 ||
+                         (T_w_b_kf.quaternion().coeffs() - last_kf_T_w_b_seen_.quaternion().coeffs()).norm() > 0.0 ||
+                         (v_w_b_kf - last_kf_v_w_b_seen_).norm() > 0.0 || bias_changed;
+    if (updated) {
+      last_kf_T_w_b_seen_ = T_w_b_kf;
+      last_kf_v_w_b_seen_ = v_w_b_kf;
+      last_kf_bias_seen_ = bias_kf;
+      if (bias_changed) bias_ = bias_kf;
+      imu::NavState state_kf;
+      state_kf.R_w_b = T_w_b_kf.rotationMatrix();
+      state_kf.p_w_b = T_w_b_kf.translation();
+      state_kf.v_w_b = v_w_b_kf;
+      const imu::NavState state_j = imu::predict(state_kf, *imu_since_keyframe_, bias_, g_w_);
+      frame.setVelocity(state_j.v_w_b);
+      frame.setBias(bias_);
+      stats_.used_imu = true;
+      stats_.imu_from_keyframe = true;
+      return SE3(Quat(normalizeRotation(state_j.R_w_b)), state_j.p_w_b);
+    }
+  }
+  if (imu_initialised_ && frame.imu_from_last_frame) {
+    // Preintegration from the previous frame's state (tracked or predicted), Forster et al. (2017)
+    // eq. 26-28 through imu::predict.
     imu::NavState state_i;
-    state_i.R_w_b = last.T_w_b().rotationMatrix();
-    state_i.p_w_b = last.T_w_b().translation();
-    state_i.v_w_b = last.v_w_b();
+    state_i.R_w_b = prev_T_w_b_.rotationMatrix();
+    state_i.p_w_b = prev_T_w_b_.translation();
+    state_i.v_w_b = prev_v_w_b_;
     const imu::NavState state_j = imu::predict(state_i, *frame.imu_from_last_frame, bias_, g_w_);
     frame.setVelocity(state_j.v_w_b);
     frame.setBias(bias_);
     stats_.used_imu = true;
     return SE3(Quat(normalizeRotation(state_j.R_w_b)), state_j.p_w_b);
   }
-  // Constant velocity on T_w_c: the last inter-frame motion repeated (none after a loss).
-  SE3 T_w_c = last.T_w_c();
-  if (velocity_T_last_cur_ && state_ == TrackingState::kOk) T_w_c = T_w_c * *velocity_T_last_cur_;
+  // Constant velocity on T_w_c: the last inter-frame motion repeated, for at most max_prediction_s
+  // after the last tracked frame (then the last pose is held).
+  SE3 T_w_c = prev_T_w_b_ * frame.T_b_c();
+  const bool keep_moving = velocity_T_last_cur_.has_value() &&
+                           frame.t_s() - last_tracked_t_s_ <= options_.max_prediction_s;
+  if (keep_moving) T_w_c = T_w_c * *velocity_T_last_cur_;
+  frame.setVelocity(keep_moving ? prev_v_w_b_ : Vec3::Zero());
   return T_w_c * frame.T_b_c().inverse();
 }
 
 int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {
+  map::Map& active = activeMap();
   const map::Frame& last = *last_frame_;
   const SE3 T_c_w = frame.T_w_c().inverse();
   const PinholeCamera& camera = frame.camera();
@@ -183,7 +355,7 @@ int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {
   std::vector<int> best_distance(static_cast<std::size_t>(frame.numKeypoints()), 257);
   for (int j = 0; j < last.numKeypoints(); ++j) {
     if (!isMatched(last, j)) continue;
-    const auto point = map_.mapPoint(last.map_points[static_cast<std::size_t>(j)]);
+    const auto point = active.mapPoint(last.map_points[static_cast<std::size_t>(j)]);
     if (!point || point->isBad()) continue;
     const Vec3 p_c = T_c_w * point->p_w();
     if (p_c.z() <= 0.0) continue;
@@ -237,6 +409,7 @@ int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {
 }
 
 int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_outliers) {
+  map::Map& active = activeMap();
   optim::PoseOnlyProblem problem;
   problem.model.camera = frame.camera();
   problem.model.T_c_x = frame.T_b_c().inverse();
@@ -248,7 +421,7 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
   for (int i = 0; i < frame.numKeypoints(); ++i) {
     const auto k = static_cast<std::size_t>(i);
     if (!frame.map_points[k].valid()) continue;
-    const auto point = map_.mapPoint(frame.map_points[k]);
+    const auto point = active.mapPoint(frame.map_points[k]);
     if (!point || point->isBad()) {
       frame.map_points[k] = map::MapPointId();
       continue;
@@ -281,7 +454,13 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
     frame.setBias(result.bias);
   } else if (last_frame_) {
     const double dt_s = frame.t_s() - last_frame_->t_s();
-    if (dt_s > 0.0) frame.setVelocity((result.T_w_b.translation() - last_frame_->T_w_b().translation()) / dt_s);
+    if (dt_s > 0.0) {
+      const Vec3 v_difference = (result.T_w_b.translation() - last_frame_->T_w_b().translation()) / dt_s;
+      // With the IMU predicting, frame.v_w_b() holds the preintegrated velocity: a complementary
+      // filter keeps it and corrects it slowly towards the (noisy, 0.1-0.3 m/s) finite difference.
+      frame.setVelocity(stats_.used_imu ? frame.v_w_b() + options_.velocity_gain * (v_difference - frame.v_w_b())
+                                        : v_difference);
+    }
   }
   int inliers = 0;
   for (std::size_t k = 0; k < index.size(); ++k) {
@@ -300,11 +479,12 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
 }
 
 void Tracker::updateLocalMap(const map::Frame& frame) {
+  map::Map& active = activeMap();
   // Keyframes observing the frame's matched points, weighted by how many they share.
   std::unordered_map<map::KeyFrameId, int> counter;
   for (int i = 0; i < frame.numKeypoints(); ++i) {
     if (!isMatched(frame, i)) continue;
-    const auto point = map_.mapPoint(frame.map_points[static_cast<std::size_t>(i)]);
+    const auto point = active.mapPoint(frame.map_points[static_cast<std::size_t>(i)]);
     if (!point || point->isBad()) continue;
     for (const auto& [kf, index] : point->observations()) ++counter[kf];
   }
@@ -326,13 +506,18 @@ void Tracker::updateLocalMap(const map::Frame& frame) {
     if (static_cast<int>(local_keyframes_.size()) >= options_.max_local_keyframes) break;
     if (in_local.insert(kf).second) local_keyframes_.push_back(kf);
   }
-  if (best.valid()) reference_kf_ = best;
+  if (best.valid()) {
+    if (auto kf = active.keyFrame(best)) {
+      reference_kf_ = best;
+      reference_kf_ptr_ = std::move(kf);
+    }
+  }
   // Always include the reference keyframe and the neighbours of the first local keyframes.
   if (reference_kf_.valid() && in_local.insert(reference_kf_).second) local_keyframes_.push_back(reference_kf_);
   const std::vector<map::KeyFrameId> seeds = local_keyframes_;
   for (const map::KeyFrameId id : seeds) {
     if (static_cast<int>(local_keyframes_.size()) >= options_.max_local_keyframes) break;
-    const auto kf = map_.keyFrame(id);
+    const auto kf = active.keyFrame(id);
     if (!kf) continue;
     for (const map::KeyFrameId neighbour : kf->bestCovisibles(10)) {
       if (in_local.insert(neighbour).second) {
@@ -345,16 +530,17 @@ void Tracker::updateLocalMap(const map::Frame& frame) {
   local_points_.clear();
   std::unordered_set<map::MapPointId> seen;
   for (const map::KeyFrameId id : local_keyframes_) {
-    const auto kf = map_.keyFrame(id);
+    const auto kf = active.keyFrame(id);
     if (!kf) continue;
     for (const map::MapPointId point : kf->mapPoints()) {
       if (point.valid() && seen.insert(point).second) local_points_.push_back(point);
     }
   }
-  map_.setReferenceMapPoints(local_points_);
+  active.setReferenceMapPoints(local_points_);
 }
 
 int Tracker::searchLocalMap(map::Frame& frame) {
+  map::Map& active = activeMap();
   std::unordered_set<map::MapPointId> already;
   for (int i = 0; i < frame.numKeypoints(); ++i) {
     if (isMatched(frame, i)) already.insert(frame.map_points[static_cast<std::size_t>(i)]);
@@ -369,7 +555,7 @@ int Tracker::searchLocalMap(map::Frame& frame) {
   }
   for (const map::MapPointId id : local_points_) {
     if (already.count(id)) continue;
-    const auto point = map_.mapPoint(id);
+    const auto point = active.mapPoint(id);
     if (!point || point->isBad()) continue;
     const Vec3 p_w = point->p_w();
     const Vec3 p_c = T_c_w * p_w;
@@ -437,9 +623,12 @@ bool Tracker::needNewKeyFrame() const {
 
 std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {
   LTLO_ASSERT(last_frame_.has_value(), "createKeyFrame() before any tracked frame");
+  map::Map& active = activeMap();
   map::Frame& frame = *last_frame_;
   if (imu_since_keyframe_) frame.imu_from_last_keyframe = imu_since_keyframe_;
-  const std::shared_ptr<map::KeyFrame> kf = map_.createKeyFrame(frame);
+  // Keyframes need their BoW for the database (relocalisation, loops, merges).
+  if (vocabulary_ != nullptr && !frame.hasBow()) frame.computeBow(*vocabulary_);
+  const std::shared_ptr<map::KeyFrame> kf = active.createKeyFrame(frame);
   for (int i = 0; i < frame.numKeypoints(); ++i) {
     const auto k = static_cast<std::size_t>(i);
     if (!frame.map_points[k].valid()) continue;
@@ -448,35 +637,41 @@ std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {
       frame.outliers[k] = false;
       continue;
     }
-    const auto point = map_.mapPoint(frame.map_points[k]);
-    if (!point || !map_.addObservation(*kf, i, *point)) {
+    const auto point = active.mapPoint(frame.map_points[k]);
+    if (!point || !active.addObservation(*kf, i, *point)) {
       frame.map_points[k] = map::MapPointId();
       continue;
     }
-    map_.updateNormalAndDistances(*point);
-    map_.updateDescriptor(*point);
+    active.updateNormalAndDistances(*point);
+    active.updateDescriptor(*point);
   }
   const int created = addNewMapPoints(*kf, frame);
-  map_.updateConnections(*kf);
+  active.updateConnections(*kf);
   if (last_kf_.valid()) {
     kf->setPreviousKeyFrame(last_kf_);
-    if (const auto previous = map_.keyFrame(last_kf_)) previous->setNextKeyFrame(kf->id());
+    if (const auto previous = active.keyFrame(last_kf_)) previous->setNextKeyFrame(kf->id());
     kf->setImuFromPrevious(imu_since_keyframe_);
   }
   imu_since_keyframe_.reset();
   last_kf_ = kf->id();
+  last_kf_ptr_ = kf;
+  last_kf_T_w_b_seen_ = kf->T_w_b();
+  last_kf_v_w_b_seen_ = kf->v_w_b();
+  last_kf_bias_seen_ = kf->bias();
   reference_kf_ = kf->id();
+  reference_kf_ptr_ = kf;
   frame.reference_keyframe = kf->id();
   last_keyframe_t_s_ = frame.t_s();
   frames_since_keyframe_ = 0;
   ++num_keyframes_;
   log::debug("keyframe ", kf->id(), " at t = ", frame.t_s(), " s: ", kf->numObservations(), " points (", created,
              " new)");
-  if (local_mapping_) local_mapping_(map_, kf);
+  if (local_mapping_) local_mapping_(active, kf);
   return kf;
 }
 
 int Tracker::addNewMapPoints(map::KeyFrame& kf, map::Frame& frame) {
+  map::Map& active = activeMap();
   std::vector<std::pair<float, int>> by_depth;
   for (const int i : frame.staticKeypoints()) {
     const float depth = frame.depth_m(i);
@@ -487,13 +682,13 @@ int Tracker::addNewMapPoints(map::KeyFrame& kf, map::Frame& frame) {
   int created = 0;
   for (const auto& [depth, i] : by_depth) {
     if (depth > options_.close_depth_m && created >= options_.min_new_points) break;
-    const auto point = map_.createMapPoint(T_w_c * frame.p_c(i), kf.id());
-    if (!map_.addObservation(kf, i, *point)) {
-      map_.eraseMapPoint(point->id());
+    const auto point = active.createMapPoint(T_w_c * frame.p_c(i), kf.id());
+    if (!active.addObservation(kf, i, *point)) {
+      active.eraseMapPoint(point->id());
       continue;
     }
-    map_.updateNormalAndDistances(*point);
-    map_.updateDescriptor(*point);
+    active.updateNormalAndDistances(*point);
+    active.updateDescriptor(*point);
     frame.map_points[static_cast<std::size_t>(i)] = point->id();
     ++created;
   }

@@ -229,6 +229,23 @@ TEST(Simulator, DepthNoiseGrowsWithDistanceSquared) {
   EXPECT_NEAR(std::sqrt(sum_sq / count), o.depth_noise_at_1m_m, 0.15 * o.depth_noise_at_1m_m);
 }
 
+TEST(Simulator, OutagesBlankTheCameraButNotTheGroundTruth) {
+  SimOptions o = smallOptions(Scenario::kStatic, 1.0, false);
+  o.outages.push_back({SensorOutage::Kind::kBlack, 0.1, 0.1});
+  o.outages.push_back({SensorOutage::Kind::kNoDepth, 0.5, 0.1});
+  Simulator sim(o, sharedRoom());
+  const int black = static_cast<int>(std::lround(0.15 * o.fps));
+  const int no_depth = static_cast<int>(std::lround(0.55 * o.fps));
+  const int normal = static_cast<int>(std::lround(0.35 * o.fps));
+  const SimFrame b = sim.renderFrame(black), d = sim.renderFrame(no_depth), n = sim.renderFrame(normal);
+  EXPECT_EQ(cv::countNonZero(b.bgr.reshape(1)), 0);
+  EXPECT_EQ(cv::countNonZero(b.depth_raw), 0);
+  EXPECT_GT(cv::countNonZero(d.bgr.reshape(1)), static_cast<int>(d.bgr.total()));  // colour kept
+  EXPECT_EQ(cv::countNonZero(d.depth_m), 0);
+  EXPECT_GT(cv::countNonZero(n.depth_m), static_cast<int>(n.depth_m.total() / 2));
+  EXPECT_LT((b.T_w_c.translation() - sim.T_w_c(b.t_s).translation()).norm(), 1e-12);
+}
+
 // Over two minutes the ltlo scenario keeps more than 40 % of the image dynamic in 55-75 % of the
 // frames, with stretches of over 8 s (several metres of travel).
 TEST(Simulator, LtloScenarioOccludesMostFramesForLongStretches) {

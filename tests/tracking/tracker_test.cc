@@ -10,6 +10,7 @@
 #include "ltlo/eval/trajectory_metrics.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/io/sequence_reader.h"
+#include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
 #include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/sim/simulator.h"
@@ -55,8 +56,8 @@ class TrackerOnSimulatedSequence : public ::testing::Test {
   static RunResult run(const Tracker::LocalMappingCallback& callback) {
     io::SequenceReader reader = io::SequenceReader::open(dir_->string());
     const FrameBuilder builder(orbOptions(), reader.calib());
-    map::Map map;
-    Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+    map::Atlas atlas(1);
+    Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
     tracker.setLocalMappingCallback(callback);
     RunResult result;
     io::Trajectory estimate;
@@ -123,8 +124,9 @@ TEST_F(TrackerOnSimulatedSequence, VisualOdometryTracksEveryFrameWithinCentimetr
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   ASSERT_TRUE(reader.hasGroundTruth());
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  map::Map& map = atlas.activeMap();
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   int callbacks = 0;
   tracker.setLocalMappingCallback([&](map::Map& m, const std::shared_ptr<map::KeyFrame>& kf) {
     ++callbacks;
@@ -185,8 +187,8 @@ TEST_F(TrackerOnSimulatedSequence, ImuHookPredictsWithPreintegrationAfterInitial
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   ASSERT_TRUE(reader.calib().has_imu);
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   io::Trajectory estimate;
   int frames = 0, ok = 0, imu_frames = 0;
   while (auto input = reader.next()) {
@@ -212,11 +214,44 @@ TEST_F(TrackerOnSimulatedSequence, ImuHookPredictsWithPreintegrationAfterInitial
   EXPECT_LT(ate.error_m.rmse, 0.05);
 }
 
+TEST_F(TrackerOnSimulatedSequence, ImuPredictsFromTheKeyFrameAfterLocalMappingUpdatedIt) {
+  // Local BA in the callback moves the newest keyframes: the next IMU prediction starts from the
+  // last keyframe's updated state with the preintegration since it (ORB-SLAM3's map-updated case).
+  io::SequenceReader reader = io::SequenceReader::open(dir_->string());
+  const FrameBuilder builder(orbOptions(), reader.calib());
+  map::Atlas atlas(1);
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
+  tracker.setLocalMappingCallback(
+      [](map::Map& map, const std::shared_ptr<map::KeyFrame>& kf) { localBundleAdjustNewest(map, kf, 5); });
+  io::Trajectory estimate;
+  int frames = 0, ok = 0, from_keyframe = 0;
+  while (auto input = reader.next()) {
+    if (frames == 10) tracker.setImuInitialised(imu::ImuBias(), imu::gravityWorld());
+    if (frames == 60) tracker.setImuInitialised(imu::ImuBias(), imu::gravityWorld());  // a refinement: same values
+    map::Frame frame = builder.build(*input, tracker.bias());
+    if (frames == 0) frame.setPose_T_w_c(reader.groundTruth().front().T_w_x);
+    const TrackingState state = tracker.track(frame);
+    ++frames;
+    if (tracker.stats().imu_from_keyframe) ++from_keyframe;
+    if (state != TrackingState::kOk) continue;
+    ++ok;
+    estimate.push_back({frame.t_s(), tracker.T_w_c()});
+  }
+  const eval::AteResult ate =
+      eval::computeAte(eval::associateTrajectories(reader.groundTruth(), estimate), false);
+  std::printf("IMU + local BA: %d predictions from an updated keyframe, %d keyframes, ok %d of %d, ATE rmse %.4f m\n",
+              from_keyframe, tracker.numKeyFrames(), ok, frames, ate.error_m.rmse);
+  EXPECT_EQ(ok, frames);
+  EXPECT_GE(from_keyframe, 1);
+  EXPECT_LE(from_keyframe, tracker.numKeyFrames());
+  EXPECT_LT(ate.error_m.rmse, 0.05);
+}
+
 TEST_F(TrackerOnSimulatedSequence, BlackFramesMakeTheTrackerLostWithoutCrashing) {
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   std::vector<TrackingState> states;
   for (int k = 0; k < 20; ++k) {
     auto input = reader.next();
@@ -238,8 +273,8 @@ TEST_F(TrackerOnSimulatedSequence, BlackFramesMakeTheTrackerLostWithoutCrashing)
 TEST_F(TrackerOnSimulatedSequence, FramesWithoutDepthTrackOnTwoDimensionalMatches) {
   io::SequenceReader reader = io::SequenceReader::open(dir_->string());
   const FrameBuilder builder(orbOptions(), reader.calib());
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   std::vector<TrackingState> states;
   int keyframes_at_gap = 0;
   for (int k = 0; k < 25; ++k) {
@@ -268,8 +303,9 @@ TEST(Tracker, BlackFirstFrameDoesNotInitialise) {
   input.depth_m = cv::Mat(240, 320, CV_32F, cv::Scalar(1.0f));
   map::Frame frame = builder.build(input);
   EXPECT_EQ(frame.numKeypoints(), 0);
-  map::Map map;
-  Tracker tracker(map, TrackerOptions(), builder.extractor().levelSigma2());
+  map::Atlas atlas(1);
+  map::Map& map = atlas.activeMap();
+  Tracker tracker(atlas, TrackerOptions(), builder.extractor().levelSigma2());
   EXPECT_EQ(tracker.track(frame), TrackingState::kNotInitialised);
   EXPECT_EQ(map.numKeyFrames(), 0u);
 }

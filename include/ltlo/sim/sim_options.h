@@ -2,6 +2,7 @@
 /// Parameters of the synthetic RGB-D-inertial sequence generator (config_yaml/simulator.yaml).
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "ltlo/core/calib.h"
 
@@ -23,6 +24,16 @@ enum class Scenario {
 /// "static", "stlo", "mtlo", "ltlo", "carried"; returns false when unknown.
 bool parseScenario(const std::string& text, Scenario* scenario);
 std::string scenarioName(Scenario scenario);
+
+/// A stretch of the sequence where the camera fails while the IMU keeps running (forced tracking
+/// loss): kBlack gives black colour and no depth (lens covered), kNoDepth keeps colour, no depth.
+struct SensorOutage {
+  enum class Kind { kBlack, kNoDepth };
+  Kind kind = Kind::kBlack;
+  double start_s = 0.0;
+  double duration_s = 0.0;
+  bool covers(double t_s) const { return t_s >= start_s && t_s < start_s + duration_s; }
+};
 
 struct SimOptions {
   // Camera (Sim.*)
@@ -69,6 +80,9 @@ struct SimOptions {
   // Scene (Sim.*)
   std::string texture_dir = "/usr/share/backgrounds";  ///< Sim.TextureDir: photographs
   int png_compression = 1;                             ///< Sim.PngCompression (0-9)
+
+  // Forced camera failures (command line only; ground truth, IMU and masks are unaffected)
+  std::vector<SensorOutage> outages;
 
   /// Camera model at the configured size (fx, fy, cx, cy scaled from 640x480 when width differs).
   PinholeCamera camera() const;

@@ -5,6 +5,19 @@
 /// and pose-optimised again. Keyframes are inserted into the map with new RGB-D map points; an
 /// optional synchronous local-mapping callback runs after each one (system/ replaces it by the
 /// mapping thread).
+///
+/// The tracker works on the Atlas' active map, re-read every frame (a merge by the loop closer can
+/// switch it). When the active map or its version() changes, the last frame's pose is re-derived
+/// from its reference keyframe (latestPose_T_w_b(ref) * T_refb_c), so corrections and merges do
+/// not break tracking; the constant-velocity model is relative and stays valid.
+///
+/// Loss policy: a frame with fewer than min_inliers pose inliers is not tracked (kLost) and gets the
+/// predicted pose (IMU once initialised, else constant velocity for up to max_prediction_s after the
+/// last tracked frame, then the last pose held). While lost, every frame first tries the motion
+/// model (doubled windows), then relocalisation in the active map (with a vocabulary). Lost for
+/// new_map_after_s and the frame can start a map: Atlas::createNewMap() and a new map is
+/// initialised at the frame's predicted pose (same world frame; the old map is kept for merging).
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -16,10 +29,18 @@
 #include "ltlo/imu/preintegration.h"
 #include "ltlo/map/frame.h"
 #include "ltlo/map/keyframe.h"
+#include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
+#include "ltlo/tracking/relocaliser.h"
+
+namespace bow {
+class Vocabulary;
+}
 
 namespace ltlo::tracking {
 
+/// kNotInitialised: no map yet (no pose on frames). kOk: the last frame was tracked (or relocalised,
+/// or started a new map). kLost: the last frame was not tracked; it carries the predicted pose.
 enum class TrackingState { kNotInitialised, kOk, kLost };
 const char* trackingStateName(TrackingState state);
 
@@ -54,6 +75,23 @@ struct TrackerOptions {
   /// drifted to 0.24 m ATE. It needs velocities from VI bundle adjustment (mapping) or a prior on the
   /// previous state. Off, the IMU predicts the pose and seeds the search only.
   bool inertial_pose_optimisation = false;
+  /// Without inertial_pose_optimisation, an IMU-predicted frame's velocity is the predicted one
+  /// corrected by this share of (finite difference of the optimised positions - predicted): a
+  /// complementary filter (1: the plain finite difference). It sets the velocity the IMU
+  /// prediction starts from, e.g. over a blackout.
+  double velocity_gain = 0.1;
+
+  // ---- tracking loss ----
+  /// While lost, the constant-velocity model keeps predicting for this long after the last tracked
+  /// frame (s); later frames hold the last predicted pose.
+  double max_prediction_s = 1.0;
+  /// Lost for at least this long (s, since the last tracked frame) and the frame has
+  /// min_init_features static keypoints with depth: a new map is started at the predicted pose.
+  /// A negative value never starts a new map.
+  double new_map_after_s = 1.0;
+  /// Relocalisation is accepted with at least this many pose inliers after the local-map search.
+  int min_relocalisation_inliers = 50;
+  RelocalisationOptions relocalisation;
 };
 
 /// Per-frame numbers for logs and tests.
@@ -64,20 +102,30 @@ struct TrackingStats {
   int inliers = 0;             ///< pose inliers after the local-map step
   double overlap = 0.0;        ///< share of the reference keyframe's points tracked
   bool used_imu = false;       ///< the IMU predicted the pose
+  /// the IMU prediction started from the last keyframe (local mapping had updated its state)
+  bool imu_from_keyframe = false;
+  bool relocalised = false;    ///< the frame was relocalised (BoW + RANSAC)
+  bool new_map = false;        ///< the frame started a new map
+  bool map_refreshed = false;  ///< the last frame's pose was re-derived (map version / active map)
 };
 
-/// Not thread-safe (the tracking thread owns it). Reads and writes `map` through its thread-safe API.
+/// Not thread-safe (the tracking thread owns it). Reads and writes the Atlas' active map through
+/// its thread-safe API.
 class Tracker {
  public:
   /// `level_sigma2` is OrbExtractor::levelSigma2() (keypoint variance per pyramid level).
-  Tracker(map::Map& map, const TrackerOptions& options, std::vector<float> level_sigma2);
+  Tracker(map::Atlas& atlas, const TrackerOptions& options, std::vector<float> level_sigma2);
 
   /// Tracks `frame` (sets its pose, map-point matches, reference keyframe) and inserts a keyframe
-  /// when needNewKeyFrame(). Returns the new state.
+  /// when needNewKeyFrame(). Returns the new state. Once initialised, every frame leaves with a
+  /// pose (tracked, relocalised, or predicted when lost: see frameTracked()).
   TrackingState track(map::Frame& frame);
 
   TrackingState state() const { return state_; }
-  /// Camera pose of the last tracked frame (identity before initialisation).
+  /// Whether the last frame was tracked / relocalised / started a map (false: predicted pose).
+  bool frameTracked() const { return frame_tracked_; }
+  /// Camera pose of the last frame given to track() (tracked or predicted; identity before
+  /// initialisation).
   SE3 T_w_c() const { return last_T_w_c_; }
   const TrackingStats& stats() const { return stats_; }
 
@@ -90,22 +138,47 @@ class Tracker {
   std::shared_ptr<map::KeyFrame> createKeyFrame();
 
   /// Synchronous local mapping after each new keyframe (e.g. a test running localBundleAdjust).
+  /// Runs in createKeyFrame() on the tracking thread with the active map.
   using LocalMappingCallback = std::function<void(map::Map&, const std::shared_ptr<map::KeyFrame>&)>;
   void setLocalMappingCallback(LocalMappingCallback callback) { local_mapping_ = std::move(callback); }
 
+  /// Vocabulary for relocalisation (nullptr: none, no relocalisation). With it, frames that become
+  /// keyframes get their BoW computed (if not already) so keyframes can enter the database; lost
+  /// frames get theirs for the query. Not owned; must outlive the tracker.
+  void setVocabulary(const bow::Vocabulary* vocabulary) { vocabulary_ = vocabulary; }
+
   /// IMU hook (system/ calls it after IMU initialisation): from now on frames carrying
-  /// imu_from_last_frame are predicted by preintegration and pose-optimised with the inertial link.
-  /// The world must be gravity-aligned (g_w) by then.
+  /// imu_from_last_frame are predicted by preintegration (and pose-optimised with the inertial link
+  /// when inertial_pose_optimisation). The world must be gravity-aligned (g_w) by then. May be
+  /// called again with refined values (they replace the old ones).
   void setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w);
   bool imuInitialised() const { return imu_initialised_; }
   const imu::ImuBias& bias() const { return bias_; }
 
+  /// Keyframes created by this tracker (all maps).
   int numKeyFrames() const { return num_keyframes_; }
   map::KeyFrameId referenceKeyFrame() const { return reference_kf_; }
+  /// Reference keyframe of the last frame (nullptr before initialisation); its pose and the last
+  /// frame's pose are consistent (the frame's pose was estimated against the map holding it).
+  std::shared_ptr<map::KeyFrame> referenceKeyFramePtr() const { return reference_kf_ptr_; }
+  /// Maps started by the loss policy (the first map is not counted).
+  int numMapsCreated() const { return maps_created_; }
+  /// Declares tracking lost (the next frame goes through the lost path: motion model with wide
+  /// windows, relocalisation). For tests and resets; no-op before initialisation.
+  void forceLost();
 
  private:
   TrackingState initialise(map::Frame& frame);
+  /// Re-derives the last frame's pose from its reference keyframe after a map change.
+  void refreshAfterMapChange(map::Map& map);
+  /// Predicted body pose of `frame` (sets its velocity and bias with the IMU).
   SE3 predictPose_T_w_b(map::Frame& frame);
+  /// Motion-model tracking: last-frame search, local map; returns pose inliers.
+  int trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred);
+  /// Relocalisation in the active map; returns pose inliers (0 when not relocalised).
+  int relocalise(map::Frame& frame);
+  /// Bookkeeping of a frame that leaves track() with a pose (tracked or predicted).
+  void recordFramePose(const map::Frame& frame);
   int matchLastFrame(map::Frame& frame, double radius_scale);
   int searchLocalMap(map::Frame& frame);
   /// Pose-only optimisation over frame.map_points; marks outliers; returns inliers.
@@ -113,7 +186,10 @@ class Tracker {
   void updateLocalMap(const map::Frame& frame);
   int addNewMapPoints(map::KeyFrame& kf, map::Frame& frame);
 
-  map::Map& map_;
+  map::Map& activeMap() { return atlas_.activeMap(); }
+
+  map::Atlas& atlas_;
+  const bow::Vocabulary* vocabulary_ = nullptr;
   TrackerOptions options_;
   std::vector<float> level_sigma2_;
   LocalMappingCallback local_mapping_;
@@ -126,7 +202,27 @@ class Tracker {
   int frames_since_keyframe_ = 0;
   double last_keyframe_t_s_ = 0.0;
   map::KeyFrameId reference_kf_;
+  std::shared_ptr<map::KeyFrame> reference_kf_ptr_;
   map::KeyFrameId last_kf_;
+  std::shared_ptr<map::KeyFrame> last_kf_ptr_;
+  /// The last keyframe's state as the tracker last saw it: a difference means local mapping (or a
+  /// correction) updated it, and the IMU then predicts from the keyframe (ORB-SLAM3's map-updated
+  /// prediction) instead of the last frame.
+  SE3 last_kf_T_w_b_seen_;
+  Vec3 last_kf_v_w_b_seen_ = Vec3::Zero();
+  imu::ImuBias last_kf_bias_seen_;
+  bool frame_tracked_ = false;
+  int maps_created_ = 0;
+  // Map-change detection: the active map and its version seen by the last frame.
+  map::MapId map_id_;
+  std::uint64_t map_version_ = 0;
+  /// The last frame's camera relative to its reference keyframe's body: T_refb_c.
+  SE3 T_refb_c_last_;
+  // The previous frame's state (tracked or predicted), for chaining predictions while lost.
+  SE3 prev_T_w_b_;
+  Vec3 prev_v_w_b_ = Vec3::Zero();
+  double prev_t_s_ = 0.0;
+  double last_tracked_t_s_ = 0.0;
   int num_keyframes_ = 0;
   std::vector<map::KeyFrameId> local_keyframes_;
   std::vector<map::MapPointId> local_points_;
