@@ -1,7 +1,8 @@
 // End to end (issue 6): System (tracking + local mapping + loop closing on one Atlas) on short
 // generated 320x240 sequences. Bounds on ATE catch a regression in any thread: tracking alone
 // drifts past them, a broken local BA or IMU initialisation shows in the error or the counts, and
-// every frame after the first must carry a pose. The outputs are written and read back.
+// every frame after the first must carry a pose, a lap of the room must close a loop. The outputs
+// are written and read back.
 //
 // The sanitizer script (scripts/sanitize_e2e.sh) runs SystemEndToEnd.RgbdInertialThreaded of this
 // binary under TSan and ASan/UBSan.
@@ -61,10 +62,11 @@ class SystemEndToEnd : public ::testing::Test {
     delete vocabulary_;
   }
 
-  /// The sequence of `scenario`, `seconds` long, written on first use.
-  static std::string sequence(sim::Scenario scenario, double seconds, std::uint64_t seed) {
+  /// The sequence of `scenario`, `seconds` long at `fps`, written on first use.
+  static std::string sequence(sim::Scenario scenario, double seconds, std::uint64_t seed, double fps = kFps,
+                              double mean_speed_mps = sim::SimOptions().mean_speed_mps) {
     const fs::path dir = *root_ / (sim::scenarioName(scenario) + "_" + std::to_string(static_cast<int>(seconds)) +
-                                   "s_seed" + std::to_string(seed));
+                                   "s_seed" + std::to_string(seed) + "_" + std::to_string(static_cast<int>(fps)) + "hz");
     if (!fs::exists(dir / "groundtruth.txt")) {
       sim::SimOptions options;
       options.width_px = 320;
@@ -72,7 +74,8 @@ class SystemEndToEnd : public ::testing::Test {
       options.scenario = scenario;
       options.seed = seed;
       options.duration_s = seconds;
-      options.fps = kFps;
+      options.fps = fps;
+      options.mean_speed_mps = mean_speed_mps;
       sim::writeSequence(options, dir.string(), 0);
     }
     return dir.string();
@@ -163,13 +166,20 @@ TEST_F(SystemEndToEnd, RgbdInertialThreaded) {
   EXPECT_TRUE(written.metrics.has("mapping_keyframe_median_ms"));
 }
 
-TEST_F(SystemEndToEnd, RgbdOnlyThreaded) {
-  const RunResult result = run(sequence(sim::Scenario::kStatic, kStaticSeconds, kStaticSeed), SystemOptions{false, true, false});
+// One lap of the room (the robot is back at its start after about 25 s at 0.55 m/s) at 12 Hz: the
+// loop-closing thread must recognise the place and close the loop in the one map.
+TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
+  const RunResult result =
+      run(sequence(sim::Scenario::kStatic, 27.0, kStaticSeed, /*fps=*/12.0, /*mean_speed_mps=*/0.55),
+          SystemOptions{false, true, false});
   expectPoseForEveryFrame(result);
-  EXPECT_LT(result.ate_rmse_m, 0.025);
-  EXPECT_LT(result.ate_max_m, 0.05);
+  EXPECT_LT(result.ate_rmse_m, 0.03);
+  EXPECT_LT(result.ate_max_m, 0.06);
   EXPECT_FALSE(result.counts.imu_initialised);
   EXPECT_GE(result.counts.frames_tracked, result.frames - 5);
+  EXPECT_GE(result.counts.loops, 1);
+  EXPECT_EQ(result.counts.merges, 0);
+  EXPECT_EQ(result.counts.maps, 1);
 }
 
 TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
@@ -190,10 +200,10 @@ TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
 }
 
 TEST_F(SystemEndToEnd, LongTermOcclusionRunsWithAPoseForEveryFrame) {
-  const RunResult result = run(sequence(sim::Scenario::kLtlo, 5.0, 1), SystemOptions{true, true, true});
+  const RunResult result = run(sequence(sim::Scenario::kLtlo, 4.0, 1), SystemOptions{true, true, true});
   // Boxes may cover the first frame; from the first initialisation on, every frame has a pose.
   EXPECT_EQ(result.counts.frames, result.frames);
-  EXPECT_GE(result.counts.frames_with_pose, result.frames - 15);
+  EXPECT_GE(result.counts.frames_with_pose, result.frames - 10);
   EXPECT_EQ(static_cast<int>(result.trajectory.size()), result.counts.frames_with_pose);
   EXPECT_LT(result.ate_rmse_m, 0.5);  // no dynamic segmentation yet: only a sanity bound
 }
