@@ -11,6 +11,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <thread>
 #include <unordered_map>
@@ -83,14 +84,15 @@ const World& world() {
 /// Builds keyframes into an Atlas as tracking + local mapping would.
 class SceneBuilder {
  public:
-  /// `T_w_first` is the pose the first keyframe gets in its map (the map's own world frame).
   SceneBuilder(map::Atlas& atlas, const SE3& step_error) : atlas_(atlas), step_error_(step_error) {}
 
-  std::shared_ptr<map::KeyFrame> add(int step, const SE3& T_w_b_first = SE3()) {
+  /// The keyframe at true place `step`. The first one is at `T_w_b_first` in its map (the map's
+  /// world frame), by default its true pose.
+  std::shared_ptr<map::KeyFrame> add(int step, const std::optional<SE3>& T_w_b_first = std::nullopt) {
     const World& w = world();
     const SE3 T_w_b_true = truePose_T_w_b(step);
     const SE3 T_w_b_estimate =
-        kfs_.empty() ? T_w_b_first
+        kfs_.empty() ? T_w_b_first.value_or(T_w_b_true)
                      : kfs_.back()->T_w_b() * truePose_T_w_b(steps_.back()).inverse() * T_w_b_true * step_error_;
     const std::vector<std::pair<int, Vec3>> visible = visibleLandmarks(w, T_w_b_true);
     features::OrbFeatures features;
@@ -228,9 +230,8 @@ TEST(LoopCloser, NoLoopWithoutARevisit) {
   map::Atlas atlas(world().vocabulary->numWords());
   LoopCloser closer(atlas, closerOptions(), MappingControl{});
   SceneBuilder scene(atlas, driftStep());
-  // Almost a lap, then back along the same way (covisible all the time: no loop either).
-  for (int step = 0; step < kStepsPerLap - 5; ++step) closer.processKeyFrame(scene.add(step));
-  for (int step = kStepsPerLap - 7; step > kStepsPerLap - 14; --step) closer.processKeyFrame(scene.add(step));
+  // Most of a lap: the last keyframe's view does not overlap the first one's.
+  for (int step = 0; step < kStepsPerLap - 3; ++step) closer.processKeyFrame(scene.add(step));
   EXPECT_EQ(closer.numLoops(), 0);
   EXPECT_EQ(closer.numMerges(), 0);
   EXPECT_TRUE(closer.events().empty());
@@ -263,8 +264,8 @@ TEST(LoopCloser, MergesAMapStartedAfterTrackingLossIntoTheOldOne) {
     const map::KeyFrame& kf = *new_scene.keyFrames()[k];
     EXPECT_EQ(kf.mapId(), old_map);
     EXPECT_NE(kf.mapId(), new_map);
-    max_error_m = std::max(max_error_m, (kf.T_w_b().translation() -
-                                         truePose_T_w_b(new_scene.steps()[k]).translation()).norm());
+    const double error_m = (kf.T_w_b().translation() - truePose_T_w_b(new_scene.steps()[k]).translation()).norm();
+    max_error_m = std::max(max_error_m, error_m);
   }
   std::printf("[ MERGE    ] merged at new keyframe %d of %zu, %d inliers, max position error after %.2e m\n",
               [&] {
