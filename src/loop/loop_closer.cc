@@ -174,6 +174,8 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
     LoopCorrectionResult correction;
     {
       MappingPause pause(mapping);
+      // Local mapping may have culled either end since the verification.
+      if (kf->isBad() || candidate->isBad()) return false;
       correction = correctLoop(map, *loop);  // bumps the map's version (tracking refreshes)
     }
     if (timer) timer->stop();
@@ -233,6 +235,7 @@ bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::M
   std::optional<MergeResult> merged;
   {
     MappingPause pause(mapping);
+    if (kf->isBad() || accepted->isBad()) return false;
     // Atlas::mergeMaps bumps both versions and makes the target active if the source was;
     // correctLoop bumps the target's again.
     merged = mergeAtPlace(atlas, *kf, *accepted, options.loop);

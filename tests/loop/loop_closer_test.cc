@@ -13,6 +13,7 @@
 #include <cmath>
 #include <optional>
 #include <random>
+#include <string>
 #include <thread>
 #include <unordered_map>
 
@@ -300,9 +301,21 @@ TEST(LoopCloser, ThreadedRunMatchesTheSynchronousOne) {
   LoopCloser closer(threaded_run.atlas, closerOptions(), MappingControl{[&] { ++pauses; }, [&] { ++resumes; }},
                     &timing);
   std::thread loop_thread([&] { closer.run(); });
+  // A tracking-like reader of poses, points and the map version meanwhile (a fixed amount of work).
+  std::thread reader([&] {
+    map::Map& map = threaded_run.atlas.activeMap();
+    double sum = 0.0;
+    for (int pass = 0; pass < 200; ++pass) {
+      sum += static_cast<double>(map.version());
+      for (const auto& kf : map.keyFrames()) sum += kf->T_w_b().translation().x();
+      for (const auto& point : map.mapPoints()) sum += point->p_w().z();
+    }
+    EXPECT_TRUE(std::isfinite(sum));
+  });
   for (const auto& kf : threaded_run.scene.keyFrames()) closer.insertKeyFrame(kf);
   closer.requestFinish();
   loop_thread.join();
+  reader.join();
   closer.waitForGlobalBa();
   EXPECT_FALSE(closer.globalBaRunning());
   EXPECT_EQ(pauses.load(), resumes.load());
