@@ -238,21 +238,26 @@ TEST(LoopCloser, NoLoopWithoutARevisit) {
   EXPECT_TRUE(closer.events().empty());
 }
 
-TEST(LoopCloser, MergesAMapStartedAfterTrackingLossIntoTheOldOne) {
+/// An old map of the first half lap, then tracking is lost and a new map sees part of it again; returns
+/// the index of the new map's keyframe at which the maps were merged (-1: none).
+int mergeAfterTrackingLoss(int min_inliers) {
   map::Atlas atlas(world().vocabulary->numWords());
   int pauses = 0, resumes = 0;
-  LoopCloser closer(atlas, closerOptions(), MappingControl{[&] { ++pauses; }, [&] { ++resumes; }});
+  LoopCloserOptions options = closerOptions();
+  options.loop.min_inliers = min_inliers;
+  LoopCloser closer(atlas, options, MappingControl{[&] { ++pauses; }, [&] { ++resumes; }});
   SceneBuilder old_scene(atlas, SE3());
   for (int step = 0; step < 12; ++step) closer.processKeyFrame(old_scene.add(step));
   const map::MapId old_map = atlas.activeMapId();
   // Tracking lost: a new map whose world frame is the first new keyframe's (an arbitrary offset).
   atlas.createNewMap();
   const map::MapId new_map = atlas.activeMapId();
-  ASSERT_EQ(atlas.numMaps(), 2u);
+  EXPECT_EQ(atlas.numMaps(), 2u);
   SceneBuilder new_scene(atlas, SE3());
   const SE3 T_new_w = SE3(so3Exp(Vec3(0.3, -0.2, 1.0)), Vec3(1.0, -2.0, 0.5));
   for (int step = 4; step < 10; ++step) closer.processKeyFrame(new_scene.add(step, T_new_w * truePose_T_w_b(4)));
-  ASSERT_EQ(closer.numMerges(), 1);
+  EXPECT_EQ(closer.numMerges(), 1);
+  if (closer.numMerges() != 1) return -1;
   EXPECT_EQ(closer.numLoops(), 0);
   EXPECT_EQ(atlas.numMaps(), 1u);
   EXPECT_EQ(atlas.activeMapId(), old_map);  // the merged-away map was the active one
@@ -268,16 +273,28 @@ TEST(LoopCloser, MergesAMapStartedAfterTrackingLossIntoTheOldOne) {
     const double error_m = (kf.T_w_b().translation() - truePose_T_w_b(new_scene.steps()[k]).translation()).norm();
     max_error_m = std::max(max_error_m, error_m);
   }
-  std::printf("[ MERGE    ] merged at new keyframe %d of %zu, %d inliers, max position error after %.2e m\n",
-              [&] {
-                for (std::size_t k = 0; k < new_scene.keyFrames().size(); ++k) {
-                  if (new_scene.keyFrames()[k]->id() == event.current) return static_cast<int>(k);
-                }
-                return -1;
-              }(),
-              new_scene.keyFrames().size(), event.inliers, max_error_m);
+  int merged_at = -1;
+  for (std::size_t k = 0; k < new_scene.keyFrames().size(); ++k) {
+    if (new_scene.keyFrames()[k]->id() == event.current) merged_at = static_cast<int>(k);
+  }
+  std::printf(
+      "[ MERGE    ] Loop.MinInliers %d: merged at new keyframe %d of %zu, %d inliers, max position error after "
+      "%.2e m\n",
+      min_inliers, merged_at, new_scene.keyFrames().size(), event.inliers, max_error_m);
   EXPECT_LT(max_error_m, 1e-3);
   EXPECT_EQ(pauses, resumes);
+  EXPECT_EQ(pauses, 2);  // merge, then the full BA's write-back
+  return merged_at;
+}
+
+TEST(LoopCloser, MergesAMapStartedAfterTrackingLossAtOnceOnAStrongMatch) {
+  // ~155 inliers >= 2 * 20: accepted before the consistency check completes.
+  EXPECT_EQ(mergeAfterTrackingLoss(20), 0);
+}
+
+TEST(LoopCloser, MergesAfterThreeConsistentQueriesOnAnOrdinaryMatch) {
+  // 2 * 100 inliers are not there: the place must be recognised by three consecutive keyframes.
+  EXPECT_EQ(mergeAfterTrackingLoss(100), 2);
 }
 
 /// Builds the whole loop sequence first (no correction during the build), then feeds it.
