@@ -80,6 +80,38 @@ TEST(GlobalBundleAdjustment, RecoversPerturbedPosesAndPoints) {
   EXPECT_LT(1e-3, pose_before);
 }
 
+TEST(GlobalBundleAdjustment, AStopRequestDiscardsTheResult) {
+  map::Map map;
+  const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);
+  std::vector<std::shared_ptr<map::KeyFrame>> kfs;
+  for (int k = 0; k < 2; ++k) {
+    features::OrbFeatures features;
+    std::vector<float> depths;
+    for (int i = 0; i < 10; ++i) {
+      features.keypoints.push_back(features::Keypoint{static_cast<float>(100 + 20 * i), 200.0f, 0.0f, 0.0f, 0});
+      features.descriptors.push_back({});
+      depths.push_back(3.0f);
+    }
+    map::Frame frame(0.1 * k, camera, SE3(), std::move(features), std::move(depths), {1.0f, 1.2f});
+    frame.setPose_T_w_b(SE3(Quat::Identity(), Vec3(0.1 * k, 0.0, 0.0)));
+    kfs.push_back(map.createKeyFrame(frame));
+  }
+  for (int i = 0; i < 10; ++i) {
+    const auto point = map.createMapPoint(Vec3(0.01 * i, 0.0, 3.0), kfs[0]->id());
+    ASSERT_TRUE(map.addObservation(*kfs[0], i, *point));
+    ASSERT_TRUE(map.addObservation(*kfs[1], i, *point));
+  }
+  const std::atomic<bool> stop{true};
+  GlobalBaOptions options;
+  options.stop_flag = &stop;
+  const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map, options);
+  EXPECT_FALSE(solution.valid);
+  const std::uint64_t version = map.version();
+  EXPECT_EQ(applyGlobalBundleAdjustment(map, solution), 0);
+  EXPECT_EQ(map.version(), version);
+  EXPECT_EQ(kfs[1]->T_w_b().translation(), Vec3(0.1, 0.0, 0.0));
+}
+
 TEST(GlobalBundleAdjustment, ApplyMovesKeyFramesAndPointsCreatedDuringTheRunWithTheirParent) {
   const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);
   std::mt19937 rng(37);

@@ -238,6 +238,25 @@ TEST(LoopCloser, NoLoopWithoutARevisit) {
   EXPECT_TRUE(closer.events().empty());
 }
 
+TEST(LoopCloser, SkipsBadKeyFramesAndKeyFramesWithoutBow) {
+  map::Atlas atlas(world().vocabulary->numWords());
+  LoopCloser closer(atlas, closerOptions(), MappingControl{});
+  SceneBuilder scene(atlas, SE3());
+  closer.processKeyFrame(scene.add(0));
+  closer.processKeyFrame(scene.add(1));
+  EXPECT_EQ(atlas.keyFrameDatabase().size(), 2u);
+  // Without BoW (never given to the database), culled (bad), or none at all.
+  map::Frame frame(9.0, kCamera, SE3(), features::OrbFeatures{}, {}, {1.0f});
+  frame.setPose_T_w_b(SE3());
+  closer.processKeyFrame(atlas.activeMap().createKeyFrame(frame));
+  const std::shared_ptr<map::KeyFrame> culled = scene.add(2);
+  ASSERT_TRUE(atlas.activeMap().eraseKeyFrame(culled->id()));
+  closer.processKeyFrame(culled);
+  closer.processKeyFrame(nullptr);
+  EXPECT_EQ(atlas.keyFrameDatabase().size(), 2u);
+  EXPECT_TRUE(closer.events().empty());
+}
+
 /// An old map of the first half lap, then tracking is lost and a new map sees part of it again; returns
 /// the index of the new map's keyframe at which the maps were merged (-1: none).
 int mergeAfterTrackingLoss(int min_inliers) {
