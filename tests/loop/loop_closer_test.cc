@@ -322,8 +322,8 @@ TEST(LoopCloser, MergesAfterThreeConsistentQueriesOnAnOrdinaryMatch) {
 
 /// Builds the whole loop sequence first (no correction during the build), then feeds it.
 struct PrebuiltLoop {
-  PrebuiltLoop() : atlas(world().vocabulary->numWords()), scene(atlas, driftStep()) {
-    for (int step = 0; step < kLoopSteps; ++step) scene.add(step);
+  explicit PrebuiltLoop(int num_steps = kLoopSteps) : atlas(world().vocabulary->numWords()), scene(atlas, driftStep()) {
+    for (int step = 0; step < num_steps; ++step) scene.add(step);
   }
   map::Atlas atlas;
   SceneBuilder scene;
@@ -377,6 +377,35 @@ TEST(LoopCloser, ThreadedRunMatchesTheSynchronousOne) {
   EXPECT_EQ(timing.stage("loop.keyframe").count, static_cast<std::size_t>(kLoopSteps));
   EXPECT_EQ(timing.stage("loop.correction").count, 1u);
   EXPECT_EQ(timing.stage("loop.global_ba").count, 1u);
+}
+
+TEST(LoopCloser, ALaterLoopAbortsOrFollowsTheRunningFullBa) {
+  // Two laps: the second revisit closes another loop while the first full BA may still run (then it
+  // is aborted and joined before the correction; either way pauses and resumes stay balanced).
+  PrebuiltLoop run(2 * kStepsPerLap + 4);
+  std::atomic<int> pauses{0}, resumes{0};
+  TimingStats timing;
+  LoopCloser closer(run.atlas, closerOptions(), MappingControl{[&] { ++pauses; }, [&] { ++resumes; }}, &timing);
+  std::thread loop_thread([&] { closer.run(); });
+  for (const auto& kf : run.scene.keyFrames()) closer.insertKeyFrame(kf);
+  closer.requestFinish();
+  loop_thread.join();
+  EXPECT_FALSE(closer.globalBaRunning());
+  std::printf("[ TWO LAPS ] %d loops, %zu full BA runs finished or aborted, mapping paused %d times\n",
+              closer.numLoops(), timing.stage("loop.global_ba").count, pauses.load());
+  EXPECT_GE(closer.numLoops(), 2);
+  // Every loop joins keyframes at the same true place (no false loop).
+  std::unordered_map<std::uint64_t, int> step_of;
+  for (std::size_t k = 0; k < run.scene.keyFrames().size(); ++k) {
+    step_of[run.scene.keyFrames()[k]->id().value] = run.scene.steps()[k];
+  }
+  for (const LoopEvent& event : closer.events()) {
+    const int apart = std::abs(step_of.at(event.current.value) - step_of.at(event.loop.value)) % kStepsPerLap;
+    EXPECT_LE(std::min(apart, kStepsPerLap - apart), 2) << event.current << " ~ " << event.loop;
+  }
+  EXPECT_EQ(pauses.load(), resumes.load());
+  EXPECT_EQ(timing.stage("loop.global_ba").count, static_cast<std::size_t>(closer.numLoops()));
+  EXPECT_GE(pauses.load(), closer.numLoops() + 1);  // each correction, and the last full BA's write-back
 }
 
 }  // namespace
