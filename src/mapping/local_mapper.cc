@@ -15,11 +15,6 @@ namespace ltlo::mapping {
 
 namespace {
 
-/// Refinements of the IMU estimate after the first initialisation, in seconds of keyframe time
-/// after it (ORB-SLAM3 runs its VI-BA 1 and 2 at about these ages).
-constexpr double kImuRefinementDelays_s[] = {5.0, 15.0};
-constexpr int kNumImuRefinements = 2;
-
 double angleDeg(const Vec3& a, const Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
 }
@@ -76,7 +71,7 @@ struct LocalMapper::Impl {
   RecentPointCuller recent_points;
   int sequence = 0;
   double first_imu_init_t_s = 0.0;
-  int imu_refinements = 0;
+  std::size_t imu_refinements = 0;  ///< refinements done (index into imu_refinement_delays_s)
 };
 
 void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded) {
@@ -168,8 +163,8 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
   const char* what = nullptr;
   if (!state.initialised) {
     what = "initialised";
-  } else if (imu_refinements < kNumImuRefinements &&
-             kf->t_s() - first_imu_init_t_s >= kImuRefinementDelays_s[imu_refinements]) {
+  } else if (imu_refinements < options.imu_refinement_delays_s.size() &&
+             kf->t_s() - first_imu_init_t_s >= options.imu_refinement_delays_s[imu_refinements]) {
     what = "refined";
   } else {
     return false;

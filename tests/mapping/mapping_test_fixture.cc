@@ -52,6 +52,13 @@ std::vector<std::pair<double, imu::ImuBias>> readBiases(const std::string& path)
   return biases;
 }
 
+/// A keyframe at least every 0.5 s (the default 1 s gives ~1 keyframe/s on these sequences).
+tracking::TrackerOptions trackerOptions() {
+  tracking::TrackerOptions options;
+  options.keyframe.max_interval_s = 0.5;
+  return options;
+}
+
 }  // namespace
 
 double angleDeg(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI; }
@@ -64,7 +71,7 @@ void MappingOnSimulatedSequence::SetUpTestSuite() {
   options.height_px = 240;
   options.scenario = sim::Scenario::kStatic;
   options.seed = 5;
-  options.duration_s = 9.0;
+  options.duration_s = 7.0;
   sim::writeSequence(options, g_dir->string(), 0);
   io::SequenceReader reader = io::SequenceReader::open(g_dir->string());
   g_truth = new Truth{reader.groundTruth(), reader.calib().imu.T_b_c, readBiases((*g_dir / "imu_biases.txt").string())};
@@ -82,7 +89,10 @@ void MappingOnSimulatedSequence::TearDownTestSuite() {
 LocalMapperOptions MappingOnSimulatedSequence::mapperOptions(bool use_imu) {
   LocalMapperOptions options;
   options.use_imu = use_imu;
-  options.bf_px_m = tracking::TrackerOptions().bf_px_m;
+  options.bf_px_m = trackerOptions().bf_px_m;
+  options.imu_init.min_keyframes = 6;
+  options.imu_init.min_time_s = 2.0;
+  options.imu_refinement_delays_s = {2.0, 4.0};
   return options;
 }
 
@@ -110,7 +120,7 @@ RunResult MappingOnSimulatedSequence::run(const RunConfig& config) {
   const tracking::FrameBuilder builder(orbOptions(), reader.calib());
   map::Atlas atlas(16);
   map::Map& map = atlas.activeMap();
-  tracking::Tracker tracker(map, tracking::TrackerOptions(), builder.extractor().levelSigma2());
+  tracking::Tracker tracker(map, trackerOptions(), builder.extractor().levelSigma2());
   TimingStats timing;
   LocalMapper mapper(atlas, config.options, builder.extractor().levelSigma2(), &timing);
   RunResult result;
