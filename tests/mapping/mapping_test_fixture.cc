@@ -71,7 +71,7 @@ void MappingOnSimulatedSequence::SetUpTestSuite() {
   options.height_px = 240;
   options.scenario = sim::Scenario::kStatic;
   options.seed = 5;
-  options.duration_s = 7.0;
+  options.duration_s = 6.0;
   sim::writeSequence(options, g_dir->string(), 0);
   io::SequenceReader reader = io::SequenceReader::open(g_dir->string());
   g_truth = new Truth{reader.groundTruth(), reader.calib().imu.T_b_c, readBiases((*g_dir / "imu_biases.txt").string())};
@@ -92,7 +92,7 @@ LocalMapperOptions MappingOnSimulatedSequence::mapperOptions(bool use_imu) {
   options.bf_px_m = trackerOptions().bf_px_m;
   options.imu_init.min_keyframes = 6;
   options.imu_init.min_time_s = 2.0;
-  options.imu_refinement_delays_s = {2.0, 4.0};
+  options.imu_refinement_delays_s = {1.5, 3.0};
   return options;
 }
 

@@ -53,7 +53,7 @@ class MappingOnSimulatedSequence : public ::testing::Test {
   static Vec3 trueVelocity(double t_s);
   /// The simulator's true biases (imu_biases.txt) at the sample nearest to t_s.
   static imu::ImuBias trueBias(double t_s);
-  /// The options of the tests: the IMU initialised after 6 keyframes (2 s), refined 2 and 4 s later.
+  /// The options of the tests: the IMU initialised after 6 keyframes (2 s), refined 1.5 and 3 s later.
   static LocalMapperOptions mapperOptions(bool use_imu);
 };
 
