@@ -4,7 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <sstream>
+#include <stdexcept>
 #include <thread>
+
+#include "common/log_capture.h"
 
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/map/atlas.h"
@@ -49,6 +53,34 @@ TEST(LocalMapperThreads, PauseReturnsAtOnceWithoutRunAndRunEndsAfterFinish) {
   EXPECT_TRUE(mapper.finished());
   EXPECT_EQ(mapper.counters().keyframes_processed, 0);
   EXPECT_FALSE(mapper.imuState().initialised);
+}
+
+TEST(LocalMapperThreads, AnExceptionEndsRunWithTheKeyFrameInTheLog) {
+  map::Atlas atlas(16);
+  map::Map& map = atlas.activeMap();
+  std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
+  for (int n = 0; n < 2; ++n) {
+    map::Frame frame(0.1 * n, PinholeCamera(262.5, 262.5, 159.5, 119.5, 320, 240), SE3(), features::OrbFeatures(),
+                     std::vector<float>(), std::vector<float>{1.0f, 1.2f});
+    frame.setPose_T_w_b(SE3());
+    keyframes.push_back(map.createKeyFrame(frame));
+  }
+  LocalMapper mapper(atlas, LocalMapperOptions(), std::vector<float>{1.0f, 1.44f});
+  mapper.setKeyFrameProcessedCallback([](const std::shared_ptr<map::KeyFrame>&) {
+    throw std::runtime_error("loop closing refused it");
+  });
+  ltlo::test::LogCapture capture(log::Level::kWarn);
+  mapper.insertKeyFrame(keyframes[0]);
+  std::thread mapping([&] { mapper.run(); });
+  mapping.join();
+  EXPECT_TRUE(mapper.finished());
+  EXPECT_EQ(mapper.counters().keyframes_processed, 1);
+  std::ostringstream expected;
+  expected << "local mapping failed on keyframe " << keyframes[0]->id() << ": loop closing refused it";
+  EXPECT_TRUE(capture.contains(expected.str()));
+  mapper.insertKeyFrame(keyframes[1]);  // the queue is closed: refused with a warning, never blocks
+  EXPECT_TRUE(capture.contains("not processed"));
+  EXPECT_EQ(mapper.queuedKeyFrames(), 0u);
 }
 
 }  // namespace

@@ -125,14 +125,14 @@ RunResult MappingOnSimulatedSequence::run(const RunConfig& config) {
   LocalMapper mapper(atlas, config.options, builder.extractor().levelSigma2(), &timing);
   RunResult result;
 
-  // Threaded: the mapper in its own thread; a third thread pauses it after processed keyframes
-  // (as loop closing does) and counts keyframes processed while it held the pause.
+  // Threaded: the mapper in its own thread; a third thread pauses it right after keyframes are
+  // inserted (while it is likely processing one: the pause aborts its BA and waits for the end of
+  // the keyframe, as for loop closing) and counts keyframes processed while it held the pause.
   std::atomic<bool> paused{false};
   std::atomic<int> processed_while_paused{0};
-  BlockingQueue<int> processed_events(4096);
+  BlockingQueue<int> inserted_events(4096);
   mapper.setKeyFrameProcessedCallback([&](const std::shared_ptr<map::KeyFrame>&) {
     if (paused.load()) processed_while_paused.fetch_add(1);
-    processed_events.tryPush(1);
   });
   std::thread mapping_thread;
   std::thread pausing_thread;
@@ -140,7 +140,7 @@ RunResult MappingOnSimulatedSequence::run(const RunConfig& config) {
   if (config.threaded) {
     mapping_thread = std::thread([&] { mapper.run(); });
     pausing_thread = std::thread([&] {
-      while (processed_events.pop()) {
+      while (inserted_events.pop()) {
         if (pauses >= config.pause_rounds) continue;
         mapper.pause();
         paused.store(true);
@@ -158,6 +158,7 @@ RunResult MappingOnSimulatedSequence::run(const RunConfig& config) {
     tracker.setLocalMappingCallback([&](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) {
       if (config.threaded) {
         mapper.insertKeyFrame(kf);
+        inserted_events.tryPush(1);
       } else {
         mapper.processKeyFrame(kf);
       }
@@ -178,7 +179,7 @@ RunResult MappingOnSimulatedSequence::run(const RunConfig& config) {
   if (config.threaded) {
     mapper.requestFinish();
     mapping_thread.join();
-    processed_events.close();
+    inserted_events.close();
     pausing_thread.join();
     EXPECT_TRUE(mapper.finished());
   }
