@@ -120,7 +120,7 @@ RunResult MappingOnSimulatedSequence::run(const RunConfig& config) {
   const tracking::FrameBuilder builder(orbOptions(), reader.calib());
   map::Atlas atlas(16);
   map::Map& map = atlas.activeMap();
-  tracking::Tracker tracker(map, trackerOptions(), builder.extractor().levelSigma2());
+  tracking::Tracker tracker(atlas, trackerOptions(), builder.extractor().levelSigma2());
   TimingStats timing;
   LocalMapper mapper(atlas, config.options, builder.extractor().levelSigma2(), &timing);
   RunResult result;
