@@ -8,13 +8,14 @@
 
 namespace ltlo::loop {
 
-GlobalBaResult runGlobalBundleAdjustment(map::Map& map, const GlobalBaOptions& options) {
-  GlobalBaResult result;
-  std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
+GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const GlobalBaOptions& options) {
+  GlobalBaSolution solution;
+  GlobalBaResult& result = solution.result;
+  std::vector<std::shared_ptr<map::KeyFrame>>& keyframes = solution.keyframes;
   for (const std::shared_ptr<map::KeyFrame>& kf : map.keyFrames()) {
     if (!kf->isBad()) keyframes.push_back(kf);
   }
-  if (keyframes.size() < 2) return result;
+  if (keyframes.size() < 2) return solution;
 
   optim::LocalBaProblem problem;
   const map::KeyFrame& first = *keyframes.front();
@@ -29,6 +30,7 @@ GlobalBaResult runGlobalBundleAdjustment(map::Map& map, const GlobalBaOptions& o
     optim::BaKeyFrame v;
     v.id = static_cast<int>(problem.keyframes.size());
     v.T_w_b = kf->T_w_b();
+    solution.T_w_b_before.push_back(v.T_w_b);
     v.fixed = fixed.count(kf->id()) > 0;
     kf_index[kf->id()] = v.id;
     problem.keyframes.push_back(v);
@@ -37,7 +39,7 @@ GlobalBaResult runGlobalBundleAdjustment(map::Map& map, const GlobalBaOptions& o
   for (const optim::BaKeyFrame& v : problem.keyframes) any_fixed = any_fixed || v.fixed;
   if (!any_fixed) problem.keyframes.front().fixed = true;
 
-  std::vector<std::shared_ptr<map::MapPoint>> points;
+  std::vector<std::shared_ptr<map::MapPoint>>& points = solution.points;
   for (const std::shared_ptr<map::MapPoint>& point : map.mapPoints()) {
     if (point->isBad()) continue;
     std::vector<optim::BaObservation> observations;
@@ -62,25 +64,67 @@ GlobalBaResult runGlobalBundleAdjustment(map::Map& map, const GlobalBaOptions& o
   result.keyframes = static_cast<int>(keyframes.size());
   result.points = static_cast<int>(points.size());
   result.observations = static_cast<int>(problem.observations.size());
-  if (points.empty()) return result;
+  if (points.empty()) return solution;
 
   optim::LocalBaOptions ba_options;
   ba_options.iterations = options.iterations;
   ba_options.num_threads = options.num_threads;
   ba_options.stop_flag = options.stop_flag;
   const optim::LocalBaResult solved = optim::localBundleAdjust(problem, ba_options);
-  if (options.stop_flag != nullptr && options.stop_flag->load()) return result;  // discarded
-  for (std::size_t k = 0; k < keyframes.size(); ++k) keyframes[k]->setPose_T_w_b(solved.keyframes[k].T_w_b);
-  for (std::size_t p = 0; p < points.size(); ++p) {
-    if (!points[p]->isBad()) points[p]->setPosition(solved.points[p].p_w);
-  }
+  if (options.stop_flag != nullptr && options.stop_flag->load()) return solution;  // discarded (invalid)
+  for (const optim::BaKeyFrame& v : solved.keyframes) solution.T_w_b_after.push_back(v.T_w_b);
+  for (const optim::BaPoint& p : solved.points) solution.p_w_after.push_back(p.p_w);
   for (const bool inlier : solved.inliers) result.outliers += inlier ? 0 : 1;
   result.initial_chi2 = solved.summary.initial_chi2;
   result.final_chi2 = solved.summary.final_chi2;
+  solution.valid = true;
+  return solution;
+}
+
+int applyGlobalBundleAdjustment(map::Map& map, const GlobalBaSolution& solution) {
+  if (!solution.valid) return 0;
+  // Correction of each keyframe, T_w_b_after * T_w_b_before^-1: the optimised ones from the
+  // solution, the ones created since from their parent (always older, so visited first by id).
+  std::unordered_map<map::KeyFrameId, SE3> correction;
+  for (std::size_t k = 0; k < solution.keyframes.size(); ++k) {
+    correction[solution.keyframes[k]->id()] = solution.T_w_b_after[k] * solution.T_w_b_before[k].inverse();
+  }
+  int propagated = 0;
+  for (const std::shared_ptr<map::KeyFrame>& kf : map.keyFrames()) {
+    if (kf->isBad()) continue;
+    const auto own = correction.find(kf->id());
+    if (own != correction.end()) continue;
+    const auto parent = correction.find(kf->parent());
+    if (parent == correction.end()) continue;
+    kf->setPose_T_w_b(parent->second * kf->T_w_b());
+    correction[kf->id()] = parent->second;
+    ++propagated;
+  }
+  for (std::size_t k = 0; k < solution.keyframes.size(); ++k) {
+    if (!solution.keyframes[k]->isBad()) solution.keyframes[k]->setPose_T_w_b(solution.T_w_b_after[k]);
+  }
+  std::unordered_set<map::MapPointId> optimised;
+  for (std::size_t p = 0; p < solution.points.size(); ++p) {
+    optimised.insert(solution.points[p]->id());
+    if (!solution.points[p]->isBad()) solution.points[p]->setPosition(solution.p_w_after[p]);
+  }
+  for (const std::shared_ptr<map::MapPoint>& point : map.mapPoints()) {
+    if (point->isBad() || optimised.count(point->id()) > 0) continue;
+    const auto it = correction.find(point->referenceKeyFrame());
+    if (it != correction.end()) point->setPosition(it->second * point->p_w());
+  }
   map.bumpVersion();
+  const GlobalBaResult& result = solution.result;
   log::info("global BA: ", result.keyframes, " keyframes, ", result.points, " points, ", result.observations,
-            " observations, ", result.outliers, " outliers, chi2 ", result.initial_chi2, " -> ", result.final_chi2);
-  return result;
+            " observations, ", result.outliers, " outliers, chi2 ", result.initial_chi2, " -> ", result.final_chi2,
+            "; ", propagated, " newer keyframes moved with their parents");
+  return propagated;
+}
+
+GlobalBaResult runGlobalBundleAdjustment(map::Map& map, const GlobalBaOptions& options) {
+  const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map, options);
+  applyGlobalBundleAdjustment(map, solution);
+  return solution.result;
 }
 
 }  // namespace ltlo::loop

@@ -80,5 +80,108 @@ TEST(GlobalBundleAdjustment, RecoversPerturbedPosesAndPoints) {
   EXPECT_LT(1e-3, pose_before);
 }
 
+TEST(GlobalBundleAdjustment, AStopRequestDiscardsTheResult) {
+  map::Map map;
+  const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);
+  std::vector<std::shared_ptr<map::KeyFrame>> kfs;
+  for (int k = 0; k < 2; ++k) {
+    features::OrbFeatures features;
+    std::vector<float> depths;
+    for (int i = 0; i < 10; ++i) {
+      features.keypoints.push_back(features::Keypoint{static_cast<float>(100 + 20 * i), 200.0f, 0.0f, 0.0f, 0});
+      features.descriptors.push_back({});
+      depths.push_back(3.0f);
+    }
+    map::Frame frame(0.1 * k, camera, SE3(), std::move(features), std::move(depths), {1.0f, 1.2f});
+    frame.setPose_T_w_b(SE3(Quat::Identity(), Vec3(0.1 * k, 0.0, 0.0)));
+    kfs.push_back(map.createKeyFrame(frame));
+  }
+  for (int i = 0; i < 10; ++i) {
+    const auto point = map.createMapPoint(Vec3(0.01 * i, 0.0, 3.0), kfs[0]->id());
+    ASSERT_TRUE(map.addObservation(*kfs[0], i, *point));
+    ASSERT_TRUE(map.addObservation(*kfs[1], i, *point));
+  }
+  const std::atomic<bool> stop{true};
+  GlobalBaOptions options;
+  options.stop_flag = &stop;
+  const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map, options);
+  EXPECT_FALSE(solution.valid);
+  const std::uint64_t version = map.version();
+  EXPECT_EQ(applyGlobalBundleAdjustment(map, solution), 0);
+  EXPECT_EQ(map.version(), version);
+  EXPECT_EQ(kfs[1]->T_w_b().translation(), Vec3(0.1, 0.0, 0.0));
+}
+
+TEST(GlobalBundleAdjustment, ApplyMovesKeyFramesAndPointsCreatedDuringTheRunWithTheirParent) {
+  const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);
+  std::mt19937 rng(37);
+  std::uniform_real_distribution<double> lateral(-1.0, 1.0), depth(3.0, 4.0);
+  std::vector<Vec3> p_w_true;
+  for (int i = 0; i < kNumPoints; ++i) p_w_true.emplace_back(lateral(rng), lateral(rng), depth(rng));
+  auto frameAt = [&](const SE3& T_w_b_true, const SE3& T_w_b_estimate) {
+    features::OrbFeatures features;
+    std::vector<float> depths;
+    for (const Vec3& p_w : p_w_true) {
+      const Vec3 p_c = T_w_b_true.inverse() * p_w;
+      const Vec2 uv = camera.project(p_c);
+      features::Keypoint kp;
+      kp.x_px = static_cast<float>(uv.x());
+      kp.y_px = static_cast<float>(uv.y());
+      features.keypoints.push_back(kp);
+      features.descriptors.push_back({});
+      depths.push_back(static_cast<float>(p_c.z()));
+    }
+    // Free keypoints for the points created later (their pixels do not matter here).
+    for (int i = 0; i < kNumPoints / 2; ++i) {
+      features.keypoints.push_back(features::Keypoint{});
+      features.descriptors.push_back({});
+      depths.push_back(2.0f);
+    }
+    map::Frame frame(0.0, camera, SE3(), std::move(features), std::move(depths), {1.0f, 1.2f});
+    frame.setPose_T_w_b(T_w_b_estimate);
+    return frame;
+  };
+  map::Map map;
+  const SE3 T_w_b0(so3Exp(Vec3(0.0, 0.0, 0.0)), Vec3::Zero());
+  const SE3 T_w_b1_true(so3Exp(Vec3(0.0, 0.05, 0.0)), Vec3(0.2, 0.0, 0.0));
+  const SE3 offset = SE3::exp((Vec6() << 0.0, 0.02, 0.0, 0.05, -0.03, 0.02).finished());
+  const auto kf0 = map.createKeyFrame(frameAt(T_w_b0, T_w_b0));
+  const auto kf1 = map.createKeyFrame(frameAt(T_w_b1_true, T_w_b1_true * offset));
+  for (int i = 0; i < kNumPoints; ++i) {
+    const auto point = map.createMapPoint(p_w_true[static_cast<std::size_t>(i)], kf0->id());
+    ASSERT_TRUE(map.addObservation(*kf0, i, *point));
+    ASSERT_TRUE(map.addObservation(*kf1, i, *point));
+  }
+  map.updateConnections(*kf1);
+  const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map);
+  ASSERT_TRUE(solution.valid);
+  EXPECT_LT((kf1->T_w_b().translation() - (T_w_b1_true * offset).translation()).norm(), 1e-12);  // not written yet
+
+  // Local mapping adds meanwhile a keyframe kf2 (from kf1's old estimate) and points created by kf1
+  // that kf2 sees too; kf2's parent is kf1.
+  const SE3 T_b1_b2(so3Exp(Vec3(0.0, 0.03, 0.0)), Vec3(0.1, 0.0, 0.0));
+  const auto kf2 = map.createKeyFrame(frameAt(T_w_b1_true * T_b1_b2, kf1->T_w_b() * T_b1_b2));
+  std::vector<std::pair<std::shared_ptr<map::MapPoint>, Vec3>> new_points;  // with p_w true
+  for (int i = 0; i < kNumPoints / 2; ++i) {
+    const Vec3 p_b1(lateral(rng), lateral(rng), depth(rng));
+    const auto point = map.createMapPoint(kf1->T_w_b() * p_b1, kf1->id());
+    ASSERT_TRUE(map.addObservation(*kf1, kNumPoints + i, *point));
+    ASSERT_TRUE(map.addObservation(*kf2, kNumPoints + i, *point));
+    new_points.emplace_back(point, T_w_b1_true * p_b1);
+  }
+  map.updateConnections(*kf2);
+  ASSERT_EQ(kf2->parent(), kf1->id());
+  const std::uint64_t version = map.version();
+  EXPECT_EQ(applyGlobalBundleAdjustment(map, solution), 1);
+  EXPECT_GT(map.version(), version);
+  EXPECT_LT((kf1->T_w_b().translation() - T_w_b1_true.translation()).norm(), 1e-4);
+  EXPECT_LT(((T_w_b1_true * T_b1_b2).inverse() * kf2->T_w_b()).translation().norm(), 1e-4);
+  double max_point_error_m = 0.0;
+  for (const auto& [point, p_w_true_new] : new_points) {
+    max_point_error_m = std::max(max_point_error_m, (point->p_w() - p_w_true_new).norm());
+  }
+  EXPECT_LT(max_point_error_m, 1e-4);
+}
+
 }  // namespace
 }  // namespace ltlo::loop

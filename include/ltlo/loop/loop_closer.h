@@ -6,7 +6,11 @@
 /// The keyframe then enters the keyframe database.
 ///
 /// Threads: local mapping calls insertKeyFrame(); the loop thread runs run(); the full BA runs in a
-/// thread the closer starts and joins (a newer loop aborts it). System calls requestFinish() and joins.
+/// thread the closer starts and joins (a newer loop or merge aborts and joins it before changing the
+/// map; it writes its result back with local mapping paused). System calls requestFinish() and joins.
+/// Every correction or merge bumps the Map version(s): tracking must refresh what it holds of the
+/// map (local map, reference keyframe, last pose in the old frame) when the version of its map
+/// changes, and re-fetch Atlas::activeMap() (a merge may make another map active).
 /// Thread-safe public API; the closer owns its queue, detector and event list.
 #include <functional>
 #include <memory>
@@ -54,7 +58,9 @@ class LoopCloser {
   LoopCloser& operator=(const LoopCloser&) = delete;
   ~LoopCloser();  ///< joins a running full BA
 
-  /// Queues a processed keyframe (local-mapping thread).
+  /// Queues a processed keyframe (local-mapping thread). Never blocks (the loop thread may be
+  /// waiting for local mapping to pause): a keyframe that finds the queue full or closed skips loop
+  /// detection but still enters the keyframe database.
   void insertKeyFrame(std::shared_ptr<map::KeyFrame> kf);
   /// Detection, verification, correction/merge and database insertion of one keyframe, in the
   /// calling thread (tests, single-threaded runs; the full BA then runs synchronously too).

@@ -37,6 +37,10 @@ struct LocalMapperOptions {
   double bf_px_m = 40.0;
   int ba_threads = 1;                 ///< linearisation threads of the local BA
   std::size_t queue_capacity = 64;    ///< keyframes waiting; insertKeyFrame blocks beyond
+  /// Refinements of the IMU estimate (re-initialisation over the whole chain with the refined
+  /// poses), at these keyframe-time delays after the first initialisation (s, increasing; ORB-SLAM3
+  /// runs its VI-BA 1 and 2 at about 5 and 15 s).
+  std::vector<double> imu_refinement_delays_s = {5.0, 15.0};
 };
 
 /// The IMU state tracking needs once the IMU is initialised. g_w is expressed in the world frame

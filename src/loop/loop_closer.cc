@@ -1,0 +1,378 @@
+#include "ltlo/loop/loop_closer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "bow/bow_vector.h"
+#include "ltlo/core/blocking_queue.h"
+#include "ltlo/core/log.h"
+#include "ltlo/loop/loop_corrector.h"
+#include "ltlo/loop/loop_detector.h"
+#include "ltlo/loop/map_merger.h"
+#include "ltlo/map/keyframe_database.h"
+
+namespace ltlo::loop {
+
+namespace {
+
+/// Keyframes processed after a correction or merge before the next loop may be closed (ORB-SLAM
+/// waits 10 keyframes: the place just closed is still consistent for the next queries).
+constexpr int kKeyFramesBetweenLoops = 10;
+/// A merge candidate not (yet) consistent is accepted when its verification has this many times
+/// Loop.MinInliers (a map started after tracking loss should rejoin the old one soon).
+constexpr int kStrongMergeInlierFactor = 2;
+/// Best covisibles forming a candidate's group (consistency) and setting the BoW score threshold.
+constexpr std::size_t kGroupSize = 10;
+
+/// Pauses local mapping for its lifetime (no-op functions when not wired).
+class MappingPause {
+ public:
+  explicit MappingPause(const MappingControl& mapping) : mapping_(mapping) {
+    if (mapping_.pause) mapping_.pause();
+  }
+  MappingPause(const MappingPause&) = delete;
+  MappingPause& operator=(const MappingPause&) = delete;
+  ~MappingPause() {
+    if (mapping_.resume) mapping_.resume();
+  }
+
+ private:
+  const MappingControl& mapping_;
+};
+
+/// ORB-SLAM's BoW threshold: the lowest score of `kf` against its best covisibles (0 without any).
+double minCovisibleScore(const map::KeyFrame& kf, const map::Map& map) {
+  bool have_covisible = false;
+  double min_score = 1.0;
+  for (const map::KeyFrameId id : kf.bestCovisibles(kGroupSize)) {
+    const std::shared_ptr<map::KeyFrame> other = map.keyFrame(id);
+    if (!other || other->isBad() || !other->hasBow()) continue;
+    min_score = std::min(min_score, bow::l1Score(kf.bowVector(), other->bowVector()));
+    have_covisible = true;
+  }
+  return have_covisible ? min_score : 0.0;
+}
+
+}  // namespace
+
+struct LoopCloser::Impl {
+  Impl(map::Atlas& atlas_in, const LoopCloserOptions& options_in, MappingControl mapping_in, TimingStats* timing_in)
+      : atlas(atlas_in),
+        options(options_in),
+        mapping(std::move(mapping_in)),
+        timing(timing_in),
+        queue(options_in.queue_capacity),
+        detector(options_in.loop, map::PlaceQueryOptions(), kGroupSize),
+        merge_consistency(options_in.loop.min_consistency) {}
+
+  // ---- loop thread (or the caller of processKeyFrame) ----
+  void process(const std::shared_ptr<map::KeyFrame>& kf);
+  /// Detection, verification and correction in kf's map; true when a loop was closed.
+  bool tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// Merge detection against the other maps; true when kf's map was merged.
+  bool tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// Forgets the consistency state (a correction or a map change).
+  void resetDetection();
+  void recordEvent(const LoopEvent& event);
+
+  // ---- full BA ----
+  /// Starts the full BA of `map` (in its own thread from run(), else synchronously).
+  void startGlobalBa(map::Map& map);
+  /// Aborts a running full BA and joins its thread (before any correction writes the map).
+  void abortGlobalBa();
+  /// Joins the full-BA thread without aborting it.
+  void joinGlobalBa();
+  void globalBa(map::Map& map);
+
+  map::Atlas& atlas;
+  const LoopCloserOptions options;
+  const MappingControl mapping;
+  TimingStats* const timing;
+
+  BlockingQueue<std::shared_ptr<map::KeyFrame>> queue;
+  std::atomic<bool> in_run{false};  ///< run() is processing: the full BA goes to its own thread
+
+  // Owned by the thread that processes keyframes (the loop thread).
+  LoopDetector detector;
+  ConsistencyChecker merge_consistency;
+  map::MapId detection_map;  ///< map of the last query (the consistency state belongs to it)
+  int keyframes_since_correction = kKeyFramesBetweenLoops;
+
+  // Full BA: the thread object is touched by the loop thread (start/abort) and run()/destructor.
+  std::thread ba_thread;
+  std::atomic<bool> ba_stop{false};
+  mutable std::mutex ba_mutex;  ///< guards ba_running
+  std::condition_variable ba_done;
+  bool ba_running = false;
+
+  mutable std::mutex events_mutex;  ///< guards events and the counters
+  std::vector<LoopEvent> events;
+  int num_loops = 0;
+  int num_merges = 0;
+};
+
+void LoopCloser::Impl::resetDetection() {
+  detector = LoopDetector(options.loop, map::PlaceQueryOptions(), kGroupSize);
+  merge_consistency.reset();
+}
+
+void LoopCloser::Impl::recordEvent(const LoopEvent& event) {
+  std::lock_guard<std::mutex> lock(events_mutex);
+  events.push_back(event);
+  if (event.merge) {
+    ++num_merges;
+  } else {
+    ++num_loops;
+  }
+}
+
+void LoopCloser::Impl::process(const std::shared_ptr<map::KeyFrame>& kf) {
+  if (!kf || kf->isBad()) return;
+  std::optional<ScopedTimer> timer;
+  if (timing != nullptr) timer.emplace(*timing, "loop.keyframe");
+  map::Map* map = atlas.map(kf->mapId());
+  if (map == nullptr) return;
+  if (map->id() != detection_map) {
+    resetDetection();
+    detection_map = map->id();
+  }
+  ++keyframes_since_correction;
+  if (options.loop.enabled && kf->hasBow()) {
+    if (!tryLoop(kf, *map)) tryMerge(kf, *map);
+  }
+  // After the queries, so the keyframe does not find itself.
+  if (kf->hasBow() && !kf->isBad()) atlas.keyFrameDatabase().add(kf);
+}
+
+bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map) {
+  // Right after a correction the place just closed would be found again: no detection (as
+  // ORB-SLAM), and the consistency starts afresh afterwards.
+  if (keyframes_since_correction <= kKeyFramesBetweenLoops) return false;
+  const std::vector<std::shared_ptr<map::KeyFrame>> candidates =
+      detector.detect(*kf, map, atlas.keyFrameDatabase());
+  for (const std::shared_ptr<map::KeyFrame>& candidate : candidates) {
+    if (candidate->isBad()) continue;
+    const std::optional<LoopClosure> loop = verifyLoop(*kf, *candidate, map, options.loop);
+    if (!loop) continue;
+
+    std::optional<ScopedTimer> timer;
+    if (timing != nullptr) timer.emplace(*timing, "loop.correction");
+    LoopEvent event;
+    event.t_s = kf->t_s();
+    event.current = kf->id();
+    event.loop = candidate->id();
+    event.map = map.id();
+    event.inliers = static_cast<int>(loop->matches.size());
+    event.correction_m = (loop->T_w_b_current_corrected.translation() - kf->T_w_b().translation()).norm();
+    // The full BA works on a snapshot it writes back: abort it before the map changes under it.
+    abortGlobalBa();
+    LoopCorrectionResult correction;
+    {
+      MappingPause pause(mapping);
+      // Local mapping may have culled either end since the verification.
+      if (kf->isBad() || candidate->isBad()) return false;
+      correction = correctLoop(map, *loop);  // bumps the map's version (tracking refreshes)
+    }
+    if (timer) timer->stop();
+    log::info("loop closed: ", kf->id(), " ~ ", candidate->id(), " in ", map.id(), " (", event.inliers,
+              " inliers, correction ", event.correction_m, " m; window ", correction.window_size, ", fused ",
+              correction.fused_points, ", added ", correction.added_observations, ")");
+    recordEvent(event);
+    keyframes_since_correction = 0;
+    resetDetection();
+    if (options.run_global_ba) startGlobalBa(map);
+    return true;
+  }
+  return false;
+}
+
+bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map) {
+  if (kf->staticAreaRatio() < options.loop.min_static_ratio) return false;
+  map::PlaceQueryOptions query;
+  query.group_size = kGroupSize;
+  query.min_score = minCovisibleScore(*kf, map);
+  const std::vector<map::PlaceCandidate> candidates =
+      atlas.keyFrameDatabase().detectMergeCandidates(*kf, options.loop.min_static_ratio, query);
+  if (candidates.empty()) {
+    merge_consistency.reset();
+    return false;
+  }
+  std::vector<CandidateGroup> groups;
+  for (const map::PlaceCandidate& candidate : candidates) {
+    groups.push_back(CandidateGroup{candidate.keyframe->id(), candidate.keyframe->bestCovisibles(kGroupSize)});
+  }
+  const std::vector<map::KeyFrameId> consistent = merge_consistency.update(groups);
+
+  // Consistent candidates with the ordinary verification, else the best one with a strong one.
+  std::shared_ptr<map::KeyFrame> accepted;
+  for (const map::PlaceCandidate& candidate : candidates) {
+    if (std::find(consistent.begin(), consistent.end(), candidate.keyframe->id()) == consistent.end()) continue;
+    map::Map* target = atlas.map(candidate.keyframe->mapId());
+    if (target == nullptr || candidate.keyframe->isBad()) continue;
+    if (verifyLoop(*kf, *candidate.keyframe, *target, options.loop)) {
+      accepted = candidate.keyframe;
+      break;
+    }
+  }
+  if (!accepted) {
+    const std::shared_ptr<map::KeyFrame>& best = candidates.front().keyframe;
+    map::Map* target = atlas.map(best->mapId());
+    LoopOptions strong = options.loop;
+    strong.min_inliers = kStrongMergeInlierFactor * options.loop.min_inliers;
+    if (target != nullptr && !best->isBad() && verifyLoop(*kf, *best, *target, strong)) accepted = best;
+  }
+  if (!accepted) return false;
+
+  std::optional<ScopedTimer> timer;
+  if (timing != nullptr) timer.emplace(*timing, "loop.correction");
+  const SE3 T_w_b_before = kf->T_w_b();
+  abortGlobalBa();
+  std::optional<MergeResult> merged;
+  {
+    MappingPause pause(mapping);
+    if (kf->isBad() || accepted->isBad()) return false;
+    // Atlas::mergeMaps bumps both versions and makes the target active if the source was;
+    // correctLoop bumps the target's again.
+    merged = mergeAtPlace(atlas, *kf, *accepted, options.loop);
+  }
+  if (timer) timer->stop();
+  if (!merged) return false;
+  LoopEvent event;
+  event.merge = true;
+  event.t_s = kf->t_s();
+  event.current = kf->id();
+  event.loop = accepted->id();
+  event.map = merged->target;
+  event.inliers = merged->inliers;
+  event.correction_m = (kf->T_w_b().translation() - T_w_b_before.translation()).norm();
+  log::info("maps merged: ", merged->source, " into ", merged->target, " at ", kf->id(), " ~ ", accepted->id(), " (",
+            event.inliers, " inliers)");
+  recordEvent(event);
+  keyframes_since_correction = 0;
+  resetDetection();
+  detection_map = merged->target;
+  map::Map* target = atlas.map(merged->target);
+  if (options.run_global_ba && target != nullptr) startGlobalBa(*target);
+  return true;
+}
+
+void LoopCloser::Impl::startGlobalBa(map::Map& map) {
+  abortGlobalBa();
+  ba_stop.store(false);
+  {
+    std::lock_guard<std::mutex> lock(ba_mutex);
+    ba_running = true;
+  }
+  if (in_run.load()) {
+    ba_thread = std::thread([this, &map] { globalBa(map); });
+  } else {
+    globalBa(map);
+  }
+}
+
+void LoopCloser::Impl::globalBa(map::Map& map) {
+  if (in_run.load()) log::setThreadName("loop.ba");
+  try {
+    std::optional<ScopedTimer> timer;
+    if (timing != nullptr) timer.emplace(*timing, "loop.global_ba");
+    GlobalBaOptions ba_options;
+    ba_options.iterations = options.loop.full_ba_iterations;
+    ba_options.virtual_baseline_m = options.virtual_baseline_m;
+    ba_options.stop_flag = &ba_stop;
+    const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map, ba_options);
+    if (solution.valid && !ba_stop.load()) {
+      // Local BA writes the same poses and points: it holds while the result is written.
+      MappingPause pause(mapping);
+      if (!ba_stop.load()) applyGlobalBundleAdjustment(map, solution);
+    } else if (ba_stop.load()) {
+      log::info("global BA of ", map.id(), " aborted");
+    }
+  } catch (const std::exception& e) {
+    log::error("global BA of ", map.id(), " failed: ", e.what());
+  }
+  {
+    std::lock_guard<std::mutex> lock(ba_mutex);
+    ba_running = false;
+  }
+  ba_done.notify_all();
+}
+
+void LoopCloser::Impl::abortGlobalBa() {
+  if (!ba_thread.joinable()) return;
+  ba_stop.store(true);
+  ba_thread.join();
+}
+
+void LoopCloser::Impl::joinGlobalBa() {
+  if (ba_thread.joinable()) ba_thread.join();
+}
+
+LoopCloser::LoopCloser(map::Atlas& atlas, const LoopCloserOptions& options, MappingControl mapping,
+                       TimingStats* timing)
+    : impl_(std::make_unique<Impl>(atlas, options, std::move(mapping), timing)) {}
+
+LoopCloser::~LoopCloser() { impl_->abortGlobalBa(); }
+
+void LoopCloser::insertKeyFrame(std::shared_ptr<map::KeyFrame> kf) {
+  if (!kf) return;
+  // Never blocks the caller (local mapping): the loop thread may be waiting for local mapping to
+  // pause, so a blocking push on a full queue could deadlock. A keyframe loop closing cannot take
+  // (queue full, or finished) still enters the database for relocalisation and later queries.
+  std::shared_ptr<map::KeyFrame> copy = kf;
+  if (impl_->queue.tryPush(std::move(copy))) return;
+  if (!impl_->queue.closed()) log::warn("loop closing queue full: ", kf->id(), " not queried for loops");
+  if (kf->hasBow() && !kf->isBad()) impl_->atlas.keyFrameDatabase().add(kf);
+}
+
+void LoopCloser::processKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) { impl_->process(kf); }
+
+void LoopCloser::run() {
+  log::setThreadName("loop");
+  impl_->in_run.store(true);
+  map::KeyFrameId current;
+  try {
+    while (std::optional<std::shared_ptr<map::KeyFrame>> kf = impl_->queue.pop()) {
+      current = *kf ? (*kf)->id() : map::KeyFrameId();
+      impl_->process(*kf);
+    }
+  } catch (const std::exception& e) {
+    log::error("loop closing stopped at ", current, ": ", e.what());
+    impl_->queue.close();
+  }
+  impl_->joinGlobalBa();
+  impl_->in_run.store(false);
+}
+
+void LoopCloser::requestFinish() { impl_->queue.close(); }
+
+std::vector<LoopEvent> LoopCloser::events() const {
+  std::lock_guard<std::mutex> lock(impl_->events_mutex);
+  return impl_->events;
+}
+
+int LoopCloser::numLoops() const {
+  std::lock_guard<std::mutex> lock(impl_->events_mutex);
+  return impl_->num_loops;
+}
+
+int LoopCloser::numMerges() const {
+  std::lock_guard<std::mutex> lock(impl_->events_mutex);
+  return impl_->num_merges;
+}
+
+bool LoopCloser::globalBaRunning() const {
+  std::lock_guard<std::mutex> lock(impl_->ba_mutex);
+  return impl_->ba_running;
+}
+
+void LoopCloser::waitForGlobalBa() {
+  std::unique_lock<std::mutex> lock(impl_->ba_mutex);
+  impl_->ba_done.wait(lock, [&] { return !impl_->ba_running; });
+}
+
+}  // namespace ltlo::loop

@@ -1,0 +1,304 @@
+#include "ltlo/mapping/local_mapper.h"
+
+#include <cmath>
+#include <exception>
+#include <utility>
+
+#include "imu_initializer.h"
+#include "local_window_ba.h"
+#include "ltlo/core/assert.h"
+#include "ltlo/core/log.h"
+#include "map_culling.h"
+#include "point_fusion.h"
+
+namespace ltlo::mapping {
+
+namespace {
+
+double angleDeg(const Vec3& a, const Vec3& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+}
+
+}  // namespace
+
+struct LocalMapper::Impl {
+  Impl(map::Atlas& atlas_in, const LocalMapperOptions& options_in, std::vector<float> level_sigma2_in,
+       TimingStats* timing_in)
+      : atlas(atlas_in),
+        options(options_in),
+        level_sigma2(std::move(level_sigma2_in)),
+        timing(timing_in),
+        queue(options_in.queue_capacity),
+        recent_points(recentOptions(options_in)) {}
+
+  static RecentPointCuller::Options recentOptions(const LocalMapperOptions& options) {
+    RecentPointCuller::Options recent;
+    recent.min_point_beta = options.local_mapping.min_point_beta;
+    return recent;
+  }
+
+  void process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded);
+  void localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const ImuState& imu,
+                         bool threaded);
+  /// Initialises or refines the IMU estimate when due; true when it did.
+  bool maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf);
+  void publishImu(const ImuInitEstimate& estimate, const char* what);
+
+  map::Atlas& atlas;
+  const LocalMapperOptions options;
+  const std::vector<float> level_sigma2;
+  TimingStats* const timing;
+
+  BlockingQueue<std::shared_ptr<map::KeyFrame>> queue;
+  /// Raised by insertKeyFrame() and pause(): the running BA stops at its next iteration.
+  std::atomic<bool> stop_ba{false};
+  std::atomic<bool> finished{false};
+
+  // Pause handshake (pause_mutex guards the three fields).
+  std::mutex pause_mutex;
+  std::condition_variable pause_cv;
+  int pause_requests = 0;   ///< pause() calls not yet resumed
+  bool processing = false;  ///< run() is inside a keyframe's processing (or about to be)
+  std::atomic<bool> pause_requested{false};
+
+  // Shared with other threads (state_mutex guards these).
+  mutable std::mutex state_mutex;
+  ImuState imu_state;
+  LocalMapperCounters counters;
+  std::function<void(const std::shared_ptr<map::KeyFrame>&)> processed_callback;
+
+  // Mapping thread only (or the synchronous caller).
+  RecentPointCuller recent_points;
+  int sequence = 0;
+  double first_imu_init_t_s = 0.0;
+  std::size_t imu_refinements = 0;  ///< refinements done (index into imu_refinement_delays_s)
+};
+
+void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded) {
+  LTLO_ASSERT(kf != nullptr, "LocalMapper: null keyframe");
+  std::optional<ScopedTimer> timer;
+  if (timing != nullptr) timer.emplace(*timing, "mapping.keyframe");
+  LocalMapperCounters delta;
+  map::Map* map = atlas.map(kf->mapId());
+  if (map != nullptr && !kf->isBad()) {
+    ++sequence;
+    // 1. Recent map-point culling (and the dynamic points of this keyframe).
+    recent_points.addPointsOf(*map, *kf, sequence);
+    delta.culled_points += recent_points.cull(atlas, sequence);
+    delta.culled_points += cullDynamicPoints(*map, *kf, options.local_mapping.min_point_beta);
+
+    // 2. Duplicate fusion with the neighbours.
+    FusionOptions fusion;
+    fusion.bf_px_m = options.bf_px_m;
+    fusion.min_point_beta = options.local_mapping.min_point_beta;
+    const FusionStats fused = fuseWithNeighbours(*map, *kf, fusion, level_sigma2);
+    delta.fused_points += fused.replaced + fused.linked;
+
+    // 3. Local (visual-inertial) BA, unless more keyframes wait (ORB-SLAM: they come first).
+    const ImuState imu = [&] {
+      std::lock_guard<std::mutex> lock(state_mutex);
+      return imu_state;
+    }();
+    if (options.use_imu && imu.initialised) predictInertialState(*map, *kf, imu.g_w);
+    stop_ba.store(pause_requested.load());
+    if (map->numKeyFrames() > 1 && !(threaded && queue.size() > 0) && !stop_ba.load()) {
+      localBundleAdjust(*map, kf, imu, threaded);
+      ++delta.local_ba_runs;
+    }
+
+    // 4. Keyframe culling.
+    KeyFrameCullingOptions culling;
+    culling.redundant_ratio = options.local_mapping.redundant_ratio;
+    culling.use_imu = options.use_imu;
+    for (const map::KeyFrameId id : cullRedundantKeyFrames(*map, *kf, culling)) {
+      atlas.keyFrameDatabase().erase(id);
+      ++delta.culled_keyframes;
+    }
+
+    // 5. IMU initialisation and its refinements.
+    if (options.use_imu && maybeInitialiseImu(*map, kf)) ++delta.imu_initialisations;
+  }
+  std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex);
+    ++counters.keyframes_processed;
+    counters.culled_keyframes += delta.culled_keyframes;
+    counters.culled_points += delta.culled_points;
+    counters.fused_points += delta.fused_points;
+    counters.local_ba_runs += delta.local_ba_runs;
+    counters.imu_initialisations += delta.imu_initialisations;
+    callback = processed_callback;
+  }
+  if (timer) timer->stop();
+  // 6. Hand on (loop closing).
+  if (callback) callback(kf);
+}
+
+void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf,
+                                          const ImuState& imu, bool threaded) {
+  std::optional<ScopedTimer> timer;
+  if (timing != nullptr) timer.emplace(*timing, "mapping.local_ba");
+  WindowBaOptions ba;
+  ba.window_size = options.local_mapping.window_size;
+  ba.iterations = options.local_mapping.ba_iterations;
+  ba.bf_px_m = options.bf_px_m;
+  ba.min_point_beta = options.local_mapping.min_point_beta;
+  ba.num_threads = options.ba_threads;
+  ba.inertial = options.use_imu && imu.initialised && kf->imuFromPrevious().has_value();
+  ba.g_w = imu.g_w;
+  ba.lambda_imu = options.local_mapping.lambda_imu;
+  ba.stop_flag = threaded ? &stop_ba : nullptr;
+  const WindowBaStats stats = localWindowBundleAdjust(map, kf, ba, level_sigma2);
+  log::debug("local BA at kf ", kf->id(), (ba.inertial ? " (inertial)" : ""), ": ", stats.optimised_keyframes,
+             " optimised + ", stats.fixed_keyframes, " fixed keyframes, ", stats.points, " points, ",
+             stats.observations, " observations, ", stats.outliers_erased, " outliers erased",
+             (stats.aborted ? ", aborted" : ""));
+}
+
+bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf) {
+  const ImuState state = [&] {
+    std::lock_guard<std::mutex> lock(state_mutex);
+    return imu_state;
+  }();
+  const char* what = nullptr;
+  if (!state.initialised) {
+    what = "initialised";
+  } else if (imu_refinements < options.imu_refinement_delays_s.size() &&
+             kf->t_s() - first_imu_init_t_s >= options.imu_refinement_delays_s[imu_refinements]) {
+    what = "refined";
+  } else {
+    return false;
+  }
+  const ImuChain chain = imuChainEndingAt(map, kf);
+  if (static_cast<int>(chain.keyframes.size()) < std::max(3, options.imu_init.min_keyframes) ||
+      chain.span_s() < options.imu_init.min_time_s) {
+    return false;
+  }
+  std::optional<ScopedTimer> timer;
+  if (timing != nullptr) timer.emplace(*timing, "mapping.imu_init");
+  const std::optional<ImuInitEstimate> estimate =
+      initialiseImuOnChain(chain, options.imu_init, state.initialised ? state.bias : imu::ImuBias());
+  if (!estimate) {
+    log::warn("IMU initialisation at kf ", kf->id(), " gave a non-finite estimate; retrying later");
+    return false;
+  }
+  if (!state.initialised) {
+    first_imu_init_t_s = kf->t_s();
+  } else {
+    ++imu_refinements;
+  }
+  publishImu(*estimate, what);
+  return true;
+}
+
+void LocalMapper::Impl::publishImu(const ImuInitEstimate& estimate, const char* what) {
+  ImuState published;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex);
+    imu_state.initialised = true;
+    imu_state.bias = estimate.bias;
+    imu_state.g_w = estimate.g_w;
+    ++imu_state.generation;
+    published = imu_state;
+  }
+  log::info("IMU ", what, " over ", estimate.keyframes, " keyframes (", estimate.span_s, " s): g_w = (",
+            published.g_w.x(), ", ", published.g_w.y(), ", ", published.g_w.z(), ") m/s^2, ",
+            angleDeg(published.g_w, Vec3(0.0, 0.0, -1.0)), " deg from the map's -z, b_g = (",
+            published.bias.b_g.x(), ", ", published.bias.b_g.y(), ", ", published.bias.b_g.z(), ") rad/s, b_a = (",
+            published.bias.b_a.x(), ", ", published.bias.b_a.y(), ", ", published.bias.b_a.z(),
+            ") m/s^2, generation ", published.generation);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+LocalMapper::LocalMapper(map::Atlas& atlas, const LocalMapperOptions& options, std::vector<float> level_sigma2,
+                         TimingStats* timing)
+    : impl_(std::make_unique<Impl>(atlas, options, std::move(level_sigma2), timing)) {
+  LTLO_ASSERT(!impl_->level_sigma2.empty(), "LocalMapper needs the per-level keypoint variances");
+}
+
+LocalMapper::~LocalMapper() = default;
+
+void LocalMapper::insertKeyFrame(std::shared_ptr<map::KeyFrame> kf) {
+  LTLO_ASSERT(kf != nullptr, "insertKeyFrame(nullptr)");
+  const map::KeyFrameId id = kf->id();
+  if (!impl_->queue.push(std::move(kf))) {
+    log::warn("local mapping finished: keyframe ", id, " not processed");
+    return;
+  }
+  impl_->stop_ba.store(true);
+}
+
+std::size_t LocalMapper::queuedKeyFrames() const { return impl_->queue.size(); }
+
+ImuState LocalMapper::imuState() const {
+  std::lock_guard<std::mutex> lock(impl_->state_mutex);
+  return impl_->imu_state;
+}
+
+void LocalMapper::processKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) { impl_->process(kf, false); }
+
+void LocalMapper::run() {
+  log::setThreadName("mapping");
+  Impl& impl = *impl_;
+  while (std::optional<std::shared_ptr<map::KeyFrame>> kf = impl.queue.pop()) {
+    {
+      // Hold here while paused: between keyframes, with nothing of the map in hand.
+      std::unique_lock<std::mutex> lock(impl.pause_mutex);
+      impl.pause_cv.wait(lock, [&] { return impl.pause_requests == 0; });
+      impl.processing = true;
+    }
+    bool failed = false;
+    try {
+      impl.process(*kf, true);
+    } catch (const std::exception& error) {
+      log::error("local mapping failed on keyframe ", (*kf)->id(), ": ", error.what());
+      failed = true;
+    }
+    {
+      std::lock_guard<std::mutex> lock(impl.pause_mutex);
+      impl.processing = false;
+    }
+    impl.pause_cv.notify_all();
+    if (failed) {
+      impl.queue.close();
+      break;
+    }
+  }
+  impl.finished.store(true);
+}
+
+void LocalMapper::requestFinish() { impl_->queue.close(); }
+
+bool LocalMapper::finished() const { return impl_->finished.load(); }
+
+void LocalMapper::pause() {
+  Impl& impl = *impl_;
+  std::unique_lock<std::mutex> lock(impl.pause_mutex);
+  ++impl.pause_requests;
+  impl.pause_requested.store(true);
+  impl.stop_ba.store(true);
+  impl.pause_cv.wait(lock, [&] { return !impl.processing; });
+}
+
+void LocalMapper::resume() {
+  Impl& impl = *impl_;
+  {
+    std::lock_guard<std::mutex> lock(impl.pause_mutex);
+    if (impl.pause_requests > 0) --impl.pause_requests;
+    impl.pause_requested.store(impl.pause_requests > 0);
+  }
+  impl.pause_cv.notify_all();
+}
+
+void LocalMapper::setKeyFrameProcessedCallback(std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback) {
+  std::lock_guard<std::mutex> lock(impl_->state_mutex);
+  impl_->processed_callback = std::move(callback);
+}
+
+LocalMapperCounters LocalMapper::counters() const {
+  std::lock_guard<std::mutex> lock(impl_->state_mutex);
+  return impl_->counters;
+}
+
+}  // namespace ltlo::mapping

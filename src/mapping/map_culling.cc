@@ -1,0 +1,110 @@
+#include "map_culling.h"
+
+#include <algorithm>
+
+namespace ltlo::mapping {
+
+void RecentPointCuller::addPointsOf(const map::Map& map, const map::KeyFrame& kf, int sequence) {
+  for (const map::MapPointId id : kf.mapPoints()) {
+    if (!id.valid()) continue;
+    const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+    if (point && !point->isBad() && point->referenceKeyFrame() == kf.id()) {
+      entries_.push_back({map.id(), id, sequence});
+    }
+  }
+}
+
+int RecentPointCuller::cull(map::Atlas& atlas, int sequence) {
+  int culled = 0;
+  std::deque<Entry> kept;
+  for (const Entry& entry : entries_) {
+    map::Map* map = atlas.map(entry.map);
+    const std::shared_ptr<map::MapPoint> point = map != nullptr ? map->mapPoint(entry.point) : nullptr;
+    if (!point || point->isBad()) continue;  // culled, fused or merged into another map meanwhile
+    const int age = sequence - entry.created_at;
+    const bool unconfirmed = point->foundRatio() < options_.min_found_ratio ||
+                             (age >= options_.min_age && point->numObservations() < options_.min_observations);
+    if (unconfirmed || point->beta() < options_.min_point_beta) {
+      if (map->eraseMapPoint(entry.point)) ++culled;
+      continue;
+    }
+    if (age < options_.mature_age) kept.push_back(entry);
+  }
+  entries_.swap(kept);
+  return culled;
+}
+
+int cullDynamicPoints(map::Map& map, const map::KeyFrame& kf, double min_point_beta) {
+  int culled = 0;
+  for (const map::MapPointId id : kf.mapPoints()) {
+    if (!id.valid()) continue;
+    const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+    if (point && !point->isBad() && point->beta() < min_point_beta && map.eraseMapPoint(id)) ++culled;
+  }
+  return culled;
+}
+
+namespace {
+
+/// The IMU chain around `kf` can be bridged: both neighbours in time exist with preintegrations
+/// and span at most max_span_s.
+bool imuChainAllowsCulling(const map::Map& map, const map::KeyFrame& kf, double max_span_s) {
+  const std::shared_ptr<map::KeyFrame> previous = map.keyFrame(kf.previousKeyFrame());
+  const std::shared_ptr<map::KeyFrame> next = map.keyFrame(kf.nextKeyFrame());
+  if (!previous || !next || previous->isBad() || next->isBad()) return false;
+  if (!kf.imuFromPrevious() || !next->imuFromPrevious()) return false;
+  return next->t_s() - previous->t_s() <= max_span_s;
+}
+
+/// Share of `kf`'s points with depth that min_other_observers other keyframes see at the same or a
+/// finer scale (octave at most one above); 0 without such points.
+double redundantShare(const map::Map& map, const map::KeyFrame& kf, int min_other_observers) {
+  int with_depth = 0;
+  int redundant = 0;
+  const std::vector<map::MapPointId> ids = kf.mapPoints();
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    if (!ids[i].valid() || kf.depth_m(static_cast<int>(i)) <= 0.0f) continue;
+    const std::shared_ptr<map::MapPoint> point = map.mapPoint(ids[i]);
+    if (!point || point->isBad()) continue;
+    ++with_depth;
+    const std::map<map::KeyFrameId, int> observations = point->observations();
+    if (static_cast<int>(observations.size()) <= min_other_observers) continue;
+    const int octave = kf.keypoints()[i].octave;
+    int observers = 0;
+    for (const auto& [other_id, index] : observations) {
+      if (other_id == kf.id()) continue;
+      const std::shared_ptr<map::KeyFrame> other = map.keyFrame(other_id);
+      if (!other || index < 0 || index >= other->numKeypoints()) continue;
+      if (other->keypoints()[static_cast<std::size_t>(index)].octave <= octave + 1 &&
+          ++observers >= min_other_observers) {
+        break;
+      }
+    }
+    if (observers >= min_other_observers) ++redundant;
+  }
+  return with_depth == 0 ? 0.0 : static_cast<double>(redundant) / with_depth;
+}
+
+}  // namespace
+
+std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::KeyFrame& current,
+                                                    const KeyFrameCullingOptions& options) {
+  std::vector<map::KeyFrameId> culled;
+  if (map.numKeyFrames() <= options.min_map_keyframes) return culled;
+  const std::vector<map::KeyFrameId> origins = map.originKeyFrames();
+  for (const map::KeyFrameId id : current.bestCovisibles(options.max_candidates)) {
+    // Only keyframes older than the one processed and its predecessor: tracking links its next
+    // keyframe's IMU chain to the newest ones (threaded, tracking may be keyframes ahead).
+    if (!(id < current.id()) || id == current.previousKeyFrame()) continue;
+    if (std::find(origins.begin(), origins.end(), id) != origins.end()) continue;
+    const std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id);
+    if (!kf || kf->isBad()) continue;
+    if (options.use_imu && !imuChainAllowsCulling(map, *kf, options.max_imu_span_s)) continue;
+    if (redundantShare(map, *kf, options.min_other_observers) < options.redundant_ratio) continue;
+    if (map.eraseKeyFrame(id)) culled.push_back(id);
+    if (map.numKeyFrames() <= options.min_map_keyframes) break;
+  }
+  return culled;
+}
+
+}  // namespace ltlo::mapping

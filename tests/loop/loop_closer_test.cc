@@ -1,0 +1,412 @@
+// LoopCloser on synthetic maps: a camera on a circle looking out at a wall of landmarks (each with
+// its own random descriptor, a vocabulary trained on them), keyframes built as tracking and local
+// mapping would (pose from the previous keyframe's current pose and the true motion with a drift
+// error, points created from depth, a landmark keeps its point while consecutive keyframes see it).
+// After one lap the camera revisits the start: the closer must close exactly one loop there, not
+// without a revisit, merge two maps of the same place, and give the same result from its own thread
+// (fixed seeds, no images).
+#include "ltlo/loop/loop_closer.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <optional>
+#include <random>
+#include <string>
+#include <thread>
+#include <unordered_map>
+
+#include "bow/vocabulary.h"
+
+namespace ltlo::loop {
+namespace {
+
+constexpr int kStepsPerLap = 24;
+constexpr int kNumLandmarks = 1500;
+constexpr double kCircleRadius_m = 2.0;
+const PinholeCamera kCamera(525.0, 525.0, 319.5, 239.5, 640, 480);
+
+/// Camera (= body) on the circle at step k, optical axis pointing outwards, y down.
+SE3 truePose_T_w_b(int k) {
+  const double a = 2.0 * M_PI * k / kStepsPerLap;
+  Mat3 R_w_c;
+  R_w_c.col(0) = Vec3(std::sin(a), -std::cos(a), 0.0);
+  R_w_c.col(1) = Vec3(0.0, 0.0, -1.0);
+  R_w_c.col(2) = Vec3(std::cos(a), std::sin(a), 0.0);
+  return SE3(R_w_c, Vec3(kCircleRadius_m * std::cos(a), kCircleRadius_m * std::sin(a), 0.0));
+}
+
+struct World {
+  std::vector<Vec3> p_w;
+  std::vector<features::Descriptor> descriptors;
+  std::unique_ptr<bow::Vocabulary> vocabulary;
+};
+
+/// Landmarks visible from T_w_c with their camera-frame positions.
+std::vector<std::pair<int, Vec3>> visibleLandmarks(const World& world, const SE3& T_w_c) {
+  std::vector<std::pair<int, Vec3>> visible;
+  const SE3 T_c_w = T_w_c.inverse();
+  for (int i = 0; i < kNumLandmarks; ++i) {
+    const Vec3 p_c = T_c_w * world.p_w[static_cast<std::size_t>(i)];
+    if (p_c.z() < 0.5) continue;
+    const Vec2 uv = kCamera.project(p_c);
+    if (uv.x() < 10.0 || uv.x() > 629.0 || uv.y() < 10.0 || uv.y() > 469.0) continue;
+    visible.emplace_back(i, p_c);
+  }
+  return visible;
+}
+
+const World& world() {
+  static const World w = [] {
+    World out;
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<double> angle(0.0, 2.0 * M_PI), radius(4.5, 6.0), height(-1.2, 1.2);
+    std::uniform_int_distribution<std::uint64_t> bits;
+    for (int i = 0; i < kNumLandmarks; ++i) {
+      const double a = angle(rng), r = radius(rng);
+      out.p_w.emplace_back(r * std::cos(a), r * std::sin(a), height(rng));
+      out.descriptors.push_back({bits(rng), bits(rng), bits(rng), bits(rng)});
+    }
+    // Training images: what each keyframe of a lap sees (IDF weights of the words).
+    std::vector<std::vector<features::Descriptor>> images;
+    for (int k = 0; k < kStepsPerLap; ++k) {
+      images.emplace_back();
+      for (const auto& [i, p_c] : visibleLandmarks(out, truePose_T_w_b(k))) {
+        images.back().push_back(out.descriptors[static_cast<std::size_t>(i)]);
+      }
+    }
+    out.vocabulary = std::make_unique<bow::Vocabulary>(bow::Vocabulary::train(images, bow::TrainOptions{10, 3, 5, 1, 1, 0, {}}));
+    return out;
+  }();
+  return w;
+}
+
+/// Builds keyframes into an Atlas as tracking + local mapping would.
+class SceneBuilder {
+ public:
+  SceneBuilder(map::Atlas& atlas, const SE3& step_error) : atlas_(atlas), step_error_(step_error) {}
+
+  /// The keyframe at true place `step`. The first one is at `T_w_b_first` in its map (the map's
+  /// world frame), by default its true pose.
+  std::shared_ptr<map::KeyFrame> add(int step, const std::optional<SE3>& T_w_b_first = std::nullopt) {
+    const World& w = world();
+    const SE3 T_w_b_true = truePose_T_w_b(step);
+    const SE3 T_w_b_estimate =
+        kfs_.empty() ? T_w_b_first.value_or(T_w_b_true)
+                     : kfs_.back()->T_w_b() * truePose_T_w_b(steps_.back()).inverse() * T_w_b_true * step_error_;
+    const std::vector<std::pair<int, Vec3>> visible = visibleLandmarks(w, T_w_b_true);
+    features::OrbFeatures features;
+    std::vector<float> depths;
+    for (const auto& [i, p_c] : visible) {
+      const Vec2 uv = kCamera.project(p_c);
+      features::Keypoint kp;
+      kp.x_px = static_cast<float>(uv.x());
+      kp.y_px = static_cast<float>(uv.y());
+      features.keypoints.push_back(kp);
+      features.descriptors.push_back(w.descriptors[static_cast<std::size_t>(i)]);
+      depths.push_back(static_cast<float>(p_c.z()));
+    }
+    map::Frame frame(0.5 * static_cast<double>(kfs_.size()), kCamera, SE3(), std::move(features), std::move(depths),
+                     {1.0f, 1.2f, 1.44f, 1.728f});
+    frame.setPose_T_w_b(T_w_b_estimate);
+    frame.computeBow(*w.vocabulary);
+    map::Map& map = kfs_.empty() ? atlas_.activeMap() : *atlas_.map(kfs_.back()->mapId());
+    const std::shared_ptr<map::KeyFrame> kf = map.createKeyFrame(frame);
+    std::unordered_map<int, int> keypoint_of;
+    for (std::size_t j = 0; j < visible.size(); ++j) {
+      const int landmark = visible[j].first;
+      const int keypoint = static_cast<int>(j);
+      keypoint_of[landmark] = keypoint;
+      // Tracked from the previous keyframe when it saw the landmark, else a new point from depth.
+      std::shared_ptr<map::MapPoint> point;
+      const auto previous = previous_keypoint_.find(landmark);
+      if (previous != previous_keypoint_.end()) point = map.mapPoint(kfs_.back()->mapPoint(previous->second));
+      if (!point || point->isBad() || !map.addObservation(*kf, keypoint, *point)) {
+        point = map.createMapPoint(T_w_b_estimate * visible[j].second, kf->id());
+        EXPECT_TRUE(map.addObservation(*kf, keypoint, *point));
+      }
+    }
+    map.updateConnections(*kf);
+    previous_keypoint_ = std::move(keypoint_of);
+    kfs_.push_back(kf);
+    steps_.push_back(step);
+    return kf;
+  }
+
+  const std::vector<std::shared_ptr<map::KeyFrame>>& keyFrames() const { return kfs_; }
+  const std::vector<int>& steps() const { return steps_; }
+
+ private:
+  map::Atlas& atlas_;
+  SE3 step_error_;
+  std::vector<std::shared_ptr<map::KeyFrame>> kfs_;
+  std::vector<int> steps_;
+  std::unordered_map<int, int> previous_keypoint_;  ///< landmark -> keypoint of the last keyframe
+};
+
+/// Per step: yaw (about the camera's y axis) and a translation error.
+SE3 driftStep() { return SE3::exp((Vec6() << 0.002, 0.008, 0.002, 0.012, 0.004, 0.010).finished()); }
+
+LoopCloserOptions closerOptions() {
+  LoopCloserOptions options;
+  options.loop.full_ba_iterations = 10;
+  return options;
+}
+
+/// Mean translation error of the revisiting keyframes against the keyframes of the first lap at the
+/// same true place (the loop seam; zero when the map is consistent).
+double seamError_m(const SceneBuilder& scene) {
+  const auto& kfs = scene.keyFrames();
+  double sum = 0.0;
+  int n = 0;
+  for (std::size_t k = kStepsPerLap; k < kfs.size(); ++k) {
+    const SE3 relative = kfs[k - kStepsPerLap]->T_w_b().inverse() * kfs[k]->T_w_b();
+    sum += relative.translation().norm();
+    ++n;
+  }
+  return sum / n;
+}
+
+constexpr int kLoopSteps = kStepsPerLap + 8;
+
+TEST(LoopCloser, ClosesTheLoopOnceWhenTheStartIsRevisited) {
+  double seam_without = 0.0;
+  {
+    map::Atlas atlas(world().vocabulary->numWords());
+    LoopCloserOptions options = closerOptions();
+    options.loop.enabled = false;
+    LoopCloser closer(atlas, options, MappingControl{});
+    SceneBuilder scene(atlas, driftStep());
+    for (int step = 0; step < kLoopSteps; ++step) closer.processKeyFrame(scene.add(step));
+    EXPECT_EQ(closer.numLoops(), 0);
+    seam_without = seamError_m(scene);
+  }
+  map::Atlas atlas(world().vocabulary->numWords());
+  int pauses = 0, resumes = 0;
+  TimingStats timing;
+  LoopCloser closer(atlas, closerOptions(), MappingControl{[&] { ++pauses; }, [&] { ++resumes; }}, &timing);
+  SceneBuilder scene(atlas, driftStep());
+  std::uint64_t version_before = 0;
+  for (int step = 0; step < kLoopSteps; ++step) {
+    version_before = atlas.activeMap().version();
+    closer.processKeyFrame(scene.add(step));
+    if (closer.numLoops() == 1 && closer.events().back().current == scene.keyFrames().back()->id()) {
+      EXPECT_GT(atlas.activeMap().version(), version_before);  // tracking sees the correction
+    }
+  }
+  const double seam_with = seamError_m(scene);
+  ASSERT_EQ(closer.numLoops(), 1);
+  EXPECT_EQ(closer.numMerges(), 0);
+  const std::vector<LoopEvent> events = closer.events();
+  ASSERT_EQ(events.size(), 1u);
+  const LoopEvent& loop = events[0];
+  // The loop keyframe is of the first lap at (about) the same place as the current one.
+  int current_step = -1, loop_step = -1;
+  for (std::size_t k = 0; k < scene.keyFrames().size(); ++k) {
+    if (scene.keyFrames()[k]->id() == loop.current) current_step = scene.steps()[k];
+    if (scene.keyFrames()[k]->id() == loop.loop) loop_step = scene.steps()[k];
+  }
+  std::printf(
+      "[ CLOSER   ] loop kf step %d ~ step %d, %d inliers, correction %.3f m; seam error %.4f m without loop "
+      "closing -> %.4f m with; mapping paused %d times\n",
+      current_step, loop_step, loop.inliers, loop.correction_m, seam_without, seam_with, pauses);
+  EXPECT_GE(current_step, kStepsPerLap - 1);
+  EXPECT_LE(std::abs((current_step % kStepsPerLap) - loop_step), 2);
+  EXPECT_GE(loop.inliers, 20);
+  EXPECT_GT(loop.correction_m, 0.1);
+  EXPECT_FALSE(loop.merge);
+  EXPECT_GT(seam_without, 0.2);
+  EXPECT_LT(seam_with, seam_without / 5.0);
+  EXPECT_EQ(pauses, resumes);
+  EXPECT_EQ(pauses, 2);  // correction, then the full BA's write-back
+  EXPECT_FALSE(closer.globalBaRunning());
+  EXPECT_EQ(timing.stage("loop.keyframe").count, static_cast<std::size_t>(kLoopSteps));
+  EXPECT_EQ(timing.stage("loop.correction").count, 1u);
+  EXPECT_EQ(timing.stage("loop.global_ba").count, 1u);
+  std::printf("[ CLOSER   ] keyframe median %.2f ms (max %.1f ms with the synchronous full BA), correction %.1f ms, "
+              "full BA %.1f ms\n",
+              1e3 * timing.stage("loop.keyframe").median_s, 1e3 * timing.stage("loop.keyframe").max_s,
+              1e3 * timing.stage("loop.correction").max_s, 1e3 * timing.stage("loop.global_ba").max_s);
+  EXPECT_EQ(atlas.keyFrameDatabase().size(), static_cast<std::size_t>(kLoopSteps));
+}
+
+TEST(LoopCloser, NoLoopWithoutARevisit) {
+  map::Atlas atlas(world().vocabulary->numWords());
+  LoopCloser closer(atlas, closerOptions(), MappingControl{});
+  SceneBuilder scene(atlas, driftStep());
+  // Most of a lap: the last keyframe's view does not overlap the first one's.
+  for (int step = 0; step < kStepsPerLap - 3; ++step) closer.processKeyFrame(scene.add(step));
+  EXPECT_EQ(closer.numLoops(), 0);
+  EXPECT_EQ(closer.numMerges(), 0);
+  EXPECT_TRUE(closer.events().empty());
+}
+
+TEST(LoopCloser, SkipsBadKeyFramesAndKeyFramesWithoutBow) {
+  map::Atlas atlas(world().vocabulary->numWords());
+  LoopCloser closer(atlas, closerOptions(), MappingControl{});
+  SceneBuilder scene(atlas, SE3());
+  closer.processKeyFrame(scene.add(0));
+  closer.processKeyFrame(scene.add(1));
+  EXPECT_EQ(atlas.keyFrameDatabase().size(), 2u);
+  // Without BoW (never given to the database), culled (bad), or none at all.
+  map::Frame frame(9.0, kCamera, SE3(), features::OrbFeatures{}, {}, {1.0f});
+  frame.setPose_T_w_b(SE3());
+  closer.processKeyFrame(atlas.activeMap().createKeyFrame(frame));
+  const std::shared_ptr<map::KeyFrame> culled = scene.add(2);
+  ASSERT_TRUE(atlas.activeMap().eraseKeyFrame(culled->id()));
+  closer.processKeyFrame(culled);
+  closer.processKeyFrame(nullptr);
+  EXPECT_EQ(atlas.keyFrameDatabase().size(), 2u);
+  EXPECT_TRUE(closer.events().empty());
+}
+
+/// An old map of the first half lap, then tracking is lost and a new map sees part of it again; returns
+/// the index of the new map's keyframe at which the maps were merged (-1: none).
+int mergeAfterTrackingLoss(int min_inliers) {
+  map::Atlas atlas(world().vocabulary->numWords());
+  int pauses = 0, resumes = 0;
+  LoopCloserOptions options = closerOptions();
+  options.loop.min_inliers = min_inliers;
+  LoopCloser closer(atlas, options, MappingControl{[&] { ++pauses; }, [&] { ++resumes; }});
+  SceneBuilder old_scene(atlas, SE3());
+  for (int step = 0; step < 12; ++step) closer.processKeyFrame(old_scene.add(step));
+  const map::MapId old_map = atlas.activeMapId();
+  // Tracking lost: a new map whose world frame is the first new keyframe's (an arbitrary offset).
+  atlas.createNewMap();
+  const map::MapId new_map = atlas.activeMapId();
+  EXPECT_EQ(atlas.numMaps(), 2u);
+  SceneBuilder new_scene(atlas, SE3());
+  const SE3 T_new_w = SE3(so3Exp(Vec3(0.3, -0.2, 1.0)), Vec3(1.0, -2.0, 0.5));
+  for (int step = 4; step < 10; ++step) closer.processKeyFrame(new_scene.add(step, T_new_w * truePose_T_w_b(4)));
+  EXPECT_EQ(closer.numMerges(), 1);
+  if (closer.numMerges() != 1) return -1;
+  EXPECT_EQ(closer.numLoops(), 0);
+  EXPECT_EQ(atlas.numMaps(), 1u);
+  EXPECT_EQ(atlas.activeMapId(), old_map);  // the merged-away map was the active one
+  const LoopEvent event = closer.events().at(0);
+  EXPECT_TRUE(event.merge);
+  EXPECT_EQ(event.map, old_map);
+  // Every keyframe of the new map is now in the old map's frame (= the true one) at its true pose.
+  double max_error_m = 0.0;
+  for (std::size_t k = 0; k < new_scene.keyFrames().size(); ++k) {
+    const map::KeyFrame& kf = *new_scene.keyFrames()[k];
+    EXPECT_EQ(kf.mapId(), old_map);
+    EXPECT_NE(kf.mapId(), new_map);
+    const double error_m = (kf.T_w_b().translation() - truePose_T_w_b(new_scene.steps()[k]).translation()).norm();
+    max_error_m = std::max(max_error_m, error_m);
+  }
+  int merged_at = -1;
+  for (std::size_t k = 0; k < new_scene.keyFrames().size(); ++k) {
+    if (new_scene.keyFrames()[k]->id() == event.current) merged_at = static_cast<int>(k);
+  }
+  std::printf(
+      "[ MERGE    ] Loop.MinInliers %d: merged at new keyframe %d of %zu, %d inliers, max position error after "
+      "%.2e m\n",
+      min_inliers, merged_at, new_scene.keyFrames().size(), event.inliers, max_error_m);
+  EXPECT_LT(max_error_m, 1e-3);
+  EXPECT_EQ(pauses, resumes);
+  EXPECT_EQ(pauses, 2);  // merge, then the full BA's write-back
+  return merged_at;
+}
+
+TEST(LoopCloser, MergesAMapStartedAfterTrackingLossAtOnceOnAStrongMatch) {
+  // ~155 inliers >= 2 * 20: accepted before the consistency check completes.
+  EXPECT_EQ(mergeAfterTrackingLoss(20), 0);
+}
+
+TEST(LoopCloser, MergesAfterThreeConsistentQueriesOnAnOrdinaryMatch) {
+  // 2 * 100 inliers are not there: the place must be recognised by three consecutive keyframes.
+  EXPECT_EQ(mergeAfterTrackingLoss(100), 2);
+}
+
+/// Builds the whole loop sequence first (no correction during the build), then feeds it.
+struct PrebuiltLoop {
+  explicit PrebuiltLoop(int num_steps = kLoopSteps) : atlas(world().vocabulary->numWords()), scene(atlas, driftStep()) {
+    for (int step = 0; step < num_steps; ++step) scene.add(step);
+  }
+  map::Atlas atlas;
+  SceneBuilder scene;
+};
+
+TEST(LoopCloser, ThreadedRunMatchesTheSynchronousOne) {
+  PrebuiltLoop sync_run;
+  LoopCloser sync_closer(sync_run.atlas, closerOptions(), MappingControl{});
+  for (const auto& kf : sync_run.scene.keyFrames()) sync_closer.processKeyFrame(kf);
+  ASSERT_EQ(sync_closer.numLoops(), 1);
+
+  PrebuiltLoop threaded_run;
+  std::atomic<int> pauses{0}, resumes{0};
+  TimingStats timing;
+  LoopCloser closer(threaded_run.atlas, closerOptions(), MappingControl{[&] { ++pauses; }, [&] { ++resumes; }},
+                    &timing);
+  std::thread loop_thread([&] { closer.run(); });
+  // A tracking-like reader of poses, points and the map version meanwhile (a fixed amount of work).
+  std::thread reader([&] {
+    map::Map& map = threaded_run.atlas.activeMap();
+    double sum = 0.0;
+    for (int pass = 0; pass < 200; ++pass) {
+      sum += static_cast<double>(map.version());
+      for (const auto& kf : map.keyFrames()) sum += kf->T_w_b().translation().x();
+      for (const auto& point : map.mapPoints()) sum += point->p_w().z();
+    }
+    EXPECT_TRUE(std::isfinite(sum));
+  });
+  for (const auto& kf : threaded_run.scene.keyFrames()) closer.insertKeyFrame(kf);
+  closer.requestFinish();
+  loop_thread.join();
+  reader.join();
+  closer.waitForGlobalBa();
+  EXPECT_FALSE(closer.globalBaRunning());
+  EXPECT_EQ(pauses.load(), resumes.load());
+  EXPECT_EQ(pauses.load(), 2);
+  ASSERT_EQ(closer.numLoops(), 1);
+  const LoopEvent a = sync_closer.events()[0], b = closer.events()[0];
+  EXPECT_EQ(a.current, b.current);
+  EXPECT_EQ(a.loop, b.loop);
+  EXPECT_EQ(a.inliers, b.inliers);
+  double max_difference_m = 0.0;
+  for (std::size_t k = 0; k < sync_run.scene.keyFrames().size(); ++k) {
+    max_difference_m = std::max(max_difference_m, (sync_run.scene.keyFrames()[k]->T_w_b().translation() -
+                                                   threaded_run.scene.keyFrames()[k]->T_w_b().translation())
+                                                      .norm());
+  }
+  std::printf("[ THREADED ] loop %s ~ %s, max keyframe difference to the synchronous run %.2e m\n",
+              std::to_string(b.current.value).c_str(), std::to_string(b.loop.value).c_str(), max_difference_m);
+  EXPECT_LT(max_difference_m, 1e-6);
+  EXPECT_EQ(timing.stage("loop.keyframe").count, static_cast<std::size_t>(kLoopSteps));
+  EXPECT_EQ(timing.stage("loop.correction").count, 1u);
+  EXPECT_EQ(timing.stage("loop.global_ba").count, 1u);
+}
+
+TEST(LoopCloser, ALaterLoopAbortsOrFollowsTheRunningFullBa) {
+  // Two laps: the second revisit closes another loop while the first full BA may still run (then it
+  // is aborted and joined before the correction; either way pauses and resumes stay balanced).
+  PrebuiltLoop run(2 * kStepsPerLap + 4);
+  std::atomic<int> pauses{0}, resumes{0};
+  TimingStats timing;
+  LoopCloser closer(run.atlas, closerOptions(), MappingControl{[&] { ++pauses; }, [&] { ++resumes; }}, &timing);
+  std::thread loop_thread([&] { closer.run(); });
+  for (const auto& kf : run.scene.keyFrames()) closer.insertKeyFrame(kf);
+  closer.requestFinish();
+  loop_thread.join();
+  EXPECT_FALSE(closer.globalBaRunning());
+  std::printf("[ TWO LAPS ] %d loops, %zu full BA runs finished or aborted, mapping paused %d times\n",
+              closer.numLoops(), timing.stage("loop.global_ba").count, pauses.load());
+  EXPECT_GE(closer.numLoops(), 2);
+  // Every loop joins keyframes at the same true place (no false loop).
+  std::unordered_map<std::uint64_t, int> step_of;
+  for (std::size_t k = 0; k < run.scene.keyFrames().size(); ++k) {
+    step_of[run.scene.keyFrames()[k]->id().value] = run.scene.steps()[k];
+  }
+  for (const LoopEvent& event : closer.events()) {
+    const int apart = std::abs(step_of.at(event.current.value) - step_of.at(event.loop.value)) % kStepsPerLap;
+    EXPECT_LE(std::min(apart, kStepsPerLap - apart), 2) << event.current << " ~ " << event.loop;
+  }
+  EXPECT_EQ(pauses.load(), resumes.load());
+  EXPECT_EQ(timing.stage("loop.global_ba").count, static_cast<std::size_t>(closer.numLoops()));
+  EXPECT_GE(pauses.load(), closer.numLoops() + 1);  // each correction, and the last full BA's write-back
+}
+
+}  // namespace
+}  // namespace ltlo::loop

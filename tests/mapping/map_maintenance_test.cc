@@ -1,0 +1,210 @@
+// Map maintenance of local mapping on generated keyframes (no images, fixed seeds): duplicate
+// fusion by projection (links, merges, descriptor and static-score gates) and keyframe culling
+// (redundancy, origin, the IMU time-span rule).
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "../../src/mapping/map_culling.h"
+#include "../../src/mapping/point_fusion.h"
+#include "ltlo/map/atlas.h"
+#include "ltlo/map/map.h"
+
+namespace ltlo::mapping {
+namespace {
+
+PinholeCamera qvgaCamera() { return PinholeCamera(262.5, 262.5, 159.5, 119.5, 320, 240); }
+std::vector<float> scaleFactors() { return {1.0f, 1.2f, 1.44f, 1.728f}; }
+std::vector<float> levelSigma2() { return {1.0f, 1.44f, 2.0736f, 2.985984f}; }
+
+features::Descriptor randomDescriptor(std::mt19937& rng) {
+  std::uniform_int_distribution<std::uint64_t> bits;
+  return {bits(rng), bits(rng), bits(rng), bits(rng)};
+}
+
+/// A frame at T_w_b (camera = body) whose keypoint k sits at the projection of points_w[k] with
+/// its exact depth, octave 0 and descriptors[k].
+map::Frame frameSeeing(double t_s, const SE3& T_w_b, const std::vector<Vec3>& points_w,
+                       const std::vector<features::Descriptor>& descriptors) {
+  const PinholeCamera camera = qvgaCamera();
+  features::OrbFeatures features;
+  std::vector<float> depths;
+  for (std::size_t k = 0; k < points_w.size(); ++k) {
+    const Vec3 p_c = T_w_b.inverse() * points_w[k];
+    const Vec2 uv = camera.project(p_c);
+    features::Keypoint kp;
+    kp.x_px = static_cast<float>(uv.x());
+    kp.y_px = static_cast<float>(uv.y());
+    kp.octave = 0;
+    features.keypoints.push_back(kp);
+    features.descriptors.push_back(descriptors[k]);
+    depths.push_back(static_cast<float>(p_c.z()));
+  }
+  map::Frame frame(t_s, camera, SE3(), std::move(features), std::move(depths), scaleFactors());
+  frame.setPose_T_w_b(T_w_b);
+  return frame;
+}
+
+/// `count` points in front of the identity camera, 2-3 m away, spread over the image.
+std::vector<Vec3> pointsAhead(std::mt19937& rng, int count) {
+  std::uniform_real_distribution<double> u(20.0, 300.0), v(20.0, 220.0), z(2.0, 3.0);
+  const PinholeCamera camera = qvgaCamera();
+  std::vector<Vec3> points;
+  for (int k = 0; k < count; ++k) points.push_back(camera.backProject(Vec2(u(rng), v(rng)), z(rng)));
+  return points;
+}
+
+TEST(PointFusion, LinksMergesAndRespectsDescriptorAndStaticScoreGates) {
+  std::mt19937 rng(3);
+  const std::vector<Vec3> points_w = pointsAhead(rng, 30);
+  std::vector<features::Descriptor> descriptors;
+  for (int k = 0; k < 30; ++k) descriptors.push_back(randomDescriptor(rng));
+  // B's keypoints 20..29 carry unrelated descriptors (no match).
+  std::vector<features::Descriptor> descriptors_b = descriptors;
+  for (int k = 20; k < 30; ++k) descriptors_b[static_cast<std::size_t>(k)] = randomDescriptor(rng);
+
+  map::Map map;
+  const auto a = map.createKeyFrame(frameSeeing(0.0, SE3(), points_w, descriptors));
+  const SE3 T_w_b(Quat::Identity(), Vec3(0.08, 0.0, 0.02));
+  const auto b = map.createKeyFrame(frameSeeing(0.1, T_w_b, points_w, descriptors_b));
+  std::vector<std::shared_ptr<map::MapPoint>> points_a;
+  std::vector<std::shared_ptr<map::MapPoint>> duplicates;
+  for (int k = 0; k < 30; ++k) {
+    auto point = map.createMapPoint(points_w[static_cast<std::size_t>(k)], a->id());
+    ASSERT_TRUE(map.addObservation(*a, k, *point));
+    map.updateNormalAndDistances(*point);
+    map.updateDescriptor(*point);
+    points_a.push_back(point);
+    if (k >= 10 && k < 20) {  // B already holds a duplicate, 5 mm off
+      auto duplicate = map.createMapPoint(points_w[static_cast<std::size_t>(k)] + Vec3(0.005, 0.0, 0.0), b->id());
+      ASSERT_TRUE(map.addObservation(*b, k, *duplicate));
+      map.updateNormalAndDistances(*duplicate);
+      map.updateDescriptor(*duplicate);
+      duplicates.push_back(duplicate);
+    }
+  }
+  points_a[5]->setBeta(0.2);  // dynamic: never fused
+
+  FusionOptions options;
+  const FusionStats stats = fusePointsInto(map, *b, points_a, options, levelSigma2());
+  EXPECT_EQ(stats.linked, 9);
+  EXPECT_EQ(stats.replaced, 10);
+  for (int k = 0; k < 30; ++k) {
+    const std::optional<int> in_b = points_a[static_cast<std::size_t>(k)]->indexIn(b->id());
+    if (k < 20 && k != 5) {
+      ASSERT_TRUE(in_b.has_value()) << "point " << k;
+      EXPECT_EQ(*in_b, k);
+    } else {
+      EXPECT_FALSE(in_b.has_value()) << "point " << k;
+    }
+  }
+  for (std::size_t n = 0; n < duplicates.size(); ++n) {
+    EXPECT_TRUE(duplicates[n]->isBad());
+    EXPECT_EQ(duplicates[n]->replacedBy(), points_a[10 + n]->id());
+  }
+  EXPECT_EQ(map.numMapPoints(), 30u);
+}
+
+/// Seven keyframes (kf0 the origin); kf1..kf6 all see the same 40 points at octave 0.
+struct RedundantChain {
+  explicit RedundantChain(double dt_s) {
+    std::mt19937 rng(11);
+    const std::vector<Vec3> points_w = pointsAhead(rng, 40);
+    std::vector<features::Descriptor> descriptors;
+    for (int k = 0; k < 40; ++k) descriptors.push_back(randomDescriptor(rng));
+    for (int n = 0; n < 7; ++n) {
+      const SE3 T_w_b(Quat::Identity(), Vec3(0.01 * n, 0.0, 0.0));
+      keyframes.push_back(map.createKeyFrame(frameSeeing(dt_s * n, T_w_b, points_w, descriptors)));
+    }
+    for (int k = 0; k < 40; ++k) {
+      auto point = map.createMapPoint(points_w[static_cast<std::size_t>(k)], keyframes[1]->id());
+      for (int n = 1; n < 7; ++n) map.addObservation(*keyframes[static_cast<std::size_t>(n)], k, *point);
+    }
+    // kf0 shares a few points with kf1 only (it is connected, and it is the origin).
+    for (int k = 0; k < 20; ++k) {
+      auto point = map.createMapPoint(points_w[static_cast<std::size_t>(k)], keyframes[0]->id());
+      map.addObservation(*keyframes[0], k, *point);
+    }
+    for (int n = 0; n < 7; ++n) {
+      auto& kf = keyframes[static_cast<std::size_t>(n)];
+      if (n > 0) {
+        kf->setPreviousKeyFrame(keyframes[static_cast<std::size_t>(n - 1)]->id());
+        keyframes[static_cast<std::size_t>(n - 1)]->setNextKeyFrame(kf->id());
+        imu::Preintegrated pim{imu::ImuBias(), imu::ImuNoise()};
+        for (int s = 0; s < 10; ++s) pim.integrateStep(Vec3::Zero(), Vec3(0.0, 0.0, 9.81), dt_s / 10.0);
+        kf->setImuFromPrevious(pim);
+      }
+    }
+    for (auto& kf : keyframes) map.updateConnections(*kf);
+  }
+  map::Map map;
+  std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
+};
+
+TEST(KeyFrameCulling, CullsRedundantKeyFramesButNotTheOriginOrTheNewest) {
+  RedundantChain scene(0.1);
+  KeyFrameCullingOptions options;
+  options.use_imu = false;
+  const std::vector<map::KeyFrameId> culled = cullRedundantKeyFrames(scene.map, *scene.keyframes[6], options);
+  // kf1 (points seen by 5 others) and kf2 (4 others) go; then the map is down to 5 keyframes.
+  ASSERT_EQ(culled.size(), 2u);
+  EXPECT_EQ(culled[0], scene.keyframes[1]->id());
+  EXPECT_EQ(culled[1], scene.keyframes[2]->id());
+  EXPECT_TRUE(scene.keyframes[1]->isBad());
+  EXPECT_FALSE(scene.keyframes[0]->isBad());
+  EXPECT_FALSE(scene.keyframes[6]->isBad());
+  EXPECT_EQ(scene.map.numKeyFrames(), 5u);
+}
+
+TEST(KeyFrameCulling, WithTheImuKeepsKeyFramesWhoseNeighboursSpanMoreThanHalfASecond) {
+  RedundantChain slow(0.3);  // neighbours of a keyframe 0.6 s apart
+  KeyFrameCullingOptions options;
+  options.use_imu = true;
+  EXPECT_TRUE(cullRedundantKeyFrames(slow.map, *slow.keyframes[6], options).empty());
+
+  RedundantChain fast(0.1);
+  const std::vector<map::KeyFrameId> culled = cullRedundantKeyFrames(fast.map, *fast.keyframes[6], options);
+  ASSERT_EQ(culled.size(), 2u);
+  // The IMU chain is bridged: kf3 follows kf0 with the merged 0.3 s preintegration.
+  const auto& kf3 = fast.keyframes[3];
+  EXPECT_EQ(kf3->previousKeyFrame(), fast.keyframes[0]->id());
+  ASSERT_TRUE(kf3->imuFromPrevious().has_value());
+  EXPECT_NEAR(kf3->imuFromPrevious()->dt_s(), 0.3, 1e-9);
+}
+
+TEST(RecentPointCulling, ErasesPointsNotConfirmedByLaterKeyFrames) {
+  std::mt19937 rng(5);
+  const std::vector<Vec3> points_w = pointsAhead(rng, 4);
+  std::vector<features::Descriptor> descriptors;
+  for (int k = 0; k < 4; ++k) descriptors.push_back(randomDescriptor(rng));
+  map::Atlas atlas(16);
+  map::Map& map = atlas.activeMap();
+  const auto a = map.createKeyFrame(frameSeeing(0.0, SE3(), points_w, descriptors));
+  const auto b = map.createKeyFrame(frameSeeing(0.1, SE3(), points_w, descriptors));
+  std::vector<std::shared_ptr<map::MapPoint>> points;
+  for (int k = 0; k < 4; ++k) {
+    points.push_back(map.createMapPoint(points_w[static_cast<std::size_t>(k)], a->id()));
+    ASSERT_TRUE(map.addObservation(*a, k, *points.back()));
+  }
+  points[1]->increaseVisible(10);  // found 1 of 11 times by tracking
+  points[2]->setBeta(0.1);         // dynamic
+  ASSERT_TRUE(map.addObservation(*b, 3, *points[3]));  // confirmed by a second keyframe
+
+  RecentPointCuller culler{RecentPointCuller::Options()};
+  culler.addPointsOf(map, *a, 1);
+  EXPECT_EQ(culler.size(), 4u);
+  EXPECT_EQ(culler.cull(atlas, 1), 2);  // the badly tracked and the dynamic point at once
+  EXPECT_TRUE(points[1]->isBad());
+  EXPECT_TRUE(points[2]->isBad());
+  EXPECT_EQ(culler.cull(atlas, 2), 0);
+  EXPECT_EQ(culler.cull(atlas, 3), 1);  // two keyframes later, seen by one keyframe only
+  EXPECT_TRUE(points[0]->isBad());
+  EXPECT_FALSE(points[3]->isBad());
+  EXPECT_EQ(culler.size(), 1u);
+  EXPECT_EQ(culler.cull(atlas, 4), 0);  // mature: no longer checked
+  EXPECT_EQ(culler.size(), 0u);
+  EXPECT_EQ(map.numMapPoints(), 1u);
+}
+
+}  // namespace
+}  // namespace ltlo::mapping
