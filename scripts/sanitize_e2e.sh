@@ -31,7 +31,8 @@ for kind in "${KINDS[@]}"; do
   fi
   log=$dir/sanitize_e2e.log
   echo "== $kind: running $FILTER (log: $log)"
-  TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 exitcode=66 ${TSAN_OPTIONS:-}" \
+  # tests/tsan.supp: Mesa (the simulator's renderer) and GDAL are not instrumented (as ctest uses).
+  TSAN_OPTIONS="suppressions=$PWD/tests/tsan.supp halt_on_error=0 second_deadlock_stack=1 exitcode=66 ${TSAN_OPTIONS:-}" \
   ASAN_OPTIONS="detect_leaks=1 exitcode=67 ${ASAN_OPTIONS:-}" \
   UBSAN_OPTIONS="print_stacktrace=1 halt_on_error=1 ${UBSAN_OPTIONS:-}" \
     "$dir/tests/system_test" --gtest_filter="$FILTER" >"$log" 2>&1
