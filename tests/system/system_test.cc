@@ -209,8 +209,13 @@ TEST_F(SystemEndToEnd, LongTermOcclusionRunsWithAPoseForEveryFrame) {
 }
 
 TEST_F(SystemEndToEnd, FrameOfTheWrongSizeIsBadInput) {
-  const std::string dir = sequence(sim::Scenario::kStatic, kStaticSeconds, kStaticSeed);
-  System system(settingsFor(dir), *vocabulary_, SystemOptions{true, false, false});
+  sim::SimOptions camera;  // a 320x240 calibration, no sequence needed
+  camera.width_px = 320;
+  camera.height_px = 240;
+  const fs::path calib = *root_ / "calib_320x240.yaml";
+  camera.sensorCalib().write(calib.string());
+  const Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(), calib.string());
+  System system(settings, *vocabulary_, SystemOptions{true, false, false});
   io::RgbdImuFrame input;
   input.color_bgr = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
   input.depth_m = cv::Mat(480, 640, CV_32F, cv::Scalar(0.0f));
