@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <stdexcept>
 #include <utility>
 
@@ -166,14 +167,21 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   ScopedTimer frame_timer(timing_, "tracking.frame");
   pollImuState();
 
+  // The depth over-segmentation and the ORB extraction only read the input: the clustering runs
+  // in a second thread meanwhile (the clustering_ buffers are used by this one task at a time).
+  std::future<segmentation::ClusterMap> clusters;
+  if (options_.segment_depth && !input.depth_m.empty()) {
+    clusters = std::async(std::launch::async, [this, &input] {
+      ScopedTimer timer(timing_, "tracking.segmentation");
+      return clustering_->cluster(input.depth_m, builder_->calib().camera.camera);
+    });
+  }
   map::Frame frame = [&] {
     ScopedTimer timer(timing_, "tracking.orb");
     return builder_->build(input, tracker_->bias());
   }();
-  if (options_.segment_depth && !input.depth_m.empty()) {
-    ScopedTimer timer(timing_, "tracking.segmentation");
-    const segmentation::ClusterMap clusters = clustering_->cluster(input.depth_m, builder_->calib().camera.camera);
-    frame.setSegmentation(clusterSegmentation(clusters), settings_.segmentation.static_threshold);
+  if (clusters.valid()) {
+    frame.setSegmentation(clusterSegmentation(clusters.get()), settings_.segmentation.static_threshold);
   }
   {
     ScopedTimer timer(timing_, "tracking.bow");

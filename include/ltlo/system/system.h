@@ -21,6 +21,9 @@
 /// Threads are started in the constructor (loop closing first, then local mapping) and joined in
 /// reverse data-flow order by shutdown(): local mapping first (it drains its queue and hands the
 /// last keyframes on), then loop closing (it drains, then waits for a running full BA).
+/// Within trackFrame the depth over-segmentation of the frame runs in a short-lived std::async task
+/// while the tracking thread extracts ORB features; it only reads the input frame and the
+/// clustering buffers (used by that one task at a time) and is joined before tracking.
 ///
 /// With SystemOptions::threaded == false no thread is started: after every keyframe, trackFrame
 /// runs LocalMapper::processKeyFrame and LoopCloser::processKeyFrame itself (deterministic; tests).
