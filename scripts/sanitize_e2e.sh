@@ -2,13 +2,14 @@
 # ThreadSanitizer and AddressSanitizer+UndefinedBehaviorSanitizer on an end-to-end run: builds
 # build-tsan (LTLO_SANITIZE_THREAD=ON) and build-asan (LTLO_SANITIZE_ADDRESS=ON), both
 # RelWithDebInfo with 2 jobs, and runs the end-to-end test binary (tests/system/system_test.cc:
-# System with its tracking, local-mapping and loop-closing threads on a generated 10 s 320x240
-# static sequence) under each. Exits non-zero when a test fails or a sanitizer reports anything.
+# System with its tracking, local-mapping and loop-closing threads on a generated 8 s 320x240
+# static sequence, RGB-D-inertial; and a 27 s lap of the room, RGB-D only, with a loop correction
+# and the full-BA thread) under each. Exits non-zero when a test fails or a sanitizer reports anything.
 #   scripts/sanitize_e2e.sh [tsan|asan ...]     (default: both; FILTER overrides the gtest filter)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 JOBS=${JOBS:-2}
-FILTER=${FILTER:-SystemEndToEnd.RgbdInertialThreaded}
+FILTER=${FILTER:-SystemEndToEnd.RgbdInertialThreaded:SystemEndToEnd.RgbdOnlyThreadedClosesTheLoop}
 KINDS=("$@")
 [ ${#KINDS[@]} -eq 0 ] && KINDS=(tsan asan)
 export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$(cd .. && pwd)}

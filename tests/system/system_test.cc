@@ -4,7 +4,7 @@
 // every frame after the first must carry a pose, a lap of the room must close a loop. The outputs
 // are written and read back.
 //
-// The sanitizer script (scripts/sanitize_e2e.sh) runs SystemEndToEnd.RgbdInertialThreaded of this
+// The sanitizer script (scripts/sanitize_e2e.sh) runs RgbdInertialThreaded and the loop test of this
 // binary under TSan and ASan/UBSan.
 #include <gtest/gtest.h>
 #include <unistd.h>
