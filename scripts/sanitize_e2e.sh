@@ -35,7 +35,7 @@ for kind in "${KINDS[@]}"; do
   # tests/tsan.supp: Mesa (the simulator's renderer) and GDAL are not instrumented (as ctest uses).
   # OMP_NUM_THREADS=1: CHOLMOD's OpenMP threads (libgomp, not instrumented) otherwise show up as
   # races inside cholmod_* whose barriers TSan cannot see; our own threads are what is checked.
-  OMP_NUM_THREADS=1 \
+  OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
   TSAN_OPTIONS="suppressions=$PWD/tests/tsan.supp halt_on_error=0 second_deadlock_stack=1 exitcode=66 ${TSAN_OPTIONS:-}" \
   ASAN_OPTIONS="detect_leaks=1 exitcode=67 ${ASAN_OPTIONS:-}" \
   UBSAN_OPTIONS="print_stacktrace=1 halt_on_error=1 ${UBSAN_OPTIONS:-}" \
