@@ -38,6 +38,7 @@ for kind in "${KINDS[@]}"; do
   OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
   TSAN_OPTIONS="suppressions=$PWD/tests/tsan.supp halt_on_error=0 second_deadlock_stack=1 exitcode=66 ${TSAN_OPTIONS:-}" \
   ASAN_OPTIONS="detect_leaks=1 exitcode=67 ${ASAN_OPTIONS:-}" \
+  LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp ${LSAN_OPTIONS:-}" \
   UBSAN_OPTIONS="print_stacktrace=1 halt_on_error=1 ${UBSAN_OPTIONS:-}" \
     "$dir/tests/system_test" --gtest_filter="$FILTER" >"$log" 2>&1
   rc=$?
