@@ -3,7 +3,8 @@
 #   scripts/acceptance.sh [OUT_DIR] [SEEDS]        default out/acceptance, seeds "1 2 3"
 # For every seed: static 45 s RGB-D-inertial and RGB-D only; stlo/mtlo/ltlo 30 s; forced loss by 3 s
 # of black frames and by 3 s without depth (static 45 s). One line per run in OUT_DIR/summary.txt:
-#   name ate_rmse_m frames frames_with_pose maps_created maps loops merges wall_s tracking_median_ms
+#   name ate_rmse_m frames frames_with_pose maps_created maps loops merges wall_s tracking_median_ms false_loops
+# (false_loops: loops/merges whose keyframes' relative pose disagrees with ground truth, check_loops.py)
 # Needs a built tree (scripts/build.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,7 +13,7 @@ SEEDS=${2:-"1 2 3"}
 BIN=build/bin
 mkdir -p "$OUT"
 SUMMARY="$OUT/summary.txt"
-echo "# name ate_rmse_m frames frames_with_pose maps_created maps loops merges wall_s tracking_median_ms" > "$SUMMARY"
+echo "# name ate_rmse_m frames frames_with_pose maps_created maps loops merges wall_s tracking_median_ms false_loops" > "$SUMMARY"
 
 json_value() {  # json_value FILE KEY -> the number after "KEY":
   grep -o "\"$2\": *[-0-9.eE+a-z]*" "$1" | head -1 | sed 's/.*: *//'
@@ -32,10 +33,12 @@ run_case() {  # run_case NAME SEQ_DIR [rgbd_inertial flags...]
   fi
   end=$(date +%s.%N)
   local m="$out/metrics.json"
-  printf '%s %s %s %s %s %s %s %s %.1f %s\n' "$name" "$(json_value "$m" ate_rmse_m)" \
+  local false_loops
+  false_loops=$(scripts/check_loops.py "$out" "$seq" "$out.log" | tee "$out.loops" | grep -c '^FALSE' || true)
+  printf '%s %s %s %s %s %s %s %s %.1f %s %s\n' "$name" "$(json_value "$m" ate_rmse_m)" \
     "$(json_value "$m" frames)" "$(json_value "$m" frames_with_pose)" "$(json_value "$m" maps_created)" \
     "$(json_value "$m" maps)" "$(json_value "$m" loops)" "$(json_value "$m" merges)" \
-    "$(echo "$end - $start" | bc)" "$(json_value "$m" tracking_frame_median_ms)" | tee -a "$SUMMARY"
+    "$(echo "$end - $start" | bc)" "$(json_value "$m" tracking_frame_median_ms)" "$false_loops" | tee -a "$SUMMARY"
 }
 
 simulate() {  # simulate DIR SCENARIO SEED SECONDS [extra flags]
