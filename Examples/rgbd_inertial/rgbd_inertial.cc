@@ -31,6 +31,7 @@
 #include "ltlo/core/log.h"
 #include "ltlo/core/progress.h"
 #include "ltlo/core/settings.h"
+#include "ltlo/io/frame_prefetcher.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/system/run_outputs.h"
 #include "ltlo/system/system.h"
@@ -144,9 +145,11 @@ int run(const Arguments& args) {
   int exit_code = 0;
   std::string failure;
   int frames = 0;
+  // Images are decoded a few frames ahead in a reader thread while the previous frame is tracked.
+  io::FramePrefetcher prefetcher(reader, 4, total);
   try {
     while (!g_stop_requested.load() && frames < total) {
-      std::optional<io::RgbdImuFrame> input = reader.next();
+      std::optional<io::RgbdImuFrame> input = prefetcher.next();
       if (!input) break;
       const tracking::TrackingState state = slam.trackFrame(*input);
       ++frames;
@@ -168,6 +171,7 @@ int run(const Arguments& args) {
     failure = "error at " + frameName(reader, frames) + ": " + e.what();
     exit_code = 1;
   }
+  prefetcher.stop();  // the reader is the prefetch thread's until joined
   if (!failure.empty()) log::error(kProgram, ": ", failure);
   const bool interrupted = g_stop_requested.load() || !failure.empty();
   progress.finish();
