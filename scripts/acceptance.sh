@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 OUT=${1:-out/acceptance}
 SEEDS=${2:-"1 2 3"}
 BIN=build/bin
-mkdir -p "$OUT"
+mkdir -p "$OUT/runs"
 SUMMARY="$OUT/summary.txt"
 echo "# name ate_rmse_m frames frames_with_pose maps_created maps loops merges wall_s tracking_median_ms false_loops" > "$SUMMARY"
 
