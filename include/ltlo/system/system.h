@@ -79,11 +79,12 @@ struct SystemOptions {
   /// false: local mapping and loop closing run synchronously inside trackFrame after each keyframe
   /// (deterministic, for tests); true: each in its own thread.
   bool threaded = true;
-  /// false: skip the depth over-segmentation (every frame keeps one static cluster). With all
-  /// static scores 1 the labels change no result yet; the clustering costs ~15-35 ms per frame on
-  /// this machine, so timing runs and tests may turn it off. On by default: the seam runs as the
-  /// segmentation issue will use it.
-  bool segment_depth = true;
+  /// true: over-segment every depth image into K clusters (segmentation::DepthClustering) as the
+  /// frame's cluster labels. false (default until the dynamic segmentation lands): every frame
+  /// keeps the trivial seam, one static cluster. With all static scores 1 the labels change no
+  /// result yet, and the clustering costs ~22 ms CPU per VGA frame, which would put the tracking
+  /// thread over its 20 ms budget; the segmentation issue turns it on with its own budget.
+  bool segment_depth = false;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
