@@ -183,10 +183,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   if (clusters.valid()) {
     frame.setSegmentation(clusterSegmentation(clusters.get()), settings_.segmentation.static_threshold);
   }
-  {
-    ScopedTimer timer(timing_, "tracking.bow");
-    frame.computeBow(*vocabulary_);
-  }
+  // BoW is computed by the tracker only where it is used: keyframes and relocalisation.
 
   tracking::TrackingState state = tracking::TrackingState::kNotInitialised;
   {
