@@ -1,7 +1,7 @@
 // rgbd_inertial / rgbd: SLAM on one RGB-D(-inertial) sequence; writes the run outputs.
 //
 //   rgbd_inertial --settings YAML --sequence DIR --out DIR [--vocabulary FILE] [--no-imu]
-//                 [--single-thread] [--clustering] [--max-frames N] [--progress-every N]
+//                 [--single-thread] [--max-frames N] [--progress-every N]
 //   rgbd          (the same program without the IMU: TUM RGB-D with config_yaml/tum_rgbd.yaml)
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
@@ -66,7 +66,6 @@ struct Arguments {
   std::string vocabulary_path;
   bool no_imu = !LTLO_PROGRAM_USES_IMU;
   bool single_thread = false;
-  bool clustering = false;
   long max_frames = 0;
   long progress_every = 100;
 };
@@ -128,7 +127,6 @@ int run(const Arguments& args) {
   system::SystemOptions options;
   options.use_imu = !args.no_imu;
   options.threaded = !args.single_thread;
-  options.segment_depth = args.clustering;
   if (options.use_imu && (!setup.settings.calib.has_imu || !reader.hasImu())) {
     log::warn(kProgram, ": the sequence has no IMU ", setup.settings.calib.has_imu ? "data" : "calibration",
               "; running RGB-D only");
@@ -224,9 +222,6 @@ int main(int argc, char** argv) {
   app.add_flag("--no-imu", args.no_imu, "ignore the IMU (RGB-D only; always so for rgbd)");
   app.add_flag("--single-thread", args.single_thread,
                "run local mapping and loop closing in the tracking thread (deterministic)");
-  app.add_flag("--clustering", args.clustering,
-               "over-segment every depth image into clusters (off: one static cluster per frame until the "
-               "dynamic segmentation lands; costs ~22 ms per VGA frame)");
   app.add_option("--max-frames", args.max_frames, "stop after N frames (0: all)")->check(CLI::NonNegativeNumber);
   app.add_option("--progress-every", args.progress_every, "progress line every N frames (0: none)")
       ->check(CLI::NonNegativeNumber);

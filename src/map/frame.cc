@@ -41,7 +41,7 @@ Frame::Frame(double t_s, const PinholeCamera& camera, const SE3& T_b_c, features
     }
   }
   grid_ = GridIndex(features_.keypoints, camera_.width(), camera_.height());
-  setSegmentation(ClusterSegmentation::allStatic(camera_.width(), camera_.height()));
+  setSegmentation(ClusterSegmentation::allStatic());
   map_points.assign(n, MapPointId());
   outliers.assign(n, false);
 }

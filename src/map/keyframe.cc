@@ -22,13 +22,13 @@ KeyFrame::KeyFrame(KeyFrameId id, MapId map, const Frame& frame)
       depth_m_(frame.depths_m()),
       p_c_(frame.points_c()),
       grid_(frame.grid()),
-      has_bow_(frame.hasBow()),
-      bow_vector_(frame.bowVector()),
-      feature_vector_(frame.featureVector()),
-      cluster_labels_(frame.segmentation().labels.clone()),
+      segmentation_layout_(frame.segmentation()),
       keypoint_cluster_(frame.keypointClusters()),
       static_threshold_(frame.staticThreshold()),
       map_(map),
+      has_bow_(frame.hasBow()),
+      bow_vector_(frame.bowVector()),
+      feature_vector_(frame.featureVector()),
       gamma_(frame.segmentation().gamma),
       T_w_b_(frame.T_w_b()),
       v_w_b_(frame.v_w_b()),
@@ -36,7 +36,26 @@ KeyFrame::KeyFrame(KeyFrameId id, MapId map, const Frame& frame)
       imu_from_previous_(frame.imu_from_last_keyframe),
       map_points_(static_cast<std::size_t>(frame.numKeypoints())) {
   LTLO_ASSERT(id.valid(), "a keyframe needs a valid id");
-  static_area_ratio_ = ClusterSegmentation{cluster_labels_, gamma_}.staticAreaRatio(static_threshold_);
+  static_area_ratio_ = segmentation_layout_.staticAreaRatio(static_threshold_);
+}
+
+bool KeyFrame::hasBow() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return has_bow_;
+}
+bow::BowVector KeyFrame::bowVector() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return bow_vector_;
+}
+bow::FeatureVector KeyFrame::featureVector() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return feature_vector_;
+}
+void KeyFrame::setBow(bow::BowVector bow_vector, bow::FeatureVector feature_vector) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  bow_vector_ = std::move(bow_vector);
+  feature_vector_ = std::move(feature_vector);
+  has_bow_ = true;
 }
 
 std::vector<int> KeyFrame::featuresInArea(float x_px, float y_px, float radius_px, int min_octave,
@@ -50,9 +69,10 @@ std::vector<double> KeyFrame::gamma() const {
 }
 
 void KeyFrame::setGamma(std::vector<double> gamma) {
-  ClusterSegmentation segmentation{cluster_labels_, std::move(gamma)};
+  ClusterSegmentation segmentation = segmentation_layout_;  // shares the images (cv::Mat), copies the tables
+  segmentation.gamma = std::move(gamma);
   segmentation.validate();
-  const double ratio = segmentation.staticAreaRatio(static_threshold_);  // outside the lock: a full image pass
+  const double ratio = segmentation.staticAreaRatio(static_threshold_);
   std::lock_guard<std::mutex> lock(mutex_);
   LTLO_ASSERT(segmentation.gamma.size() == gamma_.size(), "keyframe " << id_ << " has " << gamma_.size()
                                                                       << " clusters, got " << segmentation.gamma.size()
@@ -71,7 +91,8 @@ bool KeyFrame::isStatic(int i) const {
 
 std::vector<int> KeyFrame::staticKeypoints() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  const ClusterSegmentation scores{cv::Mat(), gamma_};  // gammaOf() only; labels are not needed
+  ClusterSegmentation scores;  // gammaOf() only; labels are not needed
+  scores.gamma = gamma_;
   std::vector<int> indices;
   for (int i = 0; i < numKeypoints(); ++i) {
     if (scores.gammaOf(clusterOf(i)) >= static_threshold_) indices.push_back(i);
@@ -80,8 +101,10 @@ std::vector<int> KeyFrame::staticKeypoints() const {
 }
 
 ClusterSegmentation KeyFrame::segmentation() const {
+  ClusterSegmentation segmentation = segmentation_layout_;
   std::lock_guard<std::mutex> lock(mutex_);
-  return ClusterSegmentation{cluster_labels_, gamma_};
+  segmentation.gamma = gamma_;
+  return segmentation;
 }
 
 double KeyFrame::staticAreaRatio() const {

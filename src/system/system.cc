@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <future>
 #include <stdexcept>
 #include <utility>
 
@@ -12,11 +11,8 @@
 #include "ltlo/core/log.h"
 #include "ltlo/loop/loop_closer.h"
 #include "ltlo/map/atlas.h"
-#include "ltlo/map/cluster_segmentation.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/mapping/local_mapper.h"
-#include "ltlo/segmentation/depth_clustering.h"
-#include "ltlo/segmentation/static_scores.h"
 #include "ltlo/tracking/frame_builder.h"
 
 namespace ltlo::system {
@@ -34,13 +30,15 @@ std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector
   return colours;
 }
 
-/// The segmentation seam: depth clusters as the frame's cluster labels, every gamma 1 (static)
-/// until the static-score estimation of the segmentation issue lands.
-map::ClusterSegmentation clusterSegmentation(const segmentation::ClusterMap& clusters) {
-  map::ClusterSegmentation seam;
-  seam.labels = clusters.labels;
-  seam.gamma = segmentation::StaticScores::allStatic(clusters.num_clusters).values();
-  return seam;
+/// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit).
+std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings) {
+  const SegmentationOptions& seg = settings.segmentation;
+  if (!seg.enable) return std::make_unique<tracking::AllStaticSegmenter>(seg.static_threshold);
+  if (seg.dense_init) {
+    // TODO(#11): the dense initial segmentation and state (Eq. 59-64).
+    log::warn("system: Seg.DenseInit = 1 but the dense segmentation is not built yet; depth clusters with gamma = 1");
+  }
+  return std::make_unique<tracking::ClusterOnlySegmenter>(seg, settings.dense, settings.calib.camera.camera);
 }
 
 }  // namespace
@@ -55,14 +53,13 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
   atlas_ = std::make_unique<map::Atlas>(vocabulary_->numWords());
   builder_ = std::make_unique<tracking::FrameBuilder>(settings_.orb, calib);
-  clustering_ = std::make_unique<segmentation::DepthClustering>(
-      segmentation::DepthClusteringOptions::from(settings_.segmentation, settings_.dense));
   const std::vector<float> level_sigma2 = builder_->extractor().levelSigma2();
 
   tracking::TrackerOptions tracker_options;
   tracker_options.keyframe = settings_.keyframe;
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
+  tracker_->setSegmenter(makeSegmenter(settings_));
   tracker_->setLocalMappingCallback(
       [this](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { onNewKeyFrame(kf); });
 
@@ -99,7 +96,8 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
     });
   }
   log::info("system: ", options_.threaded ? "threaded" : "synchronous", ", ",
-            use_imu_ ? "RGB-D-inertial" : "RGB-D only", ", vocabulary of ", vocabulary_->numWords(), " words");
+            use_imu_ ? "RGB-D-inertial" : "RGB-D only", ", segmentation ", tracker_->segmenter()->name(),
+            ", vocabulary of ", vocabulary_->numWords(), " words");
 }
 
 System::~System() {
@@ -167,22 +165,18 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   ScopedTimer frame_timer(timing_, "tracking.frame");
   pollImuState();
 
-  // The depth over-segmentation and the ORB extraction only read the input: the clustering runs
-  // in a second thread meanwhile (the clustering_ buffers are used by this one task at a time).
-  std::future<segmentation::ClusterMap> clusters;
-  if (options_.segment_depth && !input.depth_m.empty()) {
-    clusters = std::async(std::launch::async, [this, &input] {
-      ScopedTimer timer(timing_, "tracking.segmentation");
-      return clustering_->cluster(input.depth_m, builder_->calib().camera.camera);
-    });
-  }
+  // The segmenter starts on the images (possibly on its worker thread) while ORB is extracted here.
+  tracking::FrameSegmenter& segmenter = *tracker_->segmenter();
+  segmenter.begin(input);
   map::Frame frame = [&] {
     ScopedTimer timer(timing_, "tracking.orb");
-    return builder_->build(input, tracker_->bias());
+    try {
+      return builder_->build(input, tracker_->bias());
+    } catch (...) {
+      segmenter.cancel();
+      throw;
+    }
   }();
-  if (clusters.valid()) {
-    frame.setSegmentation(clusterSegmentation(clusters.get()), settings_.segmentation.static_threshold);
-  }
   // BoW is computed by the tracker only where it is used: keyframes and relocalisation.
 
   tracking::TrackingState state = tracking::TrackingState::kNotInitialised;
@@ -192,6 +186,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     try {
       state = tracker_->track(frame);
     } catch (...) {
+      segmenter.cancel();
       current_input_ = nullptr;
       throw;
     }

@@ -72,6 +72,7 @@ TrackingState Tracker::track(map::Frame& frame) {
   stats_ = TrackingStats();
   frame_tracked_ = false;
   if (state_ == TrackingState::kNotInitialised) {
+    segment(frame, MotionPrior());
     state_ = initialise(frame);
     frame_tracked_ = state_ == TrackingState::kOk;
     return state_;
@@ -93,7 +94,15 @@ TrackingState Tracker::track(map::Frame& frame) {
   }
 
   const bool was_lost = state_ == TrackingState::kLost;
-  const SE3 T_w_b_pred = predictPose_T_w_b(frame);
+  SE3 T_w_b_pred = predictPose_T_w_b(frame);
+  // Segmentation between the prediction and the matching (thesis Eq. 59-64): it labels the static
+  // clusters the matching may use and may refine the predicted state.
+  const SegmentationOutcome outcome = segment(frame, motionPrior(frame, T_w_b_pred));
+  if (outcome.state_refined) {
+    T_w_b_pred = outcome.T_w_b;
+    frame.setVelocity(outcome.v_w_b);
+    frame.setBias(outcome.bias);
+  }
   const Vec3 v_w_b_pred = frame.v_w_b();
   frame.setPose_T_w_b(T_w_b_pred);
   int inliers = trackWithMotionModel(frame, T_w_b_pred);
@@ -343,6 +352,30 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
   if (keep_moving) T_w_c = T_w_c * *velocity_T_last_cur_;
   frame.setVelocity(keep_moving ? prev_v_w_b_ : Vec3::Zero());
   return T_w_c * frame.T_b_c().inverse();
+}
+
+MotionPrior Tracker::motionPrior(const map::Frame& frame, const SE3& T_w_b_pred) const {
+  MotionPrior prior;
+  prior.T_b_c = frame.T_b_c();
+  prior.T_w_b_prev = prev_T_w_b_;
+  prior.v_w_b_prev = prev_v_w_b_;
+  prior.bias_prev = bias_;
+  prior.T_w_b_pred = T_w_b_pred;
+  prior.v_w_b_pred = frame.v_w_b();
+  prior.dt_s = frame.t_s() - prev_t_s_;
+  prior.g_w = g_w_;
+  if (frame.imu_from_last_frame) {
+    prior.pim = std::make_shared<const imu::Preintegrated>(*frame.imu_from_last_frame);
+    prior.kind = imu_initialised_ ? MotionPrior::Kind::kImu : MotionPrior::Kind::kGyroConstantVelocity;
+  } else if (velocity_T_last_cur_) {
+    prior.kind = MotionPrior::Kind::kConstantVelocity;
+  }
+  return prior;
+}
+
+SegmentationOutcome Tracker::segment(map::Frame& frame, const MotionPrior& prior) {
+  segmentation_outcome_ = segmenter_ ? segmenter_->segment(frame, prior) : SegmentationOutcome();
+  return segmentation_outcome_;
 }
 
 int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {

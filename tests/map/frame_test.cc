@@ -66,7 +66,7 @@ TEST(Frame, StaticFilterFollowsClusterScores) {
   EXPECT_EQ(frame.staticKeypoints().size(), static_cast<std::size_t>(frame.numKeypoints()));  // trivial seam
   // Three clusters: left half 0, right half 1, top rows 2 ("no depth"); gamma = {1, 0.2, 1}.
   ClusterSegmentation seg;
-  seg.labels = cv::Mat(480, 640, CV_16U, cv::Scalar(0));
+  seg.labels = cv::Mat(480, 640, CV_8U, cv::Scalar(0));
   seg.labels(cv::Rect(320, 0, 320, 480)).setTo(1);
   seg.labels(cv::Rect(0, 0, 640, 120)).setTo(2);
   seg.gamma = {1.0, 0.2, 1.0};
@@ -78,19 +78,23 @@ TEST(Frame, StaticFilterFollowsClusterScores) {
   EXPECT_TRUE(frame.isStatic(left));
   EXPECT_FALSE(frame.isStatic(right));
   EXPECT_TRUE(frame.isStatic(top));
-  // Right half below row 120 is dynamic: 320 * 360 of 640 * 480 pixels.
-  EXPECT_DOUBLE_EQ(seg.staticAreaRatio(0.5), 1.0 - 320.0 * 360.0 / (640.0 * 480.0));
+  // Cluster 2 (the last) is "no depth" and counts in neither part of the static area: of the
+  // 640 x 360 pixels with depth, the right half is dynamic.
+  EXPECT_DOUBLE_EQ(seg.staticAreaRatio(0.5), 0.5);
   EXPECT_DOUBLE_EQ(seg.staticAreaRatio(0.1), 1.0);
 
   // The keyframe copies labels and scores and recomputes the ratio when Gamma changes.
   frame.setPose_T_w_b(SE3());
   KeyFrame kf(KeyFrameId(0), MapId(0), frame);
-  EXPECT_DOUBLE_EQ(kf.staticAreaRatio(), 0.625);
+  EXPECT_DOUBLE_EQ(kf.staticAreaRatio(), 0.5);
   EXPECT_FALSE(kf.isStatic(right));
   kf.setGamma({1.0, 0.9, 0.0});
   EXPECT_TRUE(kf.isStatic(right));
   EXPECT_FALSE(kf.isStatic(top));
-  EXPECT_DOUBLE_EQ(kf.staticAreaRatio(), 0.75);
+  EXPECT_DOUBLE_EQ(kf.staticAreaRatio(), 1.0);
+  kf.setGamma({0.2, 0.9, 1.0});
+  EXPECT_DOUBLE_EQ(kf.staticAreaRatio(), 0.5);
+  kf.setGamma({1.0, 0.9, 0.0});
   std::vector<int> expected_static;
   for (int i = 0; i < kf.numKeypoints(); ++i) {
     if (kf.clusterOf(i) != 2) expected_static.push_back(i);
@@ -106,6 +110,52 @@ TEST(Frame, StaticFilterFollowsClusterScores) {
   EXPECT_THROW(frame.setSegmentation(seg), AssertionError);  // label 2 has no score
 }
 
+TEST(ClusterSegmentation, ReducedResolutionLookupsMaskAndMemory) {
+  // QVGA labels and QQVGA depth for a VGA image: a dynamic box over input columns [200, 400).
+  ClusterSegmentation seg;
+  seg.scale = 2;
+  seg.labels = cv::Mat(240, 320, CV_8U, cv::Scalar(0));
+  seg.labels(cv::Rect(100, 0, 100, 240)).setTo(1);
+  seg.labels(cv::Rect(0, 0, 320, 10)).setTo(2);  // no depth in the top 20 input rows
+  seg.gamma = {1.0, 0.0, 1.0};
+  seg.pixel_counts = {220 * 230, 100 * 230, 320 * 10};
+  seg.neighbours = {{0, 1}};
+  seg.depth_scale = 4;
+  seg.depth_mm = cv::Mat(120, 160, CV_16U, cv::Scalar(2000));
+  seg.depth_mm.at<std::uint16_t>(50, 75) = 1234;  // input pixels x 300..303, y 200..203
+  seg.validate();
+  EXPECT_EQ(seg.clusterAt(199.4f, 100.0f), 0);
+  EXPECT_EQ(seg.clusterAt(199.6f, 100.0f), 1);  // rounds to input pixel 200, label column 100
+  EXPECT_EQ(seg.clusterAt(399.0f, 100.0f), 1);
+  EXPECT_EQ(seg.clusterAt(400.0f, 100.0f), 0);
+  EXPECT_EQ(seg.clusterAt(10.0f, 19.0f), 2);
+  EXPECT_EQ(seg.clusterAt(10.0f, 20.0f), 0);
+  EXPECT_EQ(seg.clusterAt(-5.0f, 1000.0f), 0);  // clamped
+  EXPECT_EQ(seg.noDepthCluster(), 2);
+  EXPECT_DOUBLE_EQ(seg.depthAt_m(301.0, 202.0), 1.234);
+  EXPECT_DOUBLE_EQ(seg.depthAt_m(304.0, 202.0), 2.0);
+  EXPECT_DOUBLE_EQ(seg.depthAt_m(700.0, 202.0), 0.0);
+  EXPECT_DOUBLE_EQ(seg.staticAreaRatio(0.5), 220.0 / 320.0);
+  const cv::Mat mask = seg.dynamicMask(0.5);
+  ASSERT_EQ(mask.size(), cv::Size(320, 240));
+  EXPECT_EQ(cv::countNonZero(mask), 100 * 230);  // the no-depth rows are static (gamma 1)
+  EXPECT_EQ(seg.memoryBytes(), 320u * 240u + 160u * 120u * 2u + 3u * sizeof(double) + 3u * sizeof(int) +
+                                   sizeof(std::pair<int, int>));
+  EXPECT_LT(seg.memoryBytes(), 200000u);  // the per-keyframe budget of the segmentation issue
+  // Counted on demand when the counts are absent: the same ratio.
+  seg.pixel_counts.clear();
+  EXPECT_DOUBLE_EQ(seg.staticAreaRatio(0.5), 220.0 / 320.0);
+
+  const ClusterSegmentation trivial = ClusterSegmentation::allStatic();
+  EXPECT_EQ(trivial.clusterAt(100.0f, 100.0f), 0);
+  EXPECT_EQ(trivial.noDepthCluster(), -1);
+  EXPECT_DOUBLE_EQ(trivial.staticAreaRatio(0.5), 1.0);
+  EXPECT_EQ(cv::countNonZero(trivial.dynamicMask(0.5, 48, 64)), 0);
+
+  seg.labels.at<std::uint8_t>(0, 0) = 3;  // a label without a score
+  EXPECT_THROW(seg.validate(), AssertionError);
+}
+
 TEST(Frame, BowUsesStaticKeypointsOnlyAndIndexesKeypoints) {
   // A tiny vocabulary on random descriptors; the dynamic keypoints must not reach the BoW.
   std::mt19937 rng(11);
@@ -113,8 +163,9 @@ TEST(Frame, BowUsesStaticKeypointsOnlyAndIndexesKeypoints) {
   const bow::Vocabulary vocabulary =
       bow::Vocabulary::train({frame.descriptors()}, bow::TrainOptions{4, 3, 5, 1, 1, 0, {}});
   ClusterSegmentation seg;
-  seg.labels = cv::Mat(480, 640, CV_32S, cv::Scalar(0));
-  seg.labels(cv::Rect(0, 0, 640, 240)).setTo(1);  // top half dynamic
+  seg.labels = cv::Mat(240, 320, CV_8U, cv::Scalar(0));
+  seg.scale = 2;
+  seg.labels(cv::Rect(0, 0, 320, 120)).setTo(1);  // top half dynamic
   seg.gamma = {1.0, 0.0};
   frame.setSegmentation(seg);
   frame.computeBow(vocabulary, 1);

@@ -143,7 +143,7 @@ constexpr std::uint64_t kStaticSeed = 2;
 
 TEST_F(SystemEndToEnd, RgbdInertialThreaded) {
   const std::string dir = sequence(sim::Scenario::kStatic, kStaticSeconds, kStaticSeed);
-  const RunResult result = run(dir, SystemOptions{true, true, true});
+  const RunResult result = run(dir, SystemOptions{true, true});
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.025);
   EXPECT_LT(result.ate_max_m, 0.05);
@@ -171,7 +171,7 @@ TEST_F(SystemEndToEnd, RgbdInertialThreaded) {
 TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
   const RunResult result =
       run(sequence(sim::Scenario::kStatic, 27.0, kStaticSeed, /*fps=*/12.0, /*mean_speed_mps=*/0.55),
-          SystemOptions{false, true, false});
+          SystemOptions{false, true});
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.03);
   EXPECT_LT(result.ate_max_m, 0.06);
@@ -184,13 +184,13 @@ TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
 
 TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
   const std::string dir = sequence(sim::Scenario::kStatic, kStaticSeconds, kStaticSeed);
-  const RunResult result = run(dir, SystemOptions{true, false, false});
+  const RunResult result = run(dir, SystemOptions{true, false});
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.02);
   EXPECT_TRUE(result.counts.imu_initialised);
   EXPECT_GE(result.counts.keyframes, 10);
   // Mapping and loop closing inside trackFrame: a second run gives the same trajectory.
-  const RunResult again = run(dir, SystemOptions{true, false, false});
+  const RunResult again = run(dir, SystemOptions{true, false});
   ASSERT_EQ(again.trajectory.size(), result.trajectory.size());
   for (std::size_t i = 0; i < result.trajectory.size(); ++i) {
     ASSERT_EQ(again.trajectory[i].T_w_c.translation(), result.trajectory[i].T_w_c.translation()) << "frame " << i;
@@ -200,7 +200,7 @@ TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
 }
 
 TEST_F(SystemEndToEnd, LongTermOcclusionRunsWithAPoseForEveryFrame) {
-  const RunResult result = run(sequence(sim::Scenario::kLtlo, 4.0, 1), SystemOptions{true, true, true});
+  const RunResult result = run(sequence(sim::Scenario::kLtlo, 4.0, 1), SystemOptions{true, true});
   // Boxes may cover the first frame; from the first initialisation on, every frame has a pose.
   EXPECT_EQ(result.counts.frames, result.frames);
   EXPECT_GE(result.counts.frames_with_pose, result.frames - 10);
@@ -215,7 +215,7 @@ TEST_F(SystemEndToEnd, FrameOfTheWrongSizeIsBadInput) {
   const fs::path calib = *root_ / "calib_320x240.yaml";
   camera.sensorCalib().write(calib.string());
   const Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(), calib.string());
-  System system(settings, *vocabulary_, SystemOptions{true, false, false});
+  System system(settings, *vocabulary_, SystemOptions{true, false});
   io::RgbdImuFrame input;
   input.color_bgr = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
   input.depth_m = cv::Mat(480, 640, CV_32F, cv::Scalar(0.0f));

@@ -43,13 +43,21 @@ class KeyFrame {
   const Vec3& p_c(int i) const { return p_c_[static_cast<std::size_t>(i)]; }
   std::vector<int> featuresInArea(float x_px, float y_px, float radius_px, int min_octave = 0,
                                   int max_octave = -1) const;
-  bool hasBow() const { return has_bow_; }
-  const bow::BowVector& bowVector() const { return bow_vector_; }
-  const bow::FeatureVector& featureVector() const { return feature_vector_; }
-  /// Cluster label image (CV_32S/CV_16U) and each keypoint's cluster; the scores may change.
-  const cv::Mat& clusterLabels() const { return cluster_labels_; }
+  /// Cluster of each keypoint (fixed); the scores may change.
   int clusterOf(int i) const { return keypoint_cluster_[static_cast<std::size_t>(i)]; }
+  const std::vector<int>& keypointClusters() const { return keypoint_cluster_; }
   double staticThreshold() const { return static_threshold_; }
+  /// The fixed parts of the segmentation: labels (8-bit, reduced resolution, see
+  /// ClusterSegmentation::scale), pixel counts, V_i and the depth for Eq. 56. gamma in this copy is
+  /// the one the keyframe was created with; the current scores are gamma().
+  const ClusterSegmentation& segmentationLayout() const { return segmentation_layout_; }
+
+  // ---- bag of words (static keypoints; recomputed by local mapping when Gamma changes) ----
+  bool hasBow() const;
+  bow::BowVector bowVector() const;
+  bow::FeatureVector featureVector() const;
+  /// Replaces the BoW (computed by the caller from the keyframe's current static keypoints).
+  void setBow(bow::BowVector bow_vector, bow::FeatureVector feature_vector);
 
   // ---- static scores (Gamma) ----
   std::vector<double> gamma() const;
@@ -58,9 +66,9 @@ class KeyFrame {
   bool isStatic(int i) const;
   /// Indices of the static keypoints, increasing (one lock for the whole pass).
   std::vector<int> staticKeypoints() const;
-  /// Labels and current scores together (for saving the run's segmentation).
+  /// Layout and current scores together (for saving the run's segmentation).
   ClusterSegmentation segmentation() const;
-  /// Share of image pixels in clusters with gamma >= staticThreshold() (Loop.MinStaticRatio).
+  /// ClusterSegmentation::staticAreaRatio of the current scores (Loop.MinStaticRatio).
   double staticAreaRatio() const;
 
   // ---- state ----
@@ -138,15 +146,15 @@ class KeyFrame {
   const std::vector<float> depth_m_;
   const std::vector<Vec3> p_c_;
   const GridIndex grid_;
-  const bool has_bow_;
-  const bow::BowVector bow_vector_;
-  const bow::FeatureVector feature_vector_;
-  const cv::Mat cluster_labels_;
+  const ClusterSegmentation segmentation_layout_;
   const std::vector<int> keypoint_cluster_;
   const double static_threshold_;
 
   mutable std::mutex mutex_;  ///< guards every member below
   MapId map_;
+  bool has_bow_ = false;
+  bow::BowVector bow_vector_;
+  bow::FeatureVector feature_vector_;
   std::vector<double> gamma_;
   double static_area_ratio_ = 1.0;
   SE3 T_w_b_;

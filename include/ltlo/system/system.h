@@ -1,9 +1,9 @@
 #pragma once
 /// System (namespace ltlo::system): the whole SLAM pipeline of one run. It owns the Atlas and the
 /// three stages (DESIGN.md "Threads and data flow"):
-///   tracking        in the caller's thread (trackFrame): ORB + depth (FrameBuilder), the depth
-///                   over-segmentation seam (DepthClustering, all clusters static for now), BoW,
-///                   Tracker::track;
+///   tracking        in the caller's thread (trackFrame): ORB + depth (FrameBuilder) while the
+///                   tracker's FrameSegmenter starts on the images (Seg.Enable, Seg.DenseInit pick
+///                   it), then Tracker::track (prediction, segmentation, matching, keyframes);
 ///   local mapping   LocalMapper::run in a thread started here;
 ///   loop closing    LoopCloser::run in a thread started here (it starts and joins its full-BA
 ///                   thread itself).
@@ -21,9 +21,9 @@
 /// Threads are started in the constructor (loop closing first, then local mapping) and joined in
 /// reverse data-flow order by shutdown(): local mapping first (it drains its queue and hands the
 /// last keyframes on), then loop closing (it drains, then waits for a running full BA).
-/// Within trackFrame the depth over-segmentation of the frame runs in a short-lived std::async task
-/// while the tracking thread extracts ORB features; it only reads the input frame and the
-/// clustering buffers (used by that one task at a time) and is joined before tracking.
+/// Within trackFrame the segmenter may work on the input images in its own worker thread while the
+/// tracking thread extracts ORB features; it only reads the input frame and its own buffers and is
+/// joined inside Tracker::track (FrameSegmenter::segment) or cancelled on an error.
 ///
 /// With SystemOptions::threaded == false no thread is started: after every keyframe, trackFrame
 /// runs LocalMapper::processKeyFrame and LoopCloser::processKeyFrame itself (deterministic; tests).
@@ -63,9 +63,6 @@ class LocalMapper;
 namespace ltlo::loop {
 class LoopCloser;
 }
-namespace ltlo::segmentation {
-class DepthClustering;
-}
 namespace ltlo::tracking {
 class FrameBuilder;
 }
@@ -79,12 +76,6 @@ struct SystemOptions {
   /// false: local mapping and loop closing run synchronously inside trackFrame after each keyframe
   /// (deterministic, for tests); true: each in its own thread.
   bool threaded = true;
-  /// true: over-segment every depth image into K clusters (segmentation::DepthClustering) as the
-  /// frame's cluster labels. false (default until the dynamic segmentation lands): every frame
-  /// keeps the trivial seam, one static cluster. With all static scores 1 the labels change no
-  /// result yet, and the clustering costs ~22 ms CPU per VGA frame, which would put the tracking
-  /// thread over its 20 ms budget; the segmentation issue turns it on with its own budget.
-  bool segment_depth = false;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
@@ -153,7 +144,6 @@ class System {
   TimingStats timing_;
   std::unique_ptr<map::Atlas> atlas_;  // first member built, last destroyed (after the workers)
   std::unique_ptr<tracking::FrameBuilder> builder_;
-  std::unique_ptr<segmentation::DepthClustering> clustering_;
   std::unique_ptr<tracking::Tracker> tracker_;
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;

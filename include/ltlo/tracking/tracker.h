@@ -31,6 +31,7 @@
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
+#include "ltlo/tracking/frame_segmenter.h"
 #include "ltlo/tracking/relocaliser.h"
 
 namespace bow {
@@ -147,6 +148,14 @@ class Tracker {
   /// frames get theirs for the query. Not owned; must outlive the tracker.
   void setVocabulary(const bow::Vocabulary* vocabulary) { vocabulary_ = vocabulary; }
 
+  /// The segmentation step (FrameSegmenter): called on every frame between the prediction and the
+  /// matching; without one every frame keeps the one-static-cluster seam. System creates it from
+  /// the settings; the caller of track() calls segmenter()->begin(input) before building the frame.
+  void setSegmenter(std::unique_ptr<FrameSegmenter> segmenter) { segmenter_ = std::move(segmenter); }
+  FrameSegmenter* segmenter() { return segmenter_.get(); }
+  /// Outcome of the last frame's segmentation step.
+  const SegmentationOutcome& segmentationOutcome() const { return segmentation_outcome_; }
+
   /// IMU hook (system/ calls it after IMU initialisation): from now on frames carrying
   /// imu_from_last_frame are predicted by preintegration (and pose-optimised with the inertial link
   /// when inertial_pose_optimisation). The world must be gravity-aligned (g_w) by then. May be
@@ -173,6 +182,10 @@ class Tracker {
   void refreshAfterMapChange(map::Map& map);
   /// Predicted body pose of `frame` (sets its velocity and bias with the IMU).
   SE3 predictPose_T_w_b(map::Frame& frame);
+  /// The motion prior of the segmentation step for `frame` predicted at T_w_b_pred.
+  MotionPrior motionPrior(const map::Frame& frame, const SE3& T_w_b_pred) const;
+  /// Runs the segmentation step (no-op without a segmenter); returns the refined state if any.
+  SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior);
   /// Motion-model tracking: last-frame search, local map; returns pose inliers.
   int trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred);
   /// Relocalisation in the active map; returns pose inliers (0 when not relocalised).
@@ -193,6 +206,8 @@ class Tracker {
   TrackerOptions options_;
   std::vector<float> level_sigma2_;
   LocalMappingCallback local_mapping_;
+  std::unique_ptr<FrameSegmenter> segmenter_;
+  SegmentationOutcome segmentation_outcome_;
 
   TrackingState state_ = TrackingState::kNotInitialised;
   TrackingStats stats_;
