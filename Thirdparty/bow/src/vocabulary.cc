@@ -5,7 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <mutex>
 #include <random>
@@ -17,7 +19,30 @@ namespace bow {
 namespace {
 
 constexpr char kMagic[8] = {'L', 'T', 'L', 'O', 'B', 'O', 'W', '1'};
-constexpr std::size_t kNodeBytes = 2 + 4 + 32;  // child count, weight, descriptor
+constexpr std::size_t kHeaderBytes = sizeof(kMagic) + 3 * 4;  // magic, k, L, node count
+constexpr std::size_t kNodeBytes = 2 + 4 + 32;                // child count, weight, descriptor
+
+/// Bytes as text for messages: printable ASCII kept, others as \xNN.
+std::string printable(const char* data, std::size_t size) {
+  std::string text;
+  for (std::size_t i = 0; i < size; ++i) {
+    const unsigned char c = static_cast<unsigned char>(data[i]);
+    if (c >= 0x20 && c < 0x7f) {
+      text.push_back(static_cast<char>(c));
+    } else {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\x%02x", c);
+      text += escaped;
+    }
+  }
+  return text;
+}
+
+std::string floatText(float value) {
+  std::ostringstream os;
+  os << value;
+  return os.str();
+}
 
 /// Tree under construction; flattened breadth-first once complete.
 struct BuildNode {
@@ -355,7 +380,7 @@ void Vocabulary::transform(const std::vector<Descriptor>& descriptors, BowVector
 
 void Vocabulary::save(const std::string& path) const {
   std::vector<char> buffer;
-  buffer.reserve(sizeof(kMagic) + 12 + nodes_.size() * kNodeBytes);
+  buffer.reserve(kHeaderBytes + nodes_.size() * kNodeBytes);
   writeBytes(&buffer, kMagic, sizeof(kMagic));
   const std::uint32_t header[3] = {static_cast<std::uint32_t>(branching_), static_cast<std::uint32_t>(depth_),
                                    static_cast<std::uint32_t>(nodes_.size())};
@@ -366,50 +391,99 @@ void Vocabulary::save(const std::string& path) const {
     writeBytes(&buffer, node.centre.data(), 32);
   }
   std::ofstream out(path, std::ios::binary);
-  if (!out) throw std::runtime_error(path + ": cannot open vocabulary file for writing");
+  if (!out) throw FileError(path, -1, "cannot open the vocabulary file for writing");
   out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-  if (!out) throw std::runtime_error(path + ": write failed");
+  if (!out) throw FileError(path, -1, "write failed");
 }
 
 Vocabulary Vocabulary::load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) throw std::runtime_error(path + ": cannot open vocabulary file");
-  const std::streamsize size = in.tellg();
-  in.seekg(0);
-  std::vector<char> buffer(static_cast<std::size_t>(size));
-  in.read(buffer.data(), size);
-  if (!in || buffer.size() < sizeof(kMagic) + 12 || std::memcmp(buffer.data(), kMagic, sizeof(kMagic)) != 0) {
-    throw std::runtime_error(path + ": not an LTLOBOW1 vocabulary file");
+  std::error_code error;
+  if (!std::filesystem::exists(path, error)) throw FileError(path, -1, "vocabulary file does not exist");
+  if (!std::filesystem::is_regular_file(path, error)) throw FileError(path, -1, "not a regular file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FileError(path, -1, "cannot open the vocabulary file");
+  const std::vector<char> buffer((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw FileError(path, -1, "read failed");
+  return fromBytes(buffer.data(), buffer.size(), path);
+}
+
+Vocabulary Vocabulary::fromBytes(const char* data, std::size_t size, const std::string& name) {
+  if (size < kHeaderBytes) {
+    throw FileError(name, 0, "too short for the LTLOBOW1 header: " + std::to_string(size) + " bytes",
+                    "need " + std::to_string(kHeaderBytes));
+  }
+  if (std::memcmp(data, kMagic, sizeof(kMagic)) != 0) {
+    throw FileError(name, 0, "not an LTLOBOW1 vocabulary file", "magic '" + printable(data, sizeof(kMagic)) + "'");
   }
   std::uint32_t header[3];
-  std::memcpy(header, buffer.data() + sizeof(kMagic), sizeof(header));
-  const std::size_t expected = sizeof(kMagic) + sizeof(header) + std::size_t{header[2]} * kNodeBytes;
-  if (buffer.size() != expected || header[2] == 0) {
-    throw std::runtime_error(path + ": size " + std::to_string(buffer.size()) + " bytes, expected " +
-                             std::to_string(expected) + " for " + std::to_string(header[2]) + " nodes");
+  std::memcpy(header, data + sizeof(kMagic), sizeof(header));
+  if (header[0] < 2 || header[0] > 255) {
+    throw FileError(name, 8, "branching factor k outside [2, 255]", std::to_string(header[0]));
+  }
+  if (header[1] < 1 || header[1] > 10) {
+    throw FileError(name, 12, "depth L outside [1, 10]", std::to_string(header[1]));
+  }
+  const std::size_t num_nodes = header[2];
+  const std::size_t body_bytes = size - kHeaderBytes;
+  if (num_nodes < 2 || body_bytes != num_nodes * kNodeBytes) {
+    throw FileError(name, 16,
+                    "node count does not match the file size " + std::to_string(size) + " bytes (" +
+                        std::to_string(kHeaderBytes) + " + nodes * " + std::to_string(kNodeBytes) +
+                        ", at least a root and one word)",
+                    std::to_string(num_nodes));
   }
   Vocabulary vocabulary;
   vocabulary.branching_ = static_cast<int>(header[0]);
   vocabulary.depth_ = static_cast<int>(header[1]);
-  vocabulary.nodes_.resize(header[2]);
-  const char* p = buffer.data() + sizeof(kMagic) + sizeof(header);
-  for (Node& node : vocabulary.nodes_) {
+  vocabulary.nodes_.resize(num_nodes);
+  // Checks the breadth-first layout while reading: node i > 0 must already be claimed as a child
+  // of an earlier node (i < next_child), so the children ranges tile [1, num_nodes) in order and
+  // the tree has no cycles, no orphans and no node deeper than L.
+  std::size_t next_child = 1;
+  std::vector<std::uint32_t> node_depth(num_nodes, 0);
+  for (std::size_t i = 0; i < num_nodes; ++i) {
+    const std::size_t offset = kHeaderBytes + i * kNodeBytes;
+    const char* p = data + offset;
+    Node& node = vocabulary.nodes_[i];
     std::memcpy(&node.num_children, p, 2);
     std::memcpy(&node.weight, p + 2, 4);
     std::memcpy(node.centre.data(), p + 6, 32);
-    p += kNodeBytes;
+    const std::string node_text = "node " + std::to_string(i);
+    if (i > 0 && i >= next_child) {
+      throw FileError(name, static_cast<long long>(offset),
+                      node_text + " is no node's child (earlier child counts cover nodes 1.." +
+                          std::to_string(next_child - 1) + ")");
+    }
+    if (node.num_children > vocabulary.branching_) {
+      throw FileError(name, static_cast<long long>(offset),
+                      node_text + ": more children than k = " + std::to_string(vocabulary.branching_),
+                      std::to_string(node.num_children));
+    }
+    if (!std::isfinite(node.weight) || node.weight < 0.0f) {
+      throw FileError(name, static_cast<long long>(offset + 2),
+                      node_text + ": weight is not a finite non-negative number", floatText(node.weight));
+    }
+    if (next_child + node.num_children > num_nodes) {
+      throw FileError(name, static_cast<long long>(offset),
+                      node_text + ": children beyond the " + std::to_string(num_nodes) + " nodes",
+                      std::to_string(node.num_children));
+    }
+    if (node.num_children > 0 && node_depth[i] + 1 > static_cast<std::uint32_t>(vocabulary.depth_)) {
+      throw FileError(name, static_cast<long long>(offset),
+                      node_text + " at depth " + std::to_string(node_depth[i]) + " has children, but L = " +
+                          std::to_string(vocabulary.depth_),
+                      std::to_string(node.num_children));
+    }
+    for (std::size_t c = next_child; c < next_child + node.num_children; ++c) node_depth[c] = node_depth[i] + 1;
+    next_child += node.num_children;
   }
-  try {
-    vocabulary.link();
-  } catch (const std::runtime_error& e) {
-    throw std::runtime_error(path + ": " + e.what());
-  }
+  vocabulary.link();  // cannot fail now: the last node was claimed, so the ranges end at num_nodes
   return vocabulary;
 }
 
 void Vocabulary::saveText(const std::string& path) const {
   std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot open for writing");
+  if (!out) throw FileError(path, -1, "cannot open for writing");
   out << "# LTLO bow vocabulary k " << branching_ << " L " << depth_ << " nodes " << nodes_.size() << " words "
       << word_nodes_.size() << "\n# node_id parent_id depth word_id weight descriptor_hex(word0..word3)\n";
   char hex[80];
@@ -421,7 +495,7 @@ void Vocabulary::saveText(const std::string& path) const {
     out << i << ' ' << (i == 0 ? -1 : static_cast<long>(n.parent)) << ' ' << n.depth << ' ' << n.word << ' '
         << n.weight << ' ' << hex << '\n';
   }
-  if (!out) throw std::runtime_error(path + ": write failed");
+  if (!out) throw FileError(path, -1, "write failed");
 }
 
 bool Vocabulary::operator==(const Vocabulary& other) const {

@@ -1,9 +1,11 @@
 #include "bow/vocabulary.h"
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -125,7 +127,82 @@ TEST_F(VocabularyTest, TextExportHasOneLinePerNode) {
   std::remove(path.c_str());
 }
 
-TEST(VocabularyFile, TruncatedFileIsRejectedWithItsPath) {
+// A hand-made vocabulary file: header (k, L, node count) and nodes (child count, weight).
+struct FileNode {
+  std::uint16_t children;
+  float weight;
+};
+std::string vocabularyBytes(std::uint32_t k, std::uint32_t L, const std::vector<FileNode>& nodes) {
+  std::string bytes = "LTLOBOW1";
+  const std::uint32_t header[3] = {k, L, static_cast<std::uint32_t>(nodes.size())};
+  bytes.append(reinterpret_cast<const char*>(header), sizeof(header));
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    bytes.append(reinterpret_cast<const char*>(&nodes[i].children), 2);
+    bytes.append(reinterpret_cast<const char*>(&nodes[i].weight), 4);
+    const Descriptor centre{i, 0, 0, 0};
+    bytes.append(reinterpret_cast<const char*>(centre.data()), 32);
+  }
+  return bytes;
+}
+
+/// what() of the FileError the bytes give, with its offset and value checked.
+std::string fileErrorOf(const std::string& bytes, long long offset, const std::string& value) {
+  try {
+    Vocabulary::fromBytes(bytes.data(), bytes.size(), "voc.bin");
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.path(), "voc.bin");
+    EXPECT_EQ(e.offset(), offset) << e.what();
+    EXPECT_EQ(e.value(), value) << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "expected a FileError";
+  return "";
+}
+
+TEST(VocabularyFile, SmallestValidTreeLoadsAndTransforms) {
+  // Root with two leaves: two words.
+  const std::string bytes = vocabularyBytes(2, 1, {{2, 0.0f}, {0, 0.5f}, {0, 1.5f}});
+  const Vocabulary vocabulary = Vocabulary::fromBytes(bytes.data(), bytes.size(), "voc.bin");
+  EXPECT_EQ(vocabulary.numWords(), 2u);
+  BowVector v;
+  vocabulary.transform({Descriptor{2, 0, 0, 0}, Descriptor{2, 0, 0, 0}}, &v);  // nearest to node 2
+  ASSERT_EQ(v.size(), 1u);
+  EXPECT_EQ(v.entries[0].first, 1u);
+  EXPECT_FLOAT_EQ(vocabulary.wordWeight(1), 1.5f);
+}
+
+TEST(VocabularyFile, EveryMalformedFieldIsNamedWithItsOffsetAndValue) {
+  const std::vector<FileNode> good = {{2, 0.0f}, {0, 0.5f}, {0, 1.5f}};
+  EXPECT_NE(fileErrorOf("LTLOBOW1\x01", 0, "need 20").find("voc.bin: byte 0: too short"), std::string::npos);
+  EXPECT_NE(fileErrorOf("GIF89a" + std::string(30, '\0'), 0, "magic 'GIF89a\\x00\\x00'")
+                .find("not an LTLOBOW1 vocabulary file"),
+            std::string::npos);
+  EXPECT_NE(fileErrorOf(vocabularyBytes(1, 1, good), 8, "1").find("voc.bin: byte 8: branching factor k"),
+            std::string::npos);
+  EXPECT_NE(fileErrorOf(vocabularyBytes(2, 0, good), 12, "0").find("depth L outside [1, 10]"), std::string::npos);
+  std::string truncated = vocabularyBytes(2, 1, good);
+  truncated.pop_back();
+  EXPECT_NE(fileErrorOf(truncated, 16, "3").find("node count does not match the file size 133 bytes"),
+            std::string::npos);
+  // Root with 0 children: node 1 is nobody's child (a cycle or an orphan otherwise).
+  EXPECT_NE(fileErrorOf(vocabularyBytes(2, 1, {{0, 0.0f}, {1, 0.5f}, {0, 1.5f}}), 20 + 38, "")
+                .find("node 1 is no node's child"),
+            std::string::npos);
+  EXPECT_NE(fileErrorOf(vocabularyBytes(2, 1, {{3, 0.0f}, {0, 0.5f}, {0, 1.5f}, {0, 1.0f}}), 20, "3")
+                .find("node 0: more children than k = 2"),
+            std::string::npos);
+  EXPECT_NE(fileErrorOf(vocabularyBytes(2, 1, {{2, 0.0f}, {0, NAN}, {0, 1.5f}}), 20 + 38 + 2, "nan")
+                .find("node 1: weight is not a finite non-negative number"),
+            std::string::npos);
+  EXPECT_NE(fileErrorOf(vocabularyBytes(2, 1, {{2, 0.0f}, {1, 0.5f}, {0, 1.5f}}), 20 + 38, "1")
+                .find("node 1: children beyond the 3 nodes"),
+            std::string::npos);
+  EXPECT_NE(fileErrorOf(vocabularyBytes(2, 1, {{1, 0.0f}, {1, 0.5f}, {0, 1.5f}}), 20 + 38, "1")
+                .find("node 1 at depth 1 has children, but L = 1"),
+            std::string::npos);
+}
+
+TEST(VocabularyFile, MissingTruncatedAndDirectoryPathsAreFileErrors) {
   const std::string path = ::testing::TempDir() + "bow_truncated.bin";
   {
     std::ofstream out(path, std::ios::binary);
@@ -134,10 +211,18 @@ TEST(VocabularyFile, TruncatedFileIsRejectedWithItsPath) {
   try {
     Vocabulary::load(path);
     FAIL() << "expected an exception";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find(path + ": byte 8: branching factor"), std::string::npos) << e.what();
   }
   std::remove(path.c_str());
+  EXPECT_THROW(Vocabulary::load(path), FileError);
+  try {
+    Vocabulary::load(::testing::TempDir());
+    FAIL() << "expected an exception";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+    EXPECT_EQ(e.offset(), -1);
+  }
 }
 
 TEST(VocabularyTrain, IdenticalDescriptorsGiveOneWordWithoutWeight) {

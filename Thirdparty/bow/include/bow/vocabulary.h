@@ -8,6 +8,7 @@
 
 #include "bow/bow_vector.h"
 #include "bow/descriptor.h"
+#include "bow/file_error.h"
 
 namespace bow {
 
@@ -35,10 +36,17 @@ class Vocabulary {
   /// Throws std::invalid_argument for invalid options or no descriptors.
   static Vocabulary train(const std::vector<std::vector<Descriptor>>& images, const TrainOptions& options);
 
-  /// Binary file: magic "LTLOBOW1", k, L, node count, then per node (breadth-first, children
-  /// contiguous) child count, weight and descriptor. Throws std::runtime_error naming the file.
+  /// Binary file (host byte order: little-endian on x86-64 and ARM64): magic "LTLOBOW1", then uint32 k, L and node count, then per
+  /// node (breadth-first, children contiguous) uint16 child count, float32 weight and the 32-byte
+  /// descriptor. save() throws FileError when the file cannot be written.
   void save(const std::string& path) const;
+  /// Reads and validates a file written by save(): header ranges (k in [2, 255], L in [1, 10]),
+  /// size, tree structure (every node below the root is a child of an earlier node, at most k
+  /// children, at most L levels, at least one word) and finite non-negative weights. Throws
+  /// FileError naming the file, the byte offset and the value at fault.
   static Vocabulary load(const std::string& path);
+  /// The same from bytes in memory; `name` stands for the file in messages.
+  static Vocabulary fromBytes(const char* data, std::size_t size, const std::string& name);
   /// Human-readable dump: header line, then one line per node
   /// "node_id parent_id depth word_id(-1 inner) weight descriptor_hex".
   void saveText(const std::string& path) const;
