@@ -8,6 +8,7 @@
 #include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "parsers.h"
 #include "text_parse.h"
 
 namespace ltlo::io {
@@ -29,15 +30,14 @@ std::string secondsText(double value_s) {
 
 // Reads "t v1 .. vn" lines (separator and/or whitespace), checking finiteness, strictly
 // increasing time and gaps against the options (the gap is reported at the later line).
-std::vector<StampedRow> readStampedRows(const std::string& path, char separator, size_t num_values,
-                                        TimeUnit unit, const SequenceOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, 0, "cannot open IMU file");
+std::vector<StampedRow> parseStampedRows(std::istream& in, const std::string& path, char separator,
+                                         size_t num_values, TimeUnit unit,
+                                         const SequenceOptions& options) {
   std::vector<StampedRow> rows;
-  std::string line;
-  int line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
+  detail::LineReader lines(in);
+  while (lines.next()) {
+    const std::string& line = lines.line();
+    const int line_number = lines.number();
     if (detail::isCommentOrBlank(line)) continue;
     // EuRoC headers start with "#", but some exports start with a plain "timestamp" header.
     if (rows.empty() && line.find("timestamp") != std::string::npos) continue;
@@ -81,6 +81,13 @@ std::vector<StampedRow> readStampedRows(const std::string& path, char separator,
   return rows;
 }
 
+std::vector<StampedRow> readStampedRows(const std::string& path, char separator, size_t num_values,
+                                        TimeUnit unit, const SequenceOptions& options) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, 0, "cannot open IMU file");
+  return parseStampedRows(in, path, separator, num_values, unit, options);
+}
+
 ImuSamples toSamples(const std::vector<StampedRow>& rows) {
   ImuSamples samples;
   samples.reserve(rows.size());
@@ -105,6 +112,19 @@ Vec3 interpolateRows(const std::vector<StampedRow>& rows, double t_s, size_t* cu
 }
 
 }  // namespace
+
+namespace detail {
+
+ImuSamples parseImuText(std::istream& in, const std::string& path, const SequenceOptions& options) {
+  return toSamples(parseStampedRows(in, path, ' ', 6, TimeUnit::kSeconds, options));
+}
+
+ImuSamples parseEurocImuCsv(std::istream& in, const std::string& path,
+                            const SequenceOptions& options) {
+  return toSamples(parseStampedRows(in, path, ',', 6, TimeUnit::kNanoseconds, options));
+}
+
+}  // namespace detail
 
 ImuSamples readImuText(const std::string& path, const SequenceOptions& options) {
   return toSamples(readStampedRows(path, ' ', 6, TimeUnit::kSeconds, options));

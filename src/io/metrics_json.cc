@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "ltlo/core/errors.h"
+#include "text_parse.h"
 
 namespace ltlo::io {
 namespace {
@@ -117,10 +118,8 @@ std::string Metrics::toJson() const {
 }
 
 void Metrics::writeJson(const std::string& path) const {
-  std::ofstream out(path);
-  if (!out) throw InputError(path, 0, "cannot open for writing");
-  out << toJson();
-  if (!out) throw InputError(path, 0, "write failed");
+  const std::string json = toJson();
+  detail::writeAtomically(path, [&](std::ostream& out) { out << json; });
 }
 
 }  // namespace ltlo::io

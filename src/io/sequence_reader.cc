@@ -9,6 +9,7 @@
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 #include "ltlo/io/associate.h"
+#include "parsers.h"
 #include "text_parse.h"
 
 namespace ltlo::io {
@@ -28,12 +29,7 @@ bool isDirectory(const std::string& path) {
   return fs::is_directory(path, ec);
 }
 
-// One line of rgb.txt / depth.txt / color.txt: "timestamp path".
-struct ListedImage {
-  double t_s = 0.0;
-  std::string path;  // joined with the sequence folder
-  int line = 0;
-};
+using detail::ListedImage;
 
 void checkImageExists(const std::string& image_path, const std::string& list_path, int line) {
   if (!isFile(image_path)) {
@@ -41,36 +37,13 @@ void checkImageExists(const std::string& image_path, const std::string& list_pat
   }
 }
 
-void checkFrameTimeIncreases(double t_s, double previous_s, bool has_previous,
-                             const std::string& list_path, int line) {
-  if (has_previous && t_s <= previous_s) {
-    throw InputError(
-        list_path, line,
-        "timestamp " + formatTime(t_s) + " is not after the previous " + formatTime(previous_s));
-  }
-}
-
 std::vector<ListedImage> readImageList(const std::string& dir, const std::string& list_path) {
   std::ifstream in(list_path);
   if (!in) throw InputError(list_path, 0, "cannot open image list");
-  std::vector<ListedImage> images;
-  std::string line;
-  int line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (detail::isCommentOrBlank(line)) continue;
-    const std::vector<std::string> fields = detail::splitFields(line);
-    if (fields.size() != 2) {
-      throw InputError(list_path, line_number, "expected 'timestamp path', found '" + line + "'");
-    }
-    ListedImage image;
-    image.t_s = detail::parseFinite(fields[0], "timestamp", list_path, line_number);
-    image.path = joinPath(dir, fields[1]);
-    image.line = line_number;
-    checkFrameTimeIncreases(image.t_s, images.empty() ? 0.0 : images.back().t_s, !images.empty(),
-                            list_path, line_number);
-    checkImageExists(image.path, list_path, line_number);
-    images.push_back(image);
+  std::vector<ListedImage> images = detail::parseImageList(in, dir, list_path);
+  for (const ListedImage& image : images) checkImageExists(image.path, list_path, image.line);
+  if (images.empty()) {
+    throw InputError(list_path, 0, "lists no images (only comments or blank lines)");
   }
   return images;
 }
@@ -78,29 +51,13 @@ std::vector<ListedImage> readImageList(const std::string& dir, const std::string
 std::vector<FrameFiles> readAssociations(const std::string& dir, const std::string& list_path) {
   std::ifstream in(list_path);
   if (!in) throw InputError(list_path, 0, "cannot open associations file");
-  std::vector<FrameFiles> frames;
-  std::string line;
-  int line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (detail::isCommentOrBlank(line)) continue;
-    const std::vector<std::string> fields = detail::splitFields(line);
-    if (fields.size() != 4) {
-      throw InputError(list_path, line_number,
-                       "expected 't_rgb rgb_path t_depth depth_path', found '" + line + "'");
-    }
-    FrameFiles frame;
-    frame.t_s = detail::parseFinite(fields[0], "colour timestamp", list_path, line_number);
-    frame.color_path = joinPath(dir, fields[1]);
-    frame.depth_t_s = detail::parseFinite(fields[2], "depth timestamp", list_path, line_number);
-    frame.depth_path = joinPath(dir, fields[3]);
-    frame.color_list_path = frame.depth_list_path = list_path;
-    frame.color_list_line = frame.depth_list_line = line_number;
-    checkFrameTimeIncreases(frame.t_s, frames.empty() ? 0.0 : frames.back().t_s, !frames.empty(),
-                            list_path, line_number);
-    checkImageExists(frame.color_path, list_path, line_number);
-    checkImageExists(frame.depth_path, list_path, line_number);
-    frames.push_back(frame);
+  std::vector<FrameFiles> frames = detail::parseAssociations(in, dir, list_path);
+  for (const FrameFiles& frame : frames) {
+    checkImageExists(frame.color_path, list_path, frame.color_list_line);
+    checkImageExists(frame.depth_path, list_path, frame.depth_list_line);
+  }
+  if (frames.empty()) {
+    throw InputError(list_path, 0, "lists no RGB-D frames (only comments or blank lines)");
   }
   return frames;
 }
@@ -129,6 +86,14 @@ std::vector<FrameFiles> associateLists(const std::vector<ListedImage>& colors,
     frame.depth_list_path = depth_list;
     frame.depth_list_line = depths[j].line;
     frames.push_back(frame);
+  }
+  if (frames.empty()) {
+    throw InputError(color_list, 0,
+                     "no RGB-D frames: none of the " + std::to_string(colors.size()) +
+                         " colour images has a depth image in " + depth_list + " within " +
+                         detail::formatTime(max_dt_s) + " s (" + std::to_string(depths.size()) +
+                         " depth images from t = " + detail::formatTime(depths.front().t_s) +
+                         " s; colour from t = " + detail::formatTime(colors.front().t_s) + " s)");
   }
   if (frames.size() < colors.size()) {
     log::info(color_list, ": ", colors.size() - frames.size(), " of ", colors.size(),
@@ -190,6 +155,40 @@ void checkSize(const cv::Mat& image, int width, int height, const std::string& w
 
 }  // namespace
 
+cv::Mat SequenceReader::loadColorImage(const FrameFiles& files) {
+  cv::Mat image;
+  try {
+    image = cv::imread(files.color_path, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    throw InputError(files.color_list_path, files.color_list_line,
+                     files.color_path + ": cannot decode image (" + e.msg + ")");
+  }
+  if (image.empty()) {
+    throw InputError(files.color_list_path, files.color_list_line,
+                     files.color_path + ": cannot read image");
+  }
+  if (image.type() == CV_8UC1 || image.type() == CV_8UC4) {
+    // Benign variants: grey (some cameras, converted datasets) and BGRA (PNG with alpha).
+    cv::Mat bgr(image.rows, image.cols, CV_8UC3);
+    const int grey_to_bgr[] = {0, 0, 0, 1, 0, 2};
+    const int bgra_to_bgr[] = {0, 0, 1, 1, 2, 2};
+    cv::mixChannels(&image, 1, &bgr, 1, image.channels() == 1 ? grey_to_bgr : bgra_to_bgr, 3);
+    if (!warned_color_conversion_) {
+      warned_color_conversion_ = true;
+      log::warn(files.color_path, ": ", image.channels() == 1 ? "8-bit grey" : "8-bit BGRA",
+                " colour image converted to 3-channel BGR (warned once per sequence)");
+    }
+    return bgr;
+  }
+  if (image.type() != CV_8UC3) {
+    std::ostringstream os;
+    os << files.color_path << ": expected 8-bit colour (3-channel, or grey/BGRA converted), found "
+       << image.channels() << " channel(s) of " << (image.elemSize1() * 8) << "-bit";
+    throw InputError(files.color_list_path, files.color_list_line, os.str());
+  }
+  return image;
+}
+
 SequenceLayout detectLayout(const std::string& sequence_dir) {
   if (!isDirectory(sequence_dir)) {
     throw InputError(sequence_dir, 0, "sequence folder does not exist");
@@ -244,9 +243,6 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
                                        options.max_rgb_depth_dt_s);
     }
   }
-  if (reader.entries_.empty()) {
-    throw InputError(sequence_dir, 0, "sequence has no RGB-D frames");
-  }
 
   const std::string masks_dir = joinPath(sequence_dir, "masks");
   if (isDirectory(masks_dir)) attachMasks(masks_dir, options.max_mask_dt_s, &reader.entries_);
@@ -257,16 +253,21 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
   const std::string accel_txt = joinPath(sequence_dir, "accel.txt");
   const std::string gyro_txt = joinPath(sequence_dir, "gyro.txt");
   if (isFile(imu_txt)) {
+    reader.imu_path_ = imu_txt;
     reader.imu_ = readImuText(imu_txt, options.sequence);
   } else if (isFile(euroc_csv)) {
+    reader.imu_path_ = euroc_csv;
     reader.imu_ = readEurocImuCsv(euroc_csv, options.sequence);
   } else if (isFile(accel_txt) || isFile(gyro_txt)) {
     if (!isFile(accel_txt)) throw InputError(accel_txt, 0, "missing (gyro.txt is present)");
     if (!isFile(gyro_txt)) throw InputError(gyro_txt, 0, "missing (accel.txt is present)");
+    reader.imu_path_ = accel_txt;
     reader.imu_ = readOpenLorisImu(accel_txt, gyro_txt, options.sequence);
   }
-  if (reader.calib_.has_imu && reader.imu_.empty()) {
-    log::warn(sequence_dir, ": calibration has IMU keys but the sequence has no IMU samples");
+  if (!reader.imu_path_.empty() && reader.imu_.empty()) {
+    log::warn(reader.imu_path_, ": no IMU samples (only comments or blank lines)");
+  } else if (reader.calib_.has_imu && reader.imu_.empty()) {
+    log::warn(sequence_dir, ": calibration has IMU keys but the sequence has no IMU file");
   }
 
   const std::string gt_path = joinPath(sequence_dir, "groundtruth.txt");
@@ -292,8 +293,7 @@ std::optional<RgbdImuFrame> SequenceReader::next() {
   frame.depth_path = files.depth_path;
   frame.mask_path = files.mask_path;
 
-  frame.color_bgr = loadImage(files.color_path, CV_8UC3, "8-bit 3-channel colour",
-                              files.color_list_path, files.color_list_line);
+  frame.color_bgr = loadColorImage(files);
   checkSize(frame.color_bgr, width, height, "calibrated image size", files.color_path,
             files.color_list_path, files.color_list_line);
   const cv::Mat depth_raw = loadImage(files.depth_path, CV_16UC1, "16-bit 1-channel depth",

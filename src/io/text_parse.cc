@@ -10,6 +10,14 @@
 
 namespace ltlo::io::detail {
 
+bool LineReader::next() {
+  if (!std::getline(in_, line_)) return false;
+  ++number_;
+  if (!line_.empty() && line_.back() == '\r') line_.pop_back();
+  if (number_ == 1 && line_.rfind("\xEF\xBB\xBF", 0) == 0) line_.erase(0, 3);
+  return true;
+}
+
 bool isCommentOrBlank(const std::string& line) {
   const size_t first = line.find_first_not_of(" \t\r");
   return first == std::string::npos || line[first] == '#';

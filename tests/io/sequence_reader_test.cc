@@ -246,10 +246,11 @@ TEST(SequenceReaderErrors, UnreadableAndWrongTypePngs) {
   std::string message = inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); });
   LTLO_EXPECT_CONTAINS(message, associations + ":3: " + color_2 + ": cannot read image");
 
-  cv::imwrite(color_2, cv::Mat(spec.height, spec.width, CV_8UC1, cv::Scalar(7)));  // grey
+  cv::imwrite(color_2, cv::Mat(spec.height, spec.width, CV_16UC3, cv::Scalar(7, 7, 7)));  // 16-bit
   message = inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); });
   LTLO_EXPECT_CONTAINS(message, associations + ":3: " + color_2);
-  LTLO_EXPECT_CONTAINS(message, "expected 8-bit 3-channel colour, found 1 channel(s) of 8-bit");
+  LTLO_EXPECT_CONTAINS(message, "expected 8-bit colour (3-channel, or grey/BGRA converted), found 3 "
+                                "channel(s) of 16-bit");
 
   cv::imwrite(color_2, cv::Mat(spec.height, spec.width, CV_8UC3, cv::Scalar(1, 2, 3)));
   cv::imwrite(depth_1, cv::Mat(spec.height, spec.width, CV_8UC1, cv::Scalar(9)));  // 8-bit depth

@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <filesystem>
 #include <random>
 
+#include "common/log_capture.h"
 #include "expect_input_error.h"
 #include "ltlo/core/errors.h"
 #include "test_sequence_writer.h"
@@ -105,9 +108,48 @@ TEST(TrajectoryIoErrors, TumMessagesNameFileLineAndValue) {
   test::writeText(path, good + "1.0 0 0 0 0 0 0 1\n");
   LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
                        path + ":3: timestamp 1 does not increase (previous 1)");
-  test::writeText(path, good + "2.0 0 0 0 0 0 0 2\n");
+  test::writeText(path, good + "2.0 0 0 0 0 0 0 0\n");
   LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readTumTrajectory(path); }),
-                       path + ":3: quaternion norm 2 is not 1");
+                       path + ":3: quaternion (qx qy qz qw) = (0 0 0 0) has norm 0, cannot be normalised");
+}
+
+TEST(TrajectoryIo, NonUnitQuaternionsAreNormalisedWithOneWarningPerFile) {
+  TempDir tmp("traj_non_unit");
+  const std::string path = tmp.file("t.txt");
+  // Line 2 is unit to 4 decimals (TUM ground truth style: no warning), lines 3 and 4 are not.
+  test::writeText(path,
+                  "# t tx ty tz qx qy qz qw\n"
+                  "1.0 0 0 0 0.7071 0 0 0.7071\n"
+                  "2.0 1 2 3 0 0 0 2\n"
+                  "3.0 1 2 3 0 0.6 0 0.78\n");
+  ltlo::test::LogCapture capture(log::Level::kWarn);
+  const Trajectory read = readTumTrajectory(path);
+  ASSERT_EQ(read.size(), 3u);
+  for (const StampedPose& pose : read) EXPECT_NEAR(pose.T_w_x.quaternion().norm(), 1.0, 1e-15);
+  EXPECT_NEAR(read[1].T_w_x.quaternion().w(), 1.0, 1e-15);
+  EXPECT_NEAR(read[2].T_w_x.quaternion().y(), 0.6 / std::hypot(0.6, 0.78), 1e-15);
+  EXPECT_EQ(read[1].T_w_x.translation(), Vec3(1, 2, 3));
+  ASSERT_EQ(capture.lines().size(), 1u);
+  LTLO_EXPECT_CONTAINS(capture.lines()[0], path + ":3: 2 of 3 quaternions are not unit (norms 0.984");
+  LTLO_EXPECT_CONTAINS(capture.lines()[0], "far from 1");
+
+  const std::string csv = tmp.file("t.csv");
+  test::writeText(csv, "#t,px,py,pz,qw,qx,qy,qz\n1000,0,0,0,0.99,0,0,0\n");
+  ltlo::test::LogCapture csv_capture(log::Level::kWarn);
+  EXPECT_NEAR(readEurocTrajectory(csv)[0].T_w_x.quaternion().w(), 1.0, 1e-15);
+  EXPECT_TRUE(csv_capture.contains(csv + ":2: 1 of 1 quaternions are not unit"));
+}
+
+TEST(TrajectoryIo, WritersReplaceTheFileOnlyWhenComplete) {
+  TempDir tmp("traj_atomic");
+  const std::string path = tmp.file("t.txt");
+  test::writeText(path, "previous content\n");
+  writeTumTrajectory(path, randomTrajectory(0.0, 0.1, 3, 5));
+  EXPECT_EQ(readTumTrajectory(path).size(), 3u);
+  EXPECT_FALSE(std::filesystem::exists(path + ".part"));
+  writeEurocTrajectory(tmp.file("t.csv"), randomTrajectory(0.0, 0.1, 2, 5));
+  EXPECT_EQ(readEurocTrajectory(tmp.file("t.csv")).size(), 2u);
+  EXPECT_FALSE(std::filesystem::exists(tmp.file("t.csv.part")));
 }
 
 TEST(TrajectoryIoErrors, EurocMessagesNameFileLineAndValue) {

@@ -28,7 +28,8 @@ class Metrics {
   std::string toText() const;
   /// {"name": value, ...}; doubles with 17 significant digits, non-finite as null.
   std::string toJson() const;
-  /// Writes toJson() to `path`; throws InputError when the file cannot be written.
+  /// Writes toJson() to `path` (through "<path>.part", renamed when complete); throws InputError
+  /// when the file cannot be written.
   void writeJson(const std::string& path) const;
 
  private:

@@ -71,7 +71,8 @@ class SequenceReader {
   static SequenceReader open(const std::string& sequence_dir,
                              const SequenceReaderOptions& options = {});
 
-  /// Next frame (images loaded now), or nullopt after the last one.
+  /// Next frame (images loaded now), or nullopt after the last one. Colour images may be 8-bit
+  /// BGR, grey or BGRA (the last two converted to BGR with one warning per reader).
   std::optional<RgbdImuFrame> next();
   /// Back to the first frame.
   void rewind() { next_index_ = 0; }
@@ -83,6 +84,8 @@ class SequenceReader {
   SequenceLayout layout() const { return layout_; }
   const std::string& directory() const { return dir_; }
   bool hasImu() const { return !imu_.empty(); }
+  /// The IMU file read (imu.txt, imu0/data.csv or accel.txt), empty when the sequence has none.
+  const std::string& imuPath() const { return imu_path_; }
   /// The whole IMU stream (small: seven doubles per sample).
   const ImuSamples& imu() const { return imu_; }
   bool hasGroundTruth() const { return !ground_truth_.empty(); }
@@ -91,13 +94,17 @@ class SequenceReader {
 
  private:
   SequenceReader() = default;
+  /// The colour image of `files` as CV_8UC3; 8-bit grey and BGRA are converted (warned once).
+  cv::Mat loadColorImage(const FrameFiles& files);
 
   std::string dir_;
   SequenceLayout layout_ = SequenceLayout::kDataFormat;
   SensorCalib calib_;
   std::vector<FrameFiles> entries_;
   ImuSamples imu_;
+  std::string imu_path_;
   Trajectory ground_truth_;
+  bool warned_color_conversion_ = false;
   int next_index_ = 0;
 };
 

@@ -1,7 +1,10 @@
 #pragma once
 /// Trajectory files: TUM ("timestamp tx ty tz qx qy qz qw", seconds) and EuRoC CSV
-/// ("timestamp_ns,px,py,pz,qw,qx,qy,qz", nanoseconds). Readers throw InputError naming the file,
-/// the line and the value; writers keep full precision (timestamps with 9 decimals).
+/// ("timestamp_ns,px,py,pz,qw,qx,qy,qz", nanoseconds). Readers accept CRLF line ends, '#' comments
+/// and blank lines, normalise quaternions (one warning per file for norms off 1 by more than 1e-3)
+/// and throw InputError naming the file, the line and the value (malformed lines, non-finite
+/// values, zero quaternions, non-increasing times). Writers keep full precision (timestamps with 9
+/// decimals) and replace the file only once it is complete ("<path>.part" renamed over it).
 #include <string>
 #include <vector>
 
