@@ -1,10 +1,16 @@
 #include "ltlo/core/log.h"
 
+#include <pthread.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <mutex>
 #include <utility>
+
+#include "ltlo/core/thread_names.h"
 
 namespace ltlo::log {
 namespace {
@@ -54,7 +60,18 @@ void initFromEnvironment() {
   if (env != nullptr && parseLevel(env, &parsed)) setLevel(parsed);
 }
 
-void setThreadName(const std::string& name) { threadNameStorage() = name; }
+void setThreadName(const std::string& name) {
+  threadNameStorage() = name;
+#ifdef __linux__
+  // Also the OS name (ltlo/core/thread_names.h); the main thread keeps its OS name: it is the
+  // process name ps and top show.
+  if (static_cast<pid_t>(syscall(SYS_gettid)) != getpid()) {
+    const std::string os_name = (std::string(kThreadNamePrefix) + name).substr(0, 15);
+    pthread_setname_np(pthread_self(), os_name.c_str());
+  }
+#endif
+}
+
 const std::string& threadName() { return threadNameStorage(); }
 
 void write(Level level, const std::string& message) {
