@@ -1,13 +1,43 @@
 // simulate: writes a synthetic RGB-D-inertial sequence (DATA_FORMAT.md) for a scenario.
 //   simulate --scenario static|stlo|mtlo|ltlo|carried --seed N --seconds S [--fps F] --out DIR
 //            [--width 640 --height 480] [--config config_yaml/simulator.yaml] [--noise-free]
+//            [--black START,DURATION]... [--no-depth START,DURATION]... [--imu-gap START,DURATION]...
+// Exit status: 0 written, 2 bad input (options, config file, output folder), 1 any other error.
 #include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdlib>
+#include <exception>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/settings_file.h"
 #include "ltlo/sim/simulator.h"
+
+namespace {
+
+/// "START,DURATION" (s) of an outage option; throws InputError naming the option and the value.
+ltlo::sim::SensorOutage parseOutage(const std::string& option, const std::string& text,
+                                    ltlo::sim::SensorOutage::Kind kind) {
+  const size_t comma = text.find(',');
+  char* end_start = nullptr;
+  char* end_duration = nullptr;
+  const std::string start_text = text.substr(0, comma);
+  const std::string duration_text = comma == std::string::npos ? "" : text.substr(comma + 1);
+  const double start_s = std::strtod(start_text.c_str(), &end_start);
+  const double duration_s = std::strtod(duration_text.c_str(), &end_duration);
+  if (comma == std::string::npos || start_text.empty() || duration_text.empty() || *end_start != '\0' ||
+      *end_duration != '\0' || !std::isfinite(start_s) || !std::isfinite(duration_s) || start_s < 0.0 ||
+      duration_s <= 0.0) {
+    throw ltlo::InputError(option + " " + text +
+                           ": expected START,DURATION in seconds (START >= 0, DURATION > 0)");
+  }
+  return {kind, start_s, duration_s};
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   ltlo::log::initFromEnvironment();
@@ -31,14 +61,13 @@ int main(int argc, char** argv) {
   app.add_option("--height", height, "image height (px, default 480)")->check(CLI::Range(16, 4096));
   app.add_option("--config", config_path, "simulator YAML (default: built-in values)");
   app.add_flag("--noise-free", noise_free, "no sensor noise, biases, holes or exposure jitter");
-  std::vector<double> black_outage, no_depth_outage;
-  app.add_option("--black", black_outage,
-                 "START,DURATION (s): black colour and no depth while the IMU runs (forced tracking loss)")
-      ->delimiter(',')
-      ->expected(2);
-  app.add_option("--no-depth", no_depth_outage, "START,DURATION (s): frames without depth")
-      ->delimiter(',')
-      ->expected(2);
+  std::vector<std::string> black_outages, no_depth_outages, imu_gaps;
+  app.add_option("--black", black_outages,
+                 "START,DURATION (s): black colour and no depth while the IMU runs (forced tracking "
+                 "loss); repeatable");
+  app.add_option("--no-depth", no_depth_outages, "START,DURATION (s): frames without depth; repeatable");
+  app.add_option("--imu-gap", imu_gaps,
+                 "START,DURATION (s): no IMU samples in imu.txt (dropped driver buffer); repeatable");
   app.add_option("--progress-every", progress_every, "progress line every N frames")
       ->check(CLI::Range(1, 1000000));
   try {
@@ -63,17 +92,22 @@ int main(int argc, char** argv) {
     if (width > 0) options.width_px = width;
     if (height > 0) options.height_px = height;
     using Outage = ltlo::sim::SensorOutage;
-    if (!black_outage.empty())
-      options.outages.push_back({Outage::Kind::kBlack, black_outage[0], black_outage[1]});
-    if (!no_depth_outage.empty())
-      options.outages.push_back({Outage::Kind::kNoDepth, no_depth_outage[0], no_depth_outage[1]});
+    for (const std::string& text : black_outages)
+      options.outages.push_back(parseOutage("--black", text, Outage::Kind::kBlack));
+    for (const std::string& text : no_depth_outages)
+      options.outages.push_back(parseOutage("--no-depth", text, Outage::Kind::kNoDepth));
+    for (const std::string& text : imu_gaps)
+      options.outages.push_back(parseOutage("--imu-gap", text, Outage::Kind::kImuGap));
     ltlo::sim::writeSequence(options, out_dir, progress_every);
   } catch (const ltlo::ConfigError& e) {
-    std::cerr << e.what() << "\n";
+    std::cerr << "simulate: " << e.what() << "\n";
     return 2;
   } catch (const ltlo::InputError& e) {
-    std::cerr << e.what() << "\n";
+    std::cerr << "simulate: " << e.what() << "\n";
     return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "simulate: error: " << e.what() << "\n";
+    return 1;
   }
   return 0;
 }

@@ -1,5 +1,6 @@
 #include "ltlo/sim/simulator.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -162,7 +163,7 @@ SimFrame Simulator::renderFrame(int index) {
   frame.t_s = t_s;
   frame.T_w_c = T_w_c_now;
   for (const SensorOutage& outage : options_.outages) {
-    if (!outage.covers(t_s)) continue;
+    if (!outage.covers(t_s) || outage.kind == SensorOutage::Kind::kImuGap) continue;
     if (outage.kind == SensorOutage::Kind::kBlack) frame.bgr.setTo(cv::Scalar::all(0));
     frame.depth_m.setTo(0.0f);
     frame.depth_raw.setTo(0);
@@ -287,11 +288,18 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
     imu << "# timestamp gx gy gz ax ay az (s, rad/s, m/s^2, body frame)\n";
     biases << "# timestamp bgx bgy bgz bax bay baz (true biases, ground truth)\n";
     char line[256];
+    const auto in_imu_gap = [&options](double t_s) {
+      return std::any_of(options.outages.begin(), options.outages.end(), [t_s](const SensorOutage& o) {
+        return o.kind == SensorOutage::Kind::kImuGap && o.covers(t_s);
+      });
+    };
     for (const ImuSample& s : sim.imu()) {
-      std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
-                    s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(),
-                    s.acc_mps2.y(), s.acc_mps2.z());
-      imu << line;
+      if (!in_imu_gap(s.t_s)) {
+        std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
+                      s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(),
+                      s.acc_mps2.y(), s.acc_mps2.z());
+        imu << line;
+      }
       std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
                     s.bias_gyro.x(), s.bias_gyro.y(), s.bias_gyro.z(), s.bias_acc.x(),
                     s.bias_acc.y(), s.bias_acc.z());

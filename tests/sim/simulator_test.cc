@@ -16,6 +16,7 @@
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/settings_file.h"
+#include "ltlo/io/imu_io.h"
 
 namespace ltlo::sim {
 namespace {
@@ -337,6 +338,32 @@ TEST(Simulator, WritesTheDataFormatLayoutDeterministically) {
   std::getline(assoc, line);  // comment
   std::getline(assoc, line);
   EXPECT_EQ(line, "0.000000 rgb/0.000000.png 0.000000 depth/0.000000.png");
+  fs::remove_all(root);
+}
+
+TEST(Simulator, ImuGapLeavesTheSamplesOutOfImuTxtOnly) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::temp_directory_path() / ("ltlo_sim_gap_" + std::to_string(::getpid()));
+  SimOptions o = smallOptions(Scenario::kStatic, 0.4, true);
+  o.outages.push_back({SensorOutage::Kind::kImuGap, 0.1, 0.15});
+  Simulator sim(o, sharedRoom());
+  writeSequence(sim, root.string(), 0);
+  SequenceOptions warn_only;
+  warn_only.max_imu_gap_s = 1.0;
+  const ImuSamples imu = io::readImuText((root / "imu.txt").string(), warn_only);
+  ASSERT_FALSE(imu.empty());
+  double largest_gap_s = 0.0;
+  for (size_t i = 0; i < imu.size(); ++i) {
+    EXPECT_FALSE(imu[i].t_s >= 0.1 && imu[i].t_s < 0.25) << "sample at " << imu[i].t_s;
+    if (i > 0) largest_gap_s = std::max(largest_gap_s, imu[i].t_s - imu[i - 1].t_s);
+  }
+  // 200 Hz: 30 samples dropped (one more or less where a sample time sits on an edge of the
+  // stretch up to rounding), so the gap spans about 31 sample periods.
+  EXPECT_NEAR(largest_gap_s, 0.155, 0.0051);
+  EXPECT_NEAR(static_cast<double>(sim.imu().size() - imu.size()), 30.0, 1.0);
+  // The camera is unaffected: the frame inside the gap has colour and depth.
+  const SimFrame frame = sim.renderFrame(static_cast<int>(std::lround(0.2 * o.fps)));
+  EXPECT_GT(cv::countNonZero(frame.depth_m), static_cast<int>(frame.depth_m.total() / 2));
   fs::remove_all(root);
 }
 

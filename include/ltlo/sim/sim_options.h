@@ -25,10 +25,11 @@ enum class Scenario {
 bool parseScenario(const std::string& text, Scenario* scenario);
 std::string scenarioName(Scenario scenario);
 
-/// A stretch of the sequence where the camera fails while the IMU keeps running (forced tracking
-/// loss): kBlack gives black colour and no depth (lens covered), kNoDepth keeps colour, no depth.
+/// A stretch of the sequence where one sensor fails: kBlack gives black colour and no depth (lens
+/// covered; forced tracking loss while the IMU runs), kNoDepth keeps colour without depth, kImuGap
+/// drops the IMU samples from imu.txt (a dropped driver buffer; imu_biases.txt keeps them).
 struct SensorOutage {
-  enum class Kind { kBlack, kNoDepth };
+  enum class Kind { kBlack, kNoDepth, kImuGap };
   Kind kind = Kind::kBlack;
   double start_s = 0.0;
   double duration_s = 0.0;
@@ -81,7 +82,7 @@ struct SimOptions {
   std::string texture_dir = "/usr/share/backgrounds";  ///< Sim.TextureDir: photographs
   int png_compression = 1;                             ///< Sim.PngCompression (0-9)
 
-  // Forced camera failures (command line only; ground truth, IMU and masks are unaffected)
+  // Forced sensor failures (command line only; ground truth and masks are unaffected)
   std::vector<SensorOutage> outages;
 
   /// Camera model at the configured size (fx, fy, cx, cy scaled from 640x480 when width differs).
