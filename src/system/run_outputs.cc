@@ -3,11 +3,14 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 
 #include "ltlo/core/errors.h"
@@ -163,7 +166,15 @@ std::vector<MapPointRecord> readStaticMapPly(const std::string& path) {
   while (next() && line != "end_header") {
     if (line.rfind("comment", 0) == 0) continue;
     if (line.rfind("element vertex ", 0) == 0) {
-      count = std::stol(line.substr(15));
+      const std::string count_text = line.substr(15);
+      char* end = nullptr;
+      errno = 0;
+      const long long parsed = std::strtoll(count_text.c_str(), &end, 10);
+      if (count >= 0 || count_text.empty() || *end != '\0' || errno == ERANGE || parsed < 0 ||
+          parsed > std::numeric_limits<long>::max() / static_cast<long>(kPlyVertexBytes)) {
+        throw InputError(path, line_number, "bad or repeated vertex count '" + count_text + "'");
+      }
+      count = static_cast<long>(parsed);
       continue;
     }
     if (property >= std::size(kPlyVertexLayout) || line != kPlyVertexLayout[property]) {
@@ -174,6 +185,16 @@ std::vector<MapPointRecord> readStaticMapPly(const std::string& path) {
   if (line != "end_header") throw InputError(path, line_number, "no end_header");
   if (count < 0 || property != std::size(kPlyVertexLayout)) {
     throw InputError(path, line_number, "header lacks the vertex element or its properties");
+  }
+  // The announced count must fit in the file before anything is allocated for it.
+  const std::streamoff body_begin = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::streamoff body_bytes = in.tellg() - body_begin;
+  in.seekg(body_begin);
+  if (body_begin < 0 || body_bytes < static_cast<std::streamoff>(count) * static_cast<std::streamoff>(kPlyVertexBytes)) {
+    throw InputError(path, 0,
+                     "truncated: " + std::to_string(count) + " vertices announced, " +
+                         std::to_string(std::max<std::streamoff>(body_bytes, 0)) + " bytes of vertex data");
   }
   std::string body(static_cast<std::size_t>(count) * kPlyVertexBytes, '\0');
   in.read(body.data(), static_cast<std::streamsize>(body.size()));
