@@ -1,7 +1,9 @@
 // evaluate: ATE / RPE of an estimated trajectory against ground truth, and the static-background
 // IoU of predicted masks. Prints one "name value" line per metric and writes the same keys to
-// JSON. Bad input exits 2 with a message naming the file, line and value.
+// JSON. Bad input exits 2 with a message naming the file, line and value; any other error exits 1.
+// Quaternions that are not unit are normalised with one warning per file.
 #include <CLI/CLI.hpp>
+#include <exception>
 #include <iostream>
 #include <string>
 
@@ -105,6 +107,9 @@ int main(int argc, char** argv) {
   } catch (const ltlo::InputError& e) {
     std::cerr << "evaluate: " << e.what() << "\n";
     return kBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "evaluate: error: " << e.what() << "\n";
+    return 1;
   }
   return 0;
 }

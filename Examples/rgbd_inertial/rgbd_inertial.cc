@@ -31,6 +31,7 @@
 #include "ltlo/core/log.h"
 #include "ltlo/core/progress.h"
 #include "ltlo/core/settings.h"
+#include "ltlo/core/thread_names.h"
 #include "ltlo/io/frame_prefetcher.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/system/run_outputs.h"
@@ -105,8 +106,28 @@ RunSetup loadSetup(const Arguments& args) {
   const bool has_calib_file = fs::is_regular_file(calib_path);
   setup.settings = Settings::load(args.settings_path, has_calib_file ? calib_path.string() : "");
   setup.reader_options.sequence = setup.settings.sequence;
-  if (!has_calib_file) setup.reader_options.calib_override = setup.settings.calib;
+  if (!has_calib_file) {
+    setup.reader_options.calib_override = setup.settings.calib;
+    log::info(kProgram, ": ", calib_path.string(), " not found; calibration (Camera.*, DepthMapFactor",
+              setup.settings.calib.has_imu ? ", IMU.*" : "", ") from the settings file ", args.settings_path);
+  }
   return setup;
+}
+
+/// RGB-D-inertial needs IMU samples and an IMU calibration; without them the run is an input
+/// error, not a silent RGB-D run.
+void requireImu(const io::SequenceReader& reader, const Settings& settings) {
+  const std::string advice = "; run rgbd or pass --no-imu for RGB-D only";
+  if (!reader.hasImu()) {
+    const std::string imu_path =
+        reader.imuPath().empty() ? (fs::path(reader.directory()) / "imu.txt").string() : reader.imuPath();
+    throw InputError(imu_path, 0,
+                     std::string(reader.imuPath().empty() ? "missing" : "has no IMU samples") +
+                         " (no IMU data in the sequence)" + advice);
+  }
+  if (!settings.calib.has_imu) {
+    throw ConfigError(settings.calib_path + ": no IMU calibration (IMU.T_b_c1 and the noise keys)" + advice);
+  }
 }
 
 std::string frameName(const io::SequenceReader& reader, int index) {
@@ -127,16 +148,10 @@ int run(const Arguments& args) {
   system::SystemOptions options;
   options.use_imu = !args.no_imu;
   options.threaded = !args.single_thread;
-  if (options.use_imu && (!setup.settings.calib.has_imu || !reader.hasImu())) {
-    log::warn(kProgram, ": the sequence has no IMU ", setup.settings.calib.has_imu ? "data" : "calibration",
-              "; running RGB-D only");
-    options.use_imu = false;
-  }
+  if (options.use_imu) requireImu(reader, setup.settings);
   system::System slam(setup.settings, vocabulary, options);
 
   log::setThreadName("tracking");
-  std::signal(SIGINT, onStopSignal);
-  std::signal(SIGTERM, onStopSignal);
 
   const long total = args.max_frames > 0 ? std::min<long>(args.max_frames, reader.frameCount()) : reader.frameCount();
   ProgressReporter progress({"frames", total, ProgressReporter::Style::kSilent});
@@ -197,6 +212,14 @@ int run(const Arguments& args) {
               " frame(s) before the first initialisation have no pose");
   }
   std::printf("outputs %s\n", args.out_dir.c_str());
+  const std::vector<std::string> threads_left = runningNamedThreads();
+  if (threads_left.empty()) {
+    log::info(kProgram, ": all threads joined");
+  } else {
+    std::string names;
+    for (const std::string& name : threads_left) names += " " + name;
+    log::error(kProgram, ": ", threads_left.size(), " thread(s) still running after shutdown:", names);
+  }
   if (!failure.empty()) {
     std::fprintf(stderr, "%s: stopped after %d frames (%s); outputs written to %s\n", kProgram, frames,
                  failure.c_str(), args.out_dir.c_str());
@@ -211,6 +234,9 @@ int run(const Arguments& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // First thing: Ctrl-C at any moment (also while loading) ends with the outputs written.
+  std::signal(SIGINT, onStopSignal);
+  std::signal(SIGTERM, onStopSignal);
   CLI::App app{LTLO_PROGRAM_USES_IMU ? "RGB-D-inertial SLAM on a sequence; writes the run outputs"
                                      : "RGB-D SLAM (no IMU) on a sequence; writes the run outputs"};
   Arguments args;
@@ -238,6 +264,9 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "%s: %s\n", kProgram, e.what());
+    return 2;
+  } catch (const bow::FileError& e) {
+    std::fprintf(stderr, "%s: vocabulary: %s\n", kProgram, e.what());
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s: error: %s\n", kProgram, e.what());

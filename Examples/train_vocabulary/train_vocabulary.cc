@@ -1,6 +1,7 @@
 // train_vocabulary --images DIR --out FILE [--k K --levels L --crops N --max-images M]
 // Trains a bow vocabulary on ORB features of random crops of every image under DIR (recursive).
 // Progress goes to the log (stderr); the last stdout line is "vocabulary <file> nodes <n> words <w>".
+// Exit status: 0 written, 2 bad input (options, image folder, output file), 1 any other error.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -76,7 +77,11 @@ int main(int argc, char** argv) {
   app.add_option("--seed", seed, "random seed for crops and seeding");
   app.add_option("--threads", threads, "training threads")->check(CLI::Range(1, 64));
   app.add_option("--text", text_path, "also write a text export of the tree");
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
   ltlo::log::initFromEnvironment();
 
   try {
@@ -106,6 +111,11 @@ int main(int argc, char** argv) {
       ltlo::log::info("image ", i + 1, " / ", paths.size(), " ", paths[i], ": ", training.size(), " crops, ",
                       num_descriptors, " descriptors so far");
     }
+    if (training.empty()) {
+      std::fprintf(stderr, "%s: none of the %zu images gave ORB features (unreadable or smaller than 160x120)\n",
+                   images_dir.c_str(), paths.size());
+      return 2;
+    }
     bow::TrainOptions options;
     options.branching = k;
     options.depth = levels;
@@ -119,9 +129,15 @@ int main(int argc, char** argv) {
     const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ltlo::log::info("trained on ", training.size(), " crops of ", paths.size(), " images in ", elapsed_s, " s");
     std::printf("vocabulary %s nodes %zu words %zu\n", out_path.c_str(), vocabulary.numNodes(), vocabulary.numWords());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s\n", e.what());
+  } catch (const std::filesystem::filesystem_error& e) {
+    std::fprintf(stderr, "train_vocabulary: %s\n", e.what());  // names the folder
     return 2;
+  } catch (const bow::FileError& e) {
+    std::fprintf(stderr, "train_vocabulary: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "train_vocabulary: error: %s\n", e.what());
+    return 1;
   }
   return 0;
 }

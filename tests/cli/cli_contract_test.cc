@@ -1,0 +1,231 @@
+// The programs' input contract where it lives in the mains (exit codes and messages), and Ctrl-C:
+// bad input exits 2 naming the file and the value (vocabulary, missing IMU), a sequence without
+// calib.yaml takes the settings file's calibration with one log line, evaluate normalises
+// non-unit quaternions, and SIGINT part-way through rgbd_inertial leaves a complete, parseable
+// trajectory of every processed frame. Runs the built programs on a short generated sequence.
+#include <gtest/gtest.h>
+
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "ltlo/io/trajectory_io.h"
+#include "program_runner.h"
+
+namespace ltlo::cli_test {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kSequenceFrames = 150;  // 5 s at 30 Hz, 320x240
+
+std::string readFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream os;
+  os << in.rdbuf();
+  return os.str();
+}
+
+void writeFile(const fs::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+  ASSERT_TRUE(out.good()) << path;
+}
+
+/// The generated sequence shared by the tests of this binary (ctest runs each test in its own
+/// process, possibly two at once): written once into a fresh folder, then renamed into place.
+const fs::path& sharedSequence() {
+  static const fs::path dir = [] {
+    const fs::path root = fs::temp_directory_path() / "ltlo_cli_test";
+    const fs::path target = root / "static_5s_320x240_v1";
+    if (fs::exists(target / "groundtruth.txt")) return target;
+    fs::create_directories(root);
+    const fs::path scratch = root / ("writing_" + std::to_string(::getpid()));
+    fs::remove_all(scratch);
+    const ProgramResult sim = runProgram({programPath("simulate"), "--scenario", "static", "--seed", "3",
+                                          "--seconds", "5", "--width", "320", "--height", "240", "--out",
+                                          scratch.string()});
+    if (sim.exit_code != 0) throw std::runtime_error("simulate failed: " + sim.describe());
+    std::error_code error;
+    fs::rename(scratch, target, error);  // fails when another process was first: use theirs
+    fs::remove_all(scratch, error);
+    return target;
+  }();
+  return dir;
+}
+
+/// A copy of the shared sequence's text files (images linked) in `dir`, without `omit`.
+fs::path sequenceVariant(const fs::path& dir, const std::vector<std::string>& omit) {
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  for (const fs::directory_entry& entry : fs::directory_iterator(sharedSequence())) {
+    const std::string name = entry.path().filename().string();
+    if (std::find(omit.begin(), omit.end(), name) != omit.end()) continue;
+    if (entry.is_directory()) {
+      fs::create_directory_symlink(entry.path(), dir / name);
+    } else {
+      fs::copy_file(entry.path(), dir / name);
+    }
+  }
+  return dir;
+}
+
+class CliContract : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    work_ = fs::temp_directory_path() / ("ltlo_cli_" + test + "_" + std::to_string(::getpid()));
+    fs::remove_all(work_);
+    fs::create_directories(work_);
+  }
+  void TearDown() override { fs::remove_all(work_); }
+
+  /// rgbd_inertial (or `program`) with the shipped settings on `sequence`, extra flags appended.
+  ProgramResult slam(const fs::path& sequence, const std::vector<std::string>& extra,
+                     const std::string& program = "rgbd_inertial", const LineHook& hook = {}) {
+    std::vector<std::string> argv = {programPath(program), "--settings", settings_, "--sequence", sequence.string(),
+                                     "--out", (work_ / "run").string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return runProgram(argv, "", hook);
+  }
+
+  fs::path work_;
+  std::string settings_ = sourceDir() + "/config_yaml/synthetic.yaml";
+};
+
+TEST_F(CliContract, MissingOrGarbageVocabularyExitsTwoNamingTheFile) {
+  const std::string missing = (work_ / "no_such.bin").string();
+  ProgramResult result = slam(sharedSequence(), {"--vocabulary", missing});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find(missing + ": vocabulary file does not exist"), std::string::npos) << result.err;
+
+  const fs::path garbage = work_ / "garbage.bin";
+  writeFile(garbage, "this is not a vocabulary, just some text\n");
+  result = slam(sharedSequence(), {"--vocabulary", garbage.string()});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find(garbage.string() + ": byte 0: not an LTLOBOW1 vocabulary file (magic 'this is ')"),
+            std::string::npos)
+      << result.err;
+}
+
+TEST_F(CliContract, RgbdInertialWithoutImuDataIsAnErrorNamingTheAlternatives) {
+  const fs::path no_imu = sequenceVariant(work_ / "no_imu", {"imu.txt"});
+  ProgramResult result = slam(no_imu, {});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find((no_imu / "imu.txt").string() + ": missing (no IMU data in the sequence); run rgbd "
+                                                            "or pass --no-imu for RGB-D only"),
+            std::string::npos)
+      << result.err;
+
+  writeFile(no_imu / "imu.txt", "# timestamp gx gy gz ax ay az\n");
+  result = slam(no_imu, {});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find((no_imu / "imu.txt").string() + ": has no IMU samples"), std::string::npos)
+      << result.err;
+
+  // The alternatives named in the message both run.
+  result = slam(no_imu, {"--no-imu", "--max-frames", "3"});
+  EXPECT_EQ(result.exit_code, 0) << result.describe();
+  result = slam(no_imu, {"--max-frames", "3"}, "rgbd");
+  EXPECT_EQ(result.exit_code, 0) << result.describe();
+}
+
+TEST_F(CliContract, SequenceWithoutCalibYamlUsesTheSettingsCalibrationAndSaysSo) {
+  // Settings = synthetic.yaml with its calibration keys replaced by the sequence's calib.yaml.
+  std::istringstream config(readFile(settings_));
+  std::string merged;
+  bool in_matrix = false;
+  for (std::string line; std::getline(config, line);) {
+    if (in_matrix && !line.empty() && line[0] == ' ') continue;
+    in_matrix = false;
+    if (line.rfind("Camera.", 0) == 0 || line.rfind("IMU.", 0) == 0 || line.rfind("DepthMapFactor", 0) == 0) {
+      in_matrix = line.find("!!opencv-matrix") != std::string::npos;
+      continue;
+    }
+    merged += line + "\n";
+  }
+  const std::string calib = readFile(sharedSequence() / "calib.yaml");
+  merged += calib.substr(calib.find("---\n") + 4);
+  settings_ = (work_ / "settings_with_calib.yaml").string();
+  writeFile(settings_, merged);
+
+  const fs::path no_calib = sequenceVariant(work_ / "no_calib", {"calib.yaml"});
+  const ProgramResult result = slam(no_calib, {"--max-frames", "3"});
+  EXPECT_EQ(result.exit_code, 0) << result.describe();
+  const std::string expected = (no_calib / "calib.yaml").string() +
+                               " not found; calibration (Camera.*, DepthMapFactor, IMU.*) from the settings file " +
+                               settings_;
+  size_t count = 0;
+  for (size_t at = result.err.find(expected); at != std::string::npos; at = result.err.find(expected, at + 1)) {
+    ++count;
+  }
+  EXPECT_EQ(count, 1u) << result.err;
+}
+
+TEST_F(CliContract, EvaluateNormalisesNonUnitQuaternionsWithAWarning) {
+  // The ground truth with every quaternion scaled by 1.05: the same rotations.
+  std::istringstream gt(readFile(sharedSequence() / "groundtruth.txt"));
+  std::ostringstream scaled;
+  scaled.precision(17);
+  for (std::string line; std::getline(gt, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double v[8];
+    for (double& value : v) fields >> value;
+    scaled << line.substr(0, line.find(' ')) << ' ' << v[1] << ' ' << v[2] << ' ' << v[3];
+    for (int i = 4; i < 8; ++i) scaled << ' ' << 1.05 * v[i];
+    scaled << "\r\n";  // and CRLF line ends
+  }
+  const fs::path est = work_ / "scaled.txt";
+  writeFile(est, scaled.str());
+  const ProgramResult result = runProgram({programPath("evaluate"), "--gt", (sharedSequence() / "groundtruth.txt").string(),
+                                           "--est", est.string()});
+  ASSERT_EQ(result.exit_code, 0) << result.describe();
+  EXPECT_NE(result.err.find(est.string() + ":1: " + std::to_string(kSequenceFrames) + " of " +
+                            std::to_string(kSequenceFrames) + " quaternions are not unit (norms 1.05"),
+            std::string::npos)
+      << result.err;
+  std::smatch ate;
+  ASSERT_TRUE(std::regex_search(result.out, ate, std::regex("ate_rmse_m ([0-9.e+-]+)"))) << result.out;
+  EXPECT_LT(std::stod(ate[1]), 1e-6);  // same poses up to the printed precision
+}
+
+// Ctrl-C part-way: the run stops at a frame boundary, exits 0 and writes a trajectory with one
+// parseable line per processed frame. The test sends SIGINT when the progress line of frame 20
+// appears (synchronised on the program's output, no sleep).
+TEST_F(CliContract, SigintPartWayWritesACompleteParseableTrajectory) {
+  bool sent = false;
+  const ProgramResult result =
+      slam(sharedSequence(), {"--progress-every", "10"}, "rgbd_inertial", [&](const std::string& line, int pid) {
+        if (!sent && line.find("frames 20/") != std::string::npos) {
+          sent = true;
+          kill(pid, SIGINT);
+        }
+      });
+  ASSERT_TRUE(sent) << "no progress line for frame 20: " << result.describe();
+  ASSERT_EQ(result.exit_code, 0) << result.describe();
+  EXPECT_NE(result.err.find("interrupted after"), std::string::npos) << result.err;
+
+  std::smatch frames;
+  ASSERT_TRUE(std::regex_search(result.out, frames, std::regex("(^|\n)frames ([0-9]+)\n"))) << result.out;
+  const int processed = std::stoi(frames[2]);
+  EXPECT_GE(processed, 20);
+  EXPECT_LT(processed, kSequenceFrames);  // stopped part-way
+  std::smatch with_pose;
+  ASSERT_TRUE(std::regex_search(result.out, with_pose, std::regex("frames_with_pose ([0-9]+)")));
+  EXPECT_EQ(std::stoi(with_pose[1]), processed);
+
+  const fs::path trajectory_path = work_ / "run" / "trajectory.txt";
+  const io::Trajectory trajectory = io::readTumTrajectory(trajectory_path.string());  // throws if malformed
+  ASSERT_EQ(static_cast<int>(trajectory.size()), processed);
+  const io::Trajectory gt = io::readTumTrajectory((sharedSequence() / "groundtruth.txt").string());
+  for (int k = 0; k < processed; ++k) EXPECT_NEAR(trajectory[k].t_s, gt[k].t_s, 1e-6) << "frame " << k;
+  EXPECT_FALSE(fs::exists(trajectory_path.string() + ".part"));
+  EXPECT_NE(readFile(work_ / "run" / "metrics.json").find("\"interrupted\": 1"), std::string::npos);
+  EXPECT_NE(result.err.find("all threads joined"), std::string::npos) << result.err;
+}
+
+}  // namespace
+}  // namespace ltlo::cli_test
