@@ -1,0 +1,119 @@
+#!/usr/bin/env bash
+# libFuzzer on the input readers: builds tests/fuzz with clang into build-fuzz (whole tree with
+# ASan + UBSan + coverage, only the readers' libraries are compiled), writes a seed corpus from a
+# generated sequence, runs each target for SECONDS_EACH seconds and fails on any crash, leak,
+# sanitizer report, timeout or out-of-memory. Not part of scripts/test.sh (see README).
+#   scripts/fuzz.sh [SECONDS_EACH]           default 60 s per target (6 targets)
+#   TARGETS="fuzz_ply fuzz_imu" scripts/fuzz.sh 10
+# Findings (crashing inputs) land in build-fuzz/findings/<target>/; the corpus grows in
+# build-fuzz/corpus/<target>/ and is reused by the next run. Summary: build-fuzz/fuzz_summary.txt.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+SECONDS_EACH=${1:-60}
+JOBS=${JOBS:-2}
+DIR=build-fuzz
+TARGETS=${TARGETS:-"fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_vocabulary"}
+export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
+
+# ---- Setup: clang and its libFuzzer runtime (Debian: clang-14, libclang-rt-14-dev) -------------
+CXX_FUZZ=$(command -v clang++-14 || command -v clang++ || true)
+CC_FUZZ=$(command -v clang-14 || command -v clang || true)
+fuzzer_lib_present() {
+  [ -n "$CXX_FUZZ" ] && echo 'extern "C" int LLVMFuzzerTestOneInput(const char*, unsigned long) { return 0; }' |
+    "$CXX_FUZZ" -x c++ -fsanitize=fuzzer,address,undefined -o /dev/null - 2>/dev/null
+}
+if ! fuzzer_lib_present; then
+  echo "fuzz: installing clang-14 libclang-rt-14-dev"
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO=sudo
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq && $SUDO apt-get install -y -qq --no-install-recommends clang-14 libclang-rt-14-dev >/dev/null
+  CXX_FUZZ=$(command -v clang++-14)
+  CC_FUZZ=$(command -v clang-14)
+  fuzzer_lib_present || { echo "fuzz: clang++ cannot link -fsanitize=fuzzer" >&2; exit 1; }
+fi
+
+# ---- Build the fuzz targets (clang, own build dir) and the programs that make the seeds --------
+echo "== building $DIR ($CXX_FUZZ)"
+cmake -S . -B "$DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER="$CC_FUZZ" \
+  -DCMAKE_CXX_COMPILER="$CXX_FUZZ" -DLTLO_BUILD_FUZZERS=ON -DLTLO_BUILD_TESTS=OFF >/dev/null || exit 1
+# shellcheck disable=SC2086
+cmake --build "$DIR" -j "$JOBS" --target $TARGETS || exit 1
+scripts/setup.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DLTLO_ENABLE_ASSERTS=ON >/dev/null || exit 1
+cmake --build build -j "$JOBS" --target simulate train_vocabulary || exit 1
+
+# ---- Seed corpus: small files from a generated sequence and the shipped settings --------------
+SEEDS=$DIR/seeds
+if [ ! -f "$SEEDS/DONE" ]; then
+  echo "== seeds"
+  rm -rf "$SEEDS"
+  seq_dir=$DIR/seed_sequence
+  rm -rf "$seq_dir"
+  build/bin/simulate --scenario ltlo --seed 1 --seconds 1 --width 160 --height 120 --out "$seq_dir" \
+    >/dev/null 2>&1 || { echo "fuzz: simulate failed" >&2; exit 1; }
+  for t in $TARGETS fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_vocabulary; do
+    mkdir -p "$SEEDS/$t"
+  done
+  cp config_yaml/*.yaml "$seq_dir/calib.yaml" "$SEEDS/fuzz_settings/"
+  head -n 12 "$seq_dir/rgb.txt" > "$SEEDS/fuzz_image_lists/rgb.txt"
+  head -n 12 "$seq_dir/depth.txt" > "$SEEDS/fuzz_image_lists/depth.txt"
+  head -n 12 "$seq_dir/associations.txt" | sed 's/$/\r/' > "$SEEDS/fuzz_image_lists/associations_crlf.txt"
+  head -n 40 "$seq_dir/imu.txt" > "$SEEDS/fuzz_imu/imu.txt"
+  # EuRoC imu0/data.csv: nanoseconds and commas.
+  awk 'NR == 1 { print "#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z"; next } NR <= 40 {
+         split($1, t, "."); printf "%s%s000,%s,%s,%s,%s,%s,%s\n", t[1], t[2], $2, $3, $4, $5, $6, $7 }' \
+    "$seq_dir/imu.txt" > "$SEEDS/fuzz_imu/data.csv"
+  head -n 12 "$seq_dir/groundtruth.txt" > "$SEEDS/fuzz_trajectory/groundtruth.txt"
+  awk 'NR == 1 { print "#timestamp,p_x,p_y,p_z,q_w,q_x,q_y,q_z"; next } NR <= 12 {
+         split($1, t, "."); printf "%s%s,%s,%s,%s,%s,%s,%s,%s\n", t[1], t[2], $2, $3, $4, $8, $5, $6, $7 }' \
+    "$seq_dir/groundtruth.txt" > "$SEEDS/fuzz_trajectory/groundtruth.csv"
+  # static_map.ply as system::writeStaticMapPly writes it: 3 vertices of float x y z, uchar r g b,
+  # float beta (little-endian; 1.0f = 00 00 80 3f, 0.5f = 00 00 00 3f, 2.0f = 00 00 00 40).
+  {
+    printf 'ply\nformat binary_little_endian 1.0\ncomment LTLO-SLAM static map points\nelement vertex 3\n'
+    printf 'property float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n'
+    printf 'property uchar blue\nproperty float beta\nend_header\n'
+    printf '\x00\x00\x80\x3f\x00\x00\x00\x3f\x00\x00\x00\x40\x10\x20\x30\x00\x00\x80\x3f'
+    printf '\x00\x00\x00\x40\x00\x00\x80\x3f\x00\x00\x00\x3f\x40\x50\x60\x00\x00\x00\x3f'
+    printf '\x00\x00\x00\x3f\x00\x00\x00\x40\x00\x00\x80\x3f\x70\x80\x90\x00\x00\x80\x3f'
+  } > "$SEEDS/fuzz_ply/static_map.ply"
+  build/bin/train_vocabulary --images "$seq_dir/rgb" --out "$SEEDS/fuzz_vocabulary/k3_L2.bin" --k 3 --levels 2 \
+    --crops 2 --max-images 4 --threads 1 >/dev/null 2>&1 || { echo "fuzz: train_vocabulary failed" >&2; exit 1; }
+  build/bin/train_vocabulary --images "$seq_dir/rgb" --out "$SEEDS/fuzz_vocabulary/k4_L3.bin" --k 4 --levels 3 \
+    --crops 2 --max-images 4 --threads 1 >/dev/null 2>&1 || { echo "fuzz: train_vocabulary failed" >&2; exit 1; }
+  rm -rf "$seq_dir"
+  touch "$SEEDS/DONE"
+fi
+
+# ---- Run each target ----------------------------------------------------------------------------
+SUMMARY=$DIR/fuzz_summary.txt
+echo "# target seconds executions exec_per_s corpus_files result" > "$SUMMARY"
+status=0
+for t in $TARGETS; do
+  corpus=$DIR/corpus/$t
+  findings=$DIR/findings/$t
+  mkdir -p "$corpus" "$findings"
+  log=$DIR/$t.log
+  echo "== $t: ${SECONDS_EACH} s (log: $log)"
+  # -timeout: an input running longer than 10 s is a hang; -rss_limit_mb/-malloc_limit_mb: a
+  # reader that allocates what a corrupt size field announces is a finding (out-of-memory).
+  ASAN_OPTIONS="detect_leaks=1 allocator_may_return_null=0 ${ASAN_OPTIONS:-}" \
+  UBSAN_OPTIONS="print_stacktrace=1 halt_on_error=1 ${UBSAN_OPTIONS:-}" \
+    "$DIR/fuzz/$t" -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
+    -print_final_stats=1 -artifact_prefix="$findings/" "$corpus" "$SEEDS/$t" >"$log" 2>&1
+  rc=$?
+  runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
+  rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
+  files=$(find "$corpus" -type f | wc -l)
+  if [ "$rc" -eq 0 ]; then
+    result=ok
+  else
+    result="CRASH (exit $rc; $(ls "$findings" | head -3 | tr '\n' ' '))"
+    grep -m 3 -E "ERROR: |runtime error:|==[0-9]+==|deadly signal|out-of-memory|timeout" "$log" | sed "s/^/    /" >&2
+    status=1
+  fi
+  echo "$t $SECONDS_EACH ${runs:-?} ${rate:-?} $files $result" | tee -a "$SUMMARY"
+done
+echo "fuzz: summary in $SUMMARY"
+exit $status
