@@ -5,7 +5,8 @@
 # sanitizer report, timeout or out-of-memory. Not part of scripts/test.sh (see README).
 #   scripts/fuzz.sh [SECONDS_EACH]           default 60 s per target (6 targets)
 #   TARGETS="fuzz_ply fuzz_imu" scripts/fuzz.sh 10
-# Findings (crashing inputs) land in build-fuzz/findings/<target>/; the corpus grows in
+# Findings (crashing inputs) land in build-fuzz/findings/<target>/ (once fixed, keep them in
+# tests/fuzz/regressions/<target>/: they are replayed on every run); the corpus grows in
 # build-fuzz/corpus/<target>/ and is reused by the next run. Summary: build-fuzz/fuzz_summary.txt.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -95,13 +96,16 @@ for t in $TARGETS; do
   findings=$DIR/findings/$t
   mkdir -p "$corpus" "$findings"
   log=$DIR/$t.log
+  # Inputs that crashed a reader once (tests/fuzz/regressions/<target>/) are replayed first.
+  regressions=""
+  [ -d "tests/fuzz/regressions/$t" ] && regressions="tests/fuzz/regressions/$t"
   echo "== $t: ${SECONDS_EACH} s (log: $log)"
   # -timeout: an input running longer than 10 s is a hang; -rss_limit_mb/-malloc_limit_mb: a
   # reader that allocates what a corrupt size field announces is a finding (out-of-memory).
   ASAN_OPTIONS="detect_leaks=1 allocator_may_return_null=0 ${ASAN_OPTIONS:-}" \
   UBSAN_OPTIONS="print_stacktrace=1 halt_on_error=1 ${UBSAN_OPTIONS:-}" \
     "$DIR/fuzz/$t" -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
-    -print_final_stats=1 -artifact_prefix="$findings/" "$corpus" "$SEEDS/$t" >"$log" 2>&1
+    -print_final_stats=1 -artifact_prefix="$findings/" "$corpus" "$SEEDS/$t" $regressions >"$log" 2>&1
   rc=$?
   runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
   rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)

@@ -8,8 +8,10 @@
 // from the Camera.* / IMU.* keys of the settings file (TUM RGB-D, OpenLORIS). Outputs in --out:
 // trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists.
 // Ctrl-C (or SIGTERM), a bad frame or an error part-way stop the run, shut the threads down and
-// still write the outputs of the frames processed. Exit status: 0 done (also when interrupted),
-// 2 bad input (files, settings), 1 any other error.
+// still write the outputs of the frames processed (Ctrl-C is handled from the start, also while
+// loading). Exit status: 0 done (also when interrupted), 2 bad input (files, settings, the
+// vocabulary; for rgbd_inertial a sequence without IMU samples or IMU calibration), 1 any other
+// error.
 #include <unistd.h>
 
 #include <atomic>

@@ -3,6 +3,7 @@
 #include <opencv2/core.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -22,23 +23,31 @@ std::string rangeText(double min, double max) {
 
 SettingsFile::SettingsFile(const std::string& path) : path_(path) {
   // Checked first so that a missing file gives our message only (OpenCV would also log one).
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) throw ConfigError(path + ": is a folder, not a settings file");
   if (!std::ifstream(path).good()) throw ConfigError(path + ": cannot open settings file");
   try {
     if (!storage_.open(path, cv::FileStorage::READ)) {
       throw ConfigError(path + ": cannot open settings file");
     }
+    root_ = storage_.root();
   } catch (const cv::Exception& e) {
     throw ConfigError(path + ": cannot parse settings file (" + e.msg + ")");
+  }
+  // Keys are looked up in the top-level map; OpenCV asserts on a lookup in anything else.
+  if (root_.empty() || root_.isNone()) throw ConfigError(path + ": settings file has no keys");
+  if (!root_.isMap()) {
+    throw ConfigError(path + ": top level is " + describe(root_) + ", expected a map of \"Key: value\" lines");
   }
 }
 
 cv::FileNode SettingsFile::node(const std::string& key) const {
   read_keys_.insert(key);
-  return storage_[key];
+  return root_[key];
 }
 
 bool SettingsFile::has(const std::string& key) const {
-  const cv::FileNode n = storage_[key];
+  const cv::FileNode n = root_[key];
   return !n.empty() && !n.isNone();
 }
 
@@ -64,7 +73,7 @@ void SettingsFile::failMissing(const std::string& key, const std::string& expect
   throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
 }
 
-std::string SettingsFile::valueText(const std::string& key) const { return describe(storage_[key]); }
+std::string SettingsFile::valueText(const std::string& key) const { return describe(root_[key]); }
 
 double SettingsFile::getDouble(const std::string& key, double min, double max) const {
   const cv::FileNode n = node(key);
@@ -163,8 +172,7 @@ std::string SettingsFile::getString(const std::string& key, const std::string& d
 
 std::vector<std::string> SettingsFile::unreadKeys() const {
   std::vector<std::string> unread;
-  const cv::FileNode root = storage_.root();
-  for (auto it = root.begin(); it != root.end(); ++it) {
+  for (auto it = root_.begin(); it != root_.end(); ++it) {
     const std::string name = (*it).name();
     if (read_keys_.count(name) == 0) unread.push_back(name);
   }

@@ -19,7 +19,8 @@ namespace ltlo {
 
 class SettingsFile {
  public:
-  /// Opens `path`; throws ConfigError when it cannot be read or parsed.
+  /// Opens `path`; throws ConfigError when it cannot be read or parsed, or its top level is not a
+  /// map of keys.
   explicit SettingsFile(const std::string& path);
 
   const std::string& path() const { return path_; }
@@ -61,6 +62,7 @@ class SettingsFile {
 
   std::string path_;
   cv::FileStorage storage_;
+  cv::FileNode root_;  // the top-level map every key is looked up in
   mutable std::set<std::string> read_keys_;
 };
 
