@@ -35,11 +35,15 @@ void writeFile(const fs::path& path, const std::string& text) {
 }
 
 /// The generated sequence shared by the tests of this binary (ctest runs each test in its own
-/// process, possibly two at once): written once into a fresh folder, then renamed into place.
+/// process, possibly two at once): written once into a fresh folder, then renamed into place. The
+/// folder name carries the simulate binary's size and time, so a rebuilt simulator writes anew.
 const fs::path& sharedSequence() {
   static const fs::path dir = [] {
     const fs::path root = fs::temp_directory_path() / "ltlo_cli_test";
-    const fs::path target = root / "static_5s_320x240_v1";
+    const fs::path simulate = programPath("simulate");
+    const auto stamp = fs::last_write_time(simulate).time_since_epoch().count();
+    const fs::path target =
+        root / ("static_5s_320x240_" + std::to_string(fs::file_size(simulate)) + "_" + std::to_string(stamp));
     if (fs::exists(target / "groundtruth.txt")) return target;
     fs::create_directories(root);
     const fs::path scratch = root / ("writing_" + std::to_string(::getpid()));
@@ -51,6 +55,10 @@ const fs::path& sharedSequence() {
     std::error_code error;
     fs::rename(scratch, target, error);  // fails when another process was first: use theirs
     fs::remove_all(scratch, error);
+    for (const fs::directory_entry& entry : fs::directory_iterator(root, error)) {
+      const std::string name = entry.path().filename().string();
+      if (entry.path() != target && name.rfind("static_5s_", 0) == 0) fs::remove_all(entry.path(), error);
+    }
     return target;
   }();
   return dir;
