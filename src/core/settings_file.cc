@@ -33,6 +33,10 @@ SettingsFile::SettingsFile(const std::string& path) : path_(path) {
     root_ = storage_.root();
   } catch (const cv::Exception& e) {
     throw ConfigError(path + ": cannot parse settings file (" + e.msg + ")");
+  } catch (const std::exception& e) {
+    // OpenCV 4.6's YAML parser can also fail with a standard exception on malformed input (a
+    // fuzzed key before "data:" of a matrix gave std::length_error from inside the parser).
+    throw ConfigError(path + ": cannot parse settings file (" + e.what() + ")");
   }
   // Keys are looked up in the top-level map; OpenCV asserts on a lookup in anything else.
   if (root_.empty() || root_.isNone()) throw ConfigError(path + ": settings file has no keys");

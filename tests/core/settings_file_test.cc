@@ -50,6 +50,11 @@ TEST_F(SettingsFileShapes, TopLevelThatIsNotAMapIsAConfigErrorNamingTheFile) {
   EXPECT_EQ(errorOf("%YAML:1.0\n---\n"), path + ": settings file has no keys");
   EXPECT_NE(errorOf("%YAML:1.0\n---\nCamera.fx: [1, 2\n").find(path + ": cannot parse settings file"),
             std::string::npos);
+  // Found by fuzzing: OpenCV's parser throws std::length_error on this matrix header.
+  EXPECT_NE(errorOf("%YAML:1.0\n---\nIMU.T_b_c1: !!opencv-matrix\n   rows: 4\n   cols: 4\n   :t \nd d  data: [ 0.5, "
+                    "-0.1l -0.9ML:1.0\n---\nCamera.fx: 1\n")
+                .find(path + ": cannot parse settings file"),
+            std::string::npos);
 }
 
 TEST_F(SettingsFileShapes, FolderOrMissingPathIsAConfigError) {
