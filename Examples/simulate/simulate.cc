@@ -76,6 +76,11 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }
+  // CLI::Range lets NaN through (every comparison with it is false).
+  if (!std::isfinite(seconds) || !std::isfinite(fps)) {
+    std::cerr << "simulate: --seconds " << seconds << " / --fps " << fps << ": expected finite numbers\n";
+    return 2;
+  }
   try {
     ltlo::sim::SimOptions options;
     if (!config_path.empty())

@@ -86,6 +86,11 @@ int main(int argc, char** argv) {
 
   try {
     const auto start = std::chrono::steady_clock::now();
+    std::error_code error;
+    if (!fs::is_directory(images_dir, error)) {
+      std::fprintf(stderr, "train_vocabulary: %s: image folder does not exist\n", images_dir.c_str());
+      return 2;
+    }
     std::vector<std::string> paths = findImages(images_dir);
     if (max_images > 0 && static_cast<int>(paths.size()) > max_images) paths.resize(max_images);
     if (paths.empty()) {
