@@ -69,7 +69,8 @@ void addInertialLink(sparse_opt::Graph& graph, const InertialLink& link, const C
   LTLO_ASSERT(link.pim != nullptr, "optimizePose: inertial link without preintegration");
   const bool prev_fixed = !link.prev_prior.has_value();
   auto* prev_pose = addVertex(graph, std::make_unique<VertexPose>(kPrevPose, link.T_w_b_prev), prev_fixed);
-  auto* prev_velocity = addVertex(graph, std::make_unique<VertexVelocity>(kPrevVelocity, link.v_w_b_prev), prev_fixed);
+  auto* prev_velocity = addVertex(graph, std::make_unique<VertexVelocity>(kPrevVelocity, link.v_w_b_prev),
+                                  prev_fixed && !link.prev_velocity_free);
   auto* prev_gyro = addVertex(graph, std::make_unique<VertexGyroBias>(kPrevGyroBias, link.bias_prev.b_g), prev_fixed);
   auto* prev_acc = addVertex(graph, std::make_unique<VertexAccBias>(kPrevAccBias, link.bias_prev.b_a), prev_fixed);
   if (link.prev_prior) {
@@ -130,11 +131,24 @@ MatX stateHessian(sparse_opt::Graph& graph) {
   return 0.5 * (H + H.transpose());
 }
 
-// The current state's marginal: the previous state (free under its prior) Schur-complemented out.
-Mat15 currentStateInformation(sparse_opt::Graph& graph, bool prev_free) {
+// The current state's marginal: the free vertices of the previous state (under its prior, or a
+// free velocity) Schur-complemented out.
+Mat15 currentStateInformation(sparse_opt::Graph& graph) {
   const MatX H = stateHessian(graph);
-  if (!prev_free) return H.topLeftCorner<kStateDim, kStateDim>();
-  return marginalInformation(H, kStateDim);
+  std::vector<int> keep;
+  for (int i = 0; i < kStateDim; ++i) keep.push_back(i);
+  for (int id = kPrevPose; id < kNumVertexIds; ++id) {
+    const sparse_opt::VertexBase* vertex = graph.vertex(id);
+    if (vertex == nullptr || vertex->fixed()) continue;
+    for (int i = 0; i < vertex->dimension(); ++i) keep.push_back(kStateOffset[static_cast<std::size_t>(id)] + i);
+  }
+  if (static_cast<int>(keep.size()) == kStateDim) return H.topLeftCorner<kStateDim, kStateDim>();
+  const int n = static_cast<int>(keep.size());
+  MatX selected(n, n);
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) selected(r, c) = H(keep[static_cast<std::size_t>(r)], keep[static_cast<std::size_t>(c)]);
+  }
+  return marginalInformation(selected, kStateDim);
 }
 
 bool isPositiveDefinite(const Mat6& information) {
@@ -161,7 +175,7 @@ Mat15 predictedStateInformation(const InertialLink& link, const InertialState& c
   sparse_opt::Graph graph;
   const CurrentVertices vertices = addCurrentState(graph, current, true);
   addInertialLink(graph, link, vertices);
-  return currentStateInformation(graph, link.prev_prior.has_value());
+  return currentStateInformation(graph);
 }
 
 PoseOnlyResult optimizePose(const PoseOnlyProblem& problem, const PoseOnlyOptions& options) {
@@ -231,7 +245,7 @@ PoseOnlyResult optimizePose(const PoseOnlyProblem& problem, const PoseOnlyOption
     result.bias.b_g = current.gyro_bias->estimate();
     result.bias.b_a = current.acc_bias->estimate();
     // The marginal of the current state at the final estimate (the next frame's prior).
-    result.state_information = currentStateInformation(graph, problem.inertial->prev_prior.has_value());
+    result.state_information = currentStateInformation(graph);
     result.pose_information = marginalInformation(result.state_information, 6);
   } else {
     result.v_w_b = problem.v_w_b_init;

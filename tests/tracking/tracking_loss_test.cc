@@ -203,7 +203,7 @@ TEST_F(TrackingLossRuns, AfterBlackFramesTheConstantVelocityPredictionRecoversTh
                                    translationError_m(run->records[static_cast<std::size_t>(k)].T_w_c, groundTruth(k)));
   }
   std::printf("  predicted (untracked) poses: max error %.4f m\n", max_predicted_error);
-  EXPECT_TRUE(resumed.stats.inliers >= TrackerOptions().min_inliers);
+  EXPECT_TRUE(resumed.stats.inliers >= TrackerOptions().tracking.min_inliers);
   EXPECT_FALSE(resumed.stats.new_map);
   EXPECT_EQ(tracker.numMapsCreated(), 0);
   EXPECT_EQ(run->atlas.numMaps(), 1u);

@@ -46,6 +46,9 @@ struct InertialLink {
   Vec3 g_w = imu::gravityWorld();
   double lambda_imu = 1.0;  ///< weight of the bias random walk (thesis Eq. 58)
   std::optional<PreviousStatePrior> prev_prior;  ///< absent: previous state fixed
+  /// With the previous state fixed (no prior): leave its velocity free, without a prior (a keyframe
+  /// whose velocity is not known yet: the inertial edge then estimates it from the two poses).
+  bool prev_velocity_free = false;
 };
 
 struct PoseOnlyProblem {

@@ -58,6 +58,8 @@ struct RunReport {
   double wall_s = 0.0;          ///< whole run (reading + SLAM), s
   double peak_memory_mb = 0.0;  ///< peak resident set size, MB
   bool interrupted = false;     ///< stopped early (signal or error)
+  /// the --oracle-masks ablation: ground-truth masks replaced the segmentation (diagnostic run)
+  bool oracle_masks = false;
 };
 
 /// Peak resident set size of this process so far, MB (getrusage ru_maxrss).

@@ -76,6 +76,10 @@ struct SystemOptions {
   /// false: local mapping and loop closing run synchronously inside trackFrame after each keyframe
   /// (deterministic, for tests); true: each in its own thread.
   bool threaded = true;
+  /// The --oracle-masks ablation (diagnostic only): every frame's ground-truth mask
+  /// (io::RgbdImuFrame::mask, read with SequenceReaderOptions::read_masks) replaces the
+  /// segmentation (tracking::OracleMaskSegmenter); the run's metrics record it.
+  bool oracle_masks = false;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
