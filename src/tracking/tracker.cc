@@ -449,7 +449,7 @@ std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {
   last_kf_v_w_b_seen_ = kf->v_w_b();
   // Its velocity is an inertial estimate when the frame's state came from the IMU (the
   // pose-inertial optimisation or, lost, the IMU prediction); else local mapping will set it.
-  last_kf_velocity_known_ = imu_initialised_ && frame_information_.valid;
+  last_kf_inertial_ = imu_initialised_ && frame_information_.valid;
   last_kf_bias_seen_ = kf->bias();
   reference_kf_ = kf->id();
   reference_kf_ptr_ = kf;

@@ -112,13 +112,14 @@ Tracker::ImuPrediction Tracker::predictWithImu(const map::Frame& frame) {
                               (bias_kf.b_g - last_kf_bias_seen_.b_g).norm() > 0.0;
     const bool velocity_changed = (v_w_b_kf - last_kf_v_w_b_seen_).norm() > 0.0;
     keyframe_updated = !sameState(T_w_b_kf, last_kf_T_w_b_seen_) || velocity_changed || bias_changed;
-    // Local mapping writes keyframe velocities only from the IMU (initialisation, VI-BA).
-    if (velocity_changed) last_kf_velocity_known_ = true;
+    // Local mapping writes keyframe velocities only from the IMU (initialisation, VI-BA), and
+    // biases with them.
+    if (velocity_changed && imu_initialised_) last_kf_inertial_ = true;
     if (keyframe_updated) {
       last_kf_T_w_b_seen_ = T_w_b_kf;
       last_kf_v_w_b_seen_ = v_w_b_kf;
       last_kf_bias_seen_ = bias_kf;
-      if (bias_changed) bias_ = bias_kf;
+      if (bias_changed && last_kf_inertial_) bias_ = bias_kf;
     }
   }
   // Without the inertial optimisation (the ablation) the keyframe only restarts the prediction
@@ -134,11 +135,12 @@ Tracker::ImuPrediction Tracker::predictWithImu(const map::Frame& frame) {
     // The keyframe's state is held fixed; the preintegration since it includes this frame.
     link.T_w_b_prev = T_w_b_kf;
     link.v_w_b_prev = v_w_b_kf;
-    link.bias_prev = bias_kf;
     link.pim = imu_since_keyframe_;
-    // A keyframe from before the IMU initialisation has a vision-only (finite-difference) velocity:
-    // it is estimated here from the keyframe's and this frame's poses instead of being trusted.
-    link.prev_velocity_free = !last_kf_velocity_known_;
+    // A keyframe from before the IMU initialisation (not yet updated by local mapping) has a
+    // vision-only (finite-difference) velocity and no bias: its velocity is estimated here from the
+    // keyframe's and this frame's poses, and the initialisation's bias is used.
+    link.bias_prev = last_kf_inertial_ ? bias_kf : bias_;
+    link.prev_velocity_free = !last_kf_inertial_;
     out.link_kind = 1;
   } else {
     // The previous frame (tracked or predicted) with the marginal of its own optimisation (or of

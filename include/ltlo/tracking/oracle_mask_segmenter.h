@@ -10,7 +10,8 @@
 /// cluster K, gamma 1). Pixel counts, V_i ({0, 1} when both exist: the objects stand on and
 /// against the static scene) and depth_mm (quarter resolution) are filled, so local mapping's
 /// gamma prior (Eq. 56) and the static-area gate of loop closing work on them. The static area of a
-/// frame is then exactly its share of static pixels with depth.
+/// frame is its static pixels with depth over those plus all dynamic pixels (a dynamic pixel
+/// without depth counts as dynamic area: the gate errs on the safe side).
 #include "ltlo/tracking/frame_segmenter.h"
 
 namespace ltlo::tracking {

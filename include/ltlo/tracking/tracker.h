@@ -306,8 +306,9 @@ class Tracker {
   // ---- inertial optimisation (tracker_inertial.cc) ----
   /// The next frame links to the last keyframe (state fixed) instead of the last frame.
   bool link_to_keyframe_ = true;
-  /// The last keyframe's velocity is an inertial estimate (else the keyframe link leaves it free).
-  bool last_kf_velocity_known_ = false;
+  /// The last keyframe's velocity and biases are inertial estimates (else the keyframe link leaves
+  /// its velocity free and uses the tracker's bias).
+  bool last_kf_inertial_ = false;
   ImuPrediction imu_prediction_;
   /// The current frame's state information (set by optimisePose and the lost path).
   StateInformation frame_information_;
