@@ -43,7 +43,7 @@ struct RunResult {
 };
 
 class VisualInertialEndToEnd : public ::testing::Test {
- protected:
+ public:
   static void SetUpTestSuite() {
     root_ = new fs::path(fs::temp_directory_path() / ("ltlo_vi_" + std::to_string(::getpid())));
     fs::create_directories(*root_);
@@ -143,9 +143,16 @@ class VisualInertialEndToEnd : public ::testing::Test {
 fs::path* VisualInertialEndToEnd::root_ = nullptr;
 std::shared_ptr<const bow::Vocabulary>* VisualInertialEndToEnd::vocabulary_ = nullptr;
 
+/// The static 10 s RGB-D-inertial run, shared by the tests that need it.
+const RunResult& staticInertialRun() {
+  static const RunResult result = VisualInertialEndToEnd::run(
+      VisualInertialEndToEnd::sequence("static_10s", sim::Scenario::kStatic, 10.0, 2), true);
+  return result;
+}
+
 TEST_F(VisualInertialEndToEnd, ImuBeatsRgbdOnlyOnTheSameFrames) {
   const std::string dir = sequence("static_10s", sim::Scenario::kStatic, 10.0, 2);
-  const RunResult inertial = run(dir, true);
+  const RunResult& inertial = staticInertialRun();
   const RunResult visual = run(dir, false);
   ASSERT_EQ(inertial.counts.frames_with_pose, inertial.frames);
   ASSERT_EQ(visual.counts.frames_with_pose, visual.frames);
@@ -181,6 +188,44 @@ TEST_F(VisualInertialEndToEnd, BlackFramesAreBridgedByTheImu) {
   EXPECT_LT(max_tracked_m, 0.03);
   // Black frames are not tracked; every other frame is (the first after the gap included).
   EXPECT_GE(inertial.counts.frames_tracked, inertial.frames - static_cast<int>(kBlackSeconds * kFps) - 1);
+}
+
+// Without --oracle-masks nothing of the estimator opens masks/: a copy of the sequence without the
+// folder gives the very same trajectory (synchronous runs are deterministic).
+TEST_F(VisualInertialEndToEnd, SequenceWithoutMasksFolderGivesTheSameTrajectory) {
+  const fs::path original = sequence("static_10s", sim::Scenario::kStatic, 10.0, 2);
+  ASSERT_TRUE(fs::is_directory(original / "masks"));
+  const fs::path copy = *root_ / "static_10s_without_masks";
+  fs::create_directories(copy);
+  for (const fs::directory_entry& entry : fs::directory_iterator(original)) {
+    if (entry.path().filename() == "masks") continue;
+    fs::copy(entry.path(), copy / entry.path().filename(), fs::copy_options::recursive);
+  }
+  ASSERT_FALSE(fs::exists(copy / "masks"));
+  const RunResult& with_masks = staticInertialRun();
+  const RunResult without_masks = run(copy.string(), true);
+  ASSERT_EQ(without_masks.trajectory.size(), with_masks.trajectory.size());
+  for (std::size_t i = 0; i < with_masks.trajectory.size(); ++i) {
+    ASSERT_EQ(without_masks.trajectory[i].t_s, with_masks.trajectory[i].t_s);
+    ASSERT_EQ(without_masks.trajectory[i].T_w_c.translation(), with_masks.trajectory[i].T_w_c.translation())
+        << "frame " << i;
+    ASSERT_EQ(without_masks.trajectory[i].T_w_c.quaternion().coeffs(),
+              with_masks.trajectory[i].T_w_c.quaternion().coeffs())
+        << "frame " << i;
+  }
+  EXPECT_EQ(without_masks.counts.keyframes, with_masks.counts.keyframes);
+  EXPECT_EQ(without_masks.counts.map_points, with_masks.counts.map_points);
+}
+
+// The --oracle-masks ablation on long-term large occlusion (boxes over most of the view): with
+// perfect segmentation only static features are tracked and mapped, and the IMU carries the
+// stretches with few of them. The floor the segmentation work is measured against.
+TEST_F(VisualInertialEndToEnd, OracleMasksOnLongTermOcclusionStayWithinThreeCentimetres) {
+  const RunResult oracle = run(sequence("ltlo_10s", sim::Scenario::kLtlo, 10.0, 1), true, true);
+  EXPECT_GE(oracle.counts.frames_with_pose, oracle.frames - 5);  // boxes may cover the first frames
+  EXPECT_TRUE(oracle.counts.imu_initialised);
+  EXPECT_EQ(oracle.counts.maps - oracle.counts.merges, 1);
+  EXPECT_LT(oracle.ate.error_m.rmse, 0.03);
 }
 
 }  // namespace
