@@ -224,6 +224,10 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("imu_initialised", c.imu_initialised ? 1 : 0);
   metrics.set("maps", c.maps);
   metrics.set("maps_created", c.maps_created);
+  metrics.set("frames_tracked_weak_imu", c.frames_tracked_weak_imu);
+  metrics.set("frames_imu_predicted", c.frames_imu_predicted);
+  metrics.set("relocalisations", c.relocalisations);
+  metrics.set("maps_extended", c.maps_extended);
   metrics.set("loops", c.loops);
   metrics.set("merges", c.merges);
   metrics.set("keyframes", c.keyframes);

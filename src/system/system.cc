@@ -210,6 +210,13 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
       record.T_w_c = T_w_c;
     }
     if (record.tracked) ++frames_tracked_;
+    const tracking::TrackingStats& stats = tracker_->stats();
+    if (record.tracked && stats.inertial_link != 0 && stats.inliers < settings_.tracking.min_inliers) {
+      ++frames_tracked_weak_imu_;
+    }
+    if (!record.tracked && stats.inertial_link != 0) ++frames_imu_predicted_;
+    if (stats.relocalised) ++relocalisations_;
+    if (stats.map_extended) ++maps_extended_;
     std::lock_guard<std::mutex> lock(records_mutex_);
     records_.push_back(std::move(record));
   }
@@ -330,6 +337,10 @@ SystemCounts System::counts() const {
   const std::vector<map::MapId> map_ids = atlas_->mapIds();
   counts.maps = static_cast<int>(map_ids.size());
   counts.maps_created = tracker_->numMapsCreated();
+  counts.frames_tracked_weak_imu = frames_tracked_weak_imu_;
+  counts.frames_imu_predicted = frames_imu_predicted_;
+  counts.relocalisations = relocalisations_;
+  counts.maps_extended = maps_extended_;
   counts.loops = closer_->numLoops();
   counts.merges = closer_->numMerges();
   for (const map::MapId map_id : map_ids) {

@@ -128,8 +128,10 @@ struct TrackingOptions {
   /// Virtual stereo baseline of the RGB-D edges, m: bf = fx * b, so a keypoint with depth d and
   /// standard deviation sigma (px) has a depth standard deviation sigma d^2 / (fx b), that of a
   /// stereo rig of baseline b with the same disparity error. For a sensor with depth noise
-  /// sigma_d = k d^2 at 1 px: b = 1 / (fx k) (RGBD.VirtualBaseline, [0.001, 100])
-  double virtual_baseline_m = 0.08;
+  /// sigma_d = k d^2 at 1 px: b = 1 / (fx k); reading the depth at the rounded keypoint pixel on a
+  /// surface slanted by theta adds b_slope = 1 / tan(theta), 1/b^2 = 1/b_sensor^2 + 1/b_slope^2
+  /// (RGBD.VirtualBaseline, [0.001, 100]; 0.5 for a Kinect-class sensor: config_yaml/*.yaml)
+  double virtual_baseline_m = 0.5;
 
   static TrackingOptions load(const SettingsFile& file);
 };

@@ -164,6 +164,11 @@ class System {
   std::uint64_t imu_generation_ = 0;
   int frames_ = 0;
   int frames_tracked_ = 0;
+  // Outcomes of the loss policy (tracking thread): see SystemCounts.
+  int frames_tracked_weak_imu_ = 0;
+  int frames_imu_predicted_ = 0;
+  int relocalisations_ = 0;
+  int maps_extended_ = 0;
 
   mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;
