@@ -66,6 +66,7 @@ void visitTracking(O& o, V& v) {
            "an integer in [3, Tracking.MinInliers = " + std::to_string(o.min_inliers) + "]");
   }
   v.real("Tracking.MaxImuPositionSigma", o.max_imu_position_sigma_m, 0.001, 10.0);
+  v.real("Tracking.AccBiasSigma", o.acc_bias_sigma_m_s2, 0.0, 10.0);
   v.real("Tracking.NewMapAfter", o.new_map_after_s, -1.0, 1000.0);
   v.real("Tracking.MaxLostImuInterval", o.max_lost_imu_interval_s, 0.1, 1000.0);
   v.real("RGBD.VirtualBaseline", o.virtual_baseline_m, 0.001, 100.0);

@@ -1,6 +1,5 @@
 #include "ltlo/tracking/tracker.h"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -20,15 +19,6 @@ using detail::isMatched;
 using detail::staticKeypointsWithDepth;
 
 namespace {
-
-/// Largest position standard deviation (m) of a state information (pose block [dphi; drho]).
-double positionSigma_m(const Mat15& information) {
-  const Eigen::LDLT<Mat15> ldlt(information);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::numeric_limits<double>::infinity();
-  const Mat3 covariance = ldlt.solve(Mat15::Identity()).block<3, 3>(3, 3);
-  const Eigen::SelfAdjointEigenSolver<Mat3> eigen(0.5 * (covariance + covariance.transpose()), Eigen::EigenvaluesOnly);
-  return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff()));
-}
 
 /// The state information with the pose marginalised out (only velocity and biases kept, zero pose
 /// block): the previous frame's prior after a relocalisation, whose predicted pose is not trusted.
@@ -162,6 +152,9 @@ TrackingState Tracker::track(map::Frame& frame) {
     frame.reference_keyframe = reference_kf_;
   }
   recordFramePose(frame);
+  log::debug("frame t = ", frame.t_s(), ": tracked, ", inliers, " inliers, link ", stats_.inertial_link, ", sigma ",
+             stats_.predicted_position_sigma_m, " m, p = ", frame.T_w_b().translation().transpose(), ", ref ",
+             reference_kf_);
   return state_;
 }
 
@@ -184,10 +177,13 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
     frame_information_ = StateInformation();
   }
   const double lost_for_s = frame.t_s() - last_tracked_t_s_;
+  log::debug("frame t = ", frame.t_s(), ": lost, ", stats_.inliers, " inliers, link ", stats_.inertial_link,
+             ", sigma ", stats_.predicted_position_sigma_m, " m, p = ", frame.T_w_b().translation().transpose(),
+             ", ref ", reference_kf_);
   if (options_.tracking.new_map_after_s >= 0.0 && lost_for_s >= options_.tracking.new_map_after_s &&
       staticKeypointsWithDepth(frame) >= options_.min_init_features) {
     const double sigma_m =
-        imu_prediction_.link ? positionSigma_m(imu_prediction_.information) : std::numeric_limits<double>::infinity();
+        imu_prediction_.link ? stats_.predicted_position_sigma_m : std::numeric_limits<double>::infinity();
     const bool keyframe_in_map = last_kf_ptr_ && !last_kf_ptr_->isBad() && last_kf_ptr_->mapId() == activeMap().id();
     if (sigma_m <= options_.tracking.max_imu_position_sigma_m && keyframe_in_map) {
       // The IMU still knows where the camera is: what the frame sees is unmapped (revealed behind
@@ -400,10 +396,9 @@ bool Tracker::needNewKeyFrame() const {
   const bool interval = last_frame_->t_s() - last_keyframe_t_s_ >= kf.max_interval_s;
   const bool low_overlap = stats_.overlap < kf.max_overlap;
   const bool weak = stats_.inliers < kf.min_tracked_points;
-  // A keyframe needs enough inliers to be anchored; with the inertial optimisation the IMU anchors
-  // it too (Tracking.MinInliersImu).
-  const int min_inliers = inertialLink() != nullptr ? options_.tracking.min_inliers_imu : 16;
-  return (interval || low_overlap || weak) && stats_.inliers >= min_inliers;
+  // A keyframe needs enough inliers to be anchored in the map (a frame carried by the IMU with
+  // fewer is tracked but spawns none: local and global BA would hold it by a handful of points).
+  return (interval || low_overlap || weak) && stats_.inliers > 15;
 }
 
 std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {

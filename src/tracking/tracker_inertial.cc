@@ -73,9 +73,14 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
       if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
         const Mat15 covariance = ldlt.solve(Mat15::Identity());
         const double sigma_r = largestSigma(covariance.block<3, 3>(0, 0));
+        // The keyframe's bias is held fixed by the links: its error (Tracking.AccBiasSigma) acts
+        // over the time since the last tracked frame, 0.5 sigma_b t^2, independent of the filter's.
+        const double gap_s = frame.t_s() - last_tracked_t_s_;
+        const double bias_drift_m = 0.5 * options_.tracking.acc_bias_sigma_m_s2 * gap_s * gap_s;
+        const double sigma_p = largestSigma(covariance.block<3, 3>(3, 3));
         stats_.predicted_rotation_sigma_rad = sigma_r;
         stats_.predicted_position_sigma_m =
-            largestSigma(covariance.block<3, 3>(3, 3)) + sigma_r * frame.T_b_c().translation().norm();
+            std::sqrt(sigma_p * sigma_p + bias_drift_m * bias_drift_m) + sigma_r * frame.T_b_c().translation().norm();
       }
     }
     return imu_prediction_.state.T_w_b;

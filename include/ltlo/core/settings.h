@@ -117,6 +117,11 @@ struct TrackingOptions {
   /// keypoints do not match the map extends the map at the predicted pose instead of starting a
   /// new map (Tracking.MaxImuPositionSigma, [0.001, 10])
   double max_imu_position_sigma_m = 0.05;
+  /// Standard deviation of the map's accelerometer-bias estimate, m/s^2, which the tracker holds
+  /// fixed at each keyframe link and so leaves out of its covariance: an IMU-only stretch of t
+  /// seconds adds 0.5 sigma t^2 to the predicted position's standard deviation (search windows,
+  /// Tracking.MaxImuPositionSigma) (Tracking.AccBiasSigma, [0, 10])
+  double acc_bias_sigma_m_s2 = 0.03;
   /// Lost for at least this long (s, since the last tracked frame): a frame with enough static
   /// keypoints starts a new map (or, see Tracking.MaxImuPositionSigma, extends the map); a
   /// negative value never does (Tracking.NewMapAfter, [-1, 1000])
