@@ -1,12 +1,14 @@
 // rgbd_inertial / rgbd: SLAM on one RGB-D(-inertial) sequence; writes the run outputs.
 //
 //   rgbd_inertial --settings YAML --sequence DIR --out DIR [--vocabulary FILE] [--no-imu]
-//                 [--single-thread] [--max-frames N] [--progress-every N]
+//                 [--single-thread] [--max-frames N] [--progress-every N] [--oracle-masks]
 //   rgbd          (the same program without the IMU: TUM RGB-D with config_yaml/tum_rgbd.yaml)
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
 // from the Camera.* / IMU.* keys of the settings file (TUM RGB-D, OpenLORIS). Outputs in --out:
-// trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists.
+// trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists
+// (read for the evaluation of the outputs only). --oracle-masks (diagnostic ablation): DIR/masks/
+// replaces the segmentation (metrics.json "oracle_masks": true); without it masks/ is never read.
 // Ctrl-C (or SIGTERM), a bad frame or an error part-way stop the run, shut the threads down and
 // still write the outputs of the frames processed (Ctrl-C is handled from the start, also while
 // loading). Exit status: 0 done (also when interrupted), 2 bad input (files, settings, the
@@ -69,6 +71,7 @@ struct Arguments {
   std::string vocabulary_path;
   bool no_imu = !LTLO_PROGRAM_USES_IMU;
   bool single_thread = false;
+  bool oracle_masks = false;
   long max_frames = 0;
   long progress_every = 100;
 };
@@ -113,6 +116,7 @@ RunSetup loadSetup(const Arguments& args) {
     log::info(kProgram, ": ", calib_path.string(), " not found; calibration (Camera.*, DepthMapFactor",
               setup.settings.calib.has_imu ? ", IMU.*" : "", ") from the settings file ", args.settings_path);
   }
+  setup.reader_options.read_masks = args.oracle_masks;
   return setup;
 }
 
@@ -150,6 +154,8 @@ int run(const Arguments& args) {
   system::SystemOptions options;
   options.use_imu = !args.no_imu;
   options.threaded = !args.single_thread;
+  options.oracle_masks = args.oracle_masks;
+  if (args.oracle_masks) log::warn(kProgram, ": --oracle-masks: ground-truth masks replace the segmentation (a diagnostic run)");
   if (options.use_imu) requireImu(reader, setup.settings);
   system::System slam(setup.settings, vocabulary, options);
 
@@ -250,6 +256,8 @@ int main(int argc, char** argv) {
   app.add_flag("--no-imu", args.no_imu, "ignore the IMU (RGB-D only; always so for rgbd)");
   app.add_flag("--single-thread", args.single_thread,
                "run local mapping and loop closing in the tracking thread (deterministic)");
+  app.add_flag("--oracle-masks", args.oracle_masks,
+               "diagnostic ablation: the sequence's ground-truth masks (masks/) replace the segmentation");
   app.add_option("--max-frames", args.max_frames, "stop after N frames (0: all)")->check(CLI::NonNegativeNumber);
   app.add_option("--progress-every", args.progress_every, "progress line every N frames (0: none)")
       ->check(CLI::NonNegativeNumber);

@@ -57,6 +57,22 @@ void visitKeyFrame(O& o, V& v) {
 }
 
 template <typename O, typename V>
+void visitTracking(O& o, V& v) {
+  v.boolean("Tracking.InertialPoseOptimisation", o.inertial_pose_optimisation);
+  v.integer("Tracking.MinInliers", o.min_inliers, 6, 10000);
+  v.integer("Tracking.MinInliersImu", o.min_inliers_imu, 3, 10000);
+  if (o.min_inliers_imu > o.min_inliers) {
+    v.fail("Tracking.MinInliersImu", std::to_string(o.min_inliers_imu),
+           "an integer in [3, Tracking.MinInliers = " + std::to_string(o.min_inliers) + "]");
+  }
+  v.real("Tracking.MaxImuPositionSigma", o.max_imu_position_sigma_m, 0.001, 10.0);
+  v.real("Tracking.AccBiasSigma", o.acc_bias_sigma_m_s2, 0.0, 10.0);
+  v.real("Tracking.NewMapAfter", o.new_map_after_s, -1.0, 1000.0);
+  v.real("Tracking.MaxLostImuInterval", o.max_lost_imu_interval_s, 0.1, 1000.0);
+  v.real("RGBD.VirtualBaseline", o.virtual_baseline_m, 0.001, 100.0);
+}
+
+template <typename O, typename V>
 void visitLocalMapping(O& o, V& v) {
   v.integer("LocalMapping.WindowSize", o.window_size, 2, 100);
   v.integer("LocalMapping.Iterations", o.ba_iterations, 1, 1000);
@@ -231,6 +247,13 @@ KeyFrameOptions KeyFrameOptions::load(const SettingsFile& file) {
   return options;
 }
 
+TrackingOptions TrackingOptions::load(const SettingsFile& file) {
+  TrackingOptions options;
+  Loader loader{file};
+  visitTracking(options, loader);
+  return options;
+}
+
 LocalMappingOptions LocalMappingOptions::load(const SettingsFile& file) {
   LocalMappingOptions options;
   Loader loader{file};
@@ -278,6 +301,7 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
   settings.orb = OrbOptions::load(config);
   settings.segmentation = SegmentationOptions::load(config);
   settings.keyframe = KeyFrameOptions::load(config);
+  settings.tracking = TrackingOptions::load(config);
   settings.local_mapping = LocalMappingOptions::load(config);
   settings.loop = LoopOptions::load(config);
   settings.dense = DenseOptions::load(config);
@@ -309,6 +333,7 @@ void Settings::validate() const {
   visitOrb(orb, validator);
   visitSegmentation(segmentation, validator);
   visitKeyFrame(keyframe, validator);
+  visitTracking(tracking, validator);
   visitLocalMapping(local_mapping, validator);
   visitLoop(loop, validator);
   visitDense(dense, validator);
@@ -343,6 +368,7 @@ std::string Settings::describe() const {
   visitOrb(orb, d);
   visitSegmentation(segmentation, d);
   visitKeyFrame(keyframe, d);
+  visitTracking(tracking, d);
   visitLocalMapping(local_mapping, d);
   visitLoop(loop, d);
   visitDense(dense, d);

@@ -112,9 +112,22 @@ void Preintegrated::reintegrate(const ImuBias& new_bias) {
 }
 
 void Preintegrated::append(const Preintegrated& next) {
-  const std::vector<Step> next_steps = next.steps_;  // copy: `next` may be *this
-  steps_.insert(steps_.end(), next_steps.begin(), next_steps.end());
-  reintegrate(bias_);
+  // Propagation is sequential and uses only this preintegration's bias: continuing it over the
+  // raw steps of `next` gives exactly the integration of the union at bias(), at the cost of
+  // `next`'s steps alone (the interval held so far is not touched again).
+  if (&next == this) {
+    const std::vector<Step> own_steps = steps_;  // appending to itself: iterate over a copy
+    for (const Step& step : own_steps) {
+      steps_.push_back(step);
+      propagate(step);
+    }
+    return;
+  }
+  steps_.reserve(steps_.size() + next.steps_.size());
+  for (const Step& step : next.steps_) {
+    steps_.push_back(step);
+    propagate(step);
+  }
 }
 
 Preintegrated Preintegrated::merged(const Preintegrated& first, const Preintegrated& second) {

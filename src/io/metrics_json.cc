@@ -64,6 +64,7 @@ void Metrics::setValue(const std::string& name, Value value) {
 void Metrics::set(const std::string& name, double value) { setValue(name, value); }
 void Metrics::set(const std::string& name, int64_t value) { setValue(name, value); }
 void Metrics::set(const std::string& name, const std::string& value) { setValue(name, value); }
+void Metrics::setFlag(const std::string& name, bool value) { setValue(name, value); }
 
 bool Metrics::has(const std::string& name) const {
   for (const auto& entry : entries_) {
@@ -77,6 +78,7 @@ double Metrics::number(const std::string& name) const {
     if (entry.first != name) continue;
     if (const double* d = std::get_if<double>(&entry.second)) return *d;
     if (const int64_t* i = std::get_if<int64_t>(&entry.second)) return static_cast<double>(*i);
+    if (const bool* flag = std::get_if<bool>(&entry.second)) return *flag ? 1.0 : 0.0;
     throw std::out_of_range("metric '" + name + "' is not a number");
   }
   throw std::out_of_range("no metric '" + name + "'");
@@ -90,6 +92,8 @@ std::string Metrics::toText() const {
       os << doubleText(*d, 9);
     } else if (const int64_t* i = std::get_if<int64_t>(&value)) {
       os << *i;
+    } else if (const bool* flag = std::get_if<bool>(&value)) {
+      os << (*flag ? "true" : "false");
     } else {
       os << std::get<std::string>(value);
     }
@@ -109,6 +113,8 @@ std::string Metrics::toJson() const {
       os << (std::isfinite(*d) ? doubleText(*d, 17) : "null");
     } else if (const int64_t* i = std::get_if<int64_t>(&value)) {
       os << *i;
+    } else if (const bool* flag = std::get_if<bool>(&value)) {
+      os << (*flag ? "true" : "false");
     } else {
       os << '"' << jsonEscape(std::get<std::string>(value)) << '"';
     }

@@ -245,7 +245,7 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
   }
 
   const std::string masks_dir = joinPath(sequence_dir, "masks");
-  if (isDirectory(masks_dir)) attachMasks(masks_dir, options.max_mask_dt_s, &reader.entries_);
+  if (options.read_masks && isDirectory(masks_dir)) attachMasks(masks_dir, options.max_mask_dt_s, &reader.entries_);
 
   // IMU: imu.txt, else EuRoC imu0/data.csv, else OpenLORIS accel.txt + gyro.txt, else none.
   const std::string imu_txt = joinPath(sequence_dir, "imu.txt");

@@ -144,6 +144,13 @@ void Map::updateConnections(KeyFrame& kf) {
       return;
     }
   }
+  // No covisible yet (a keyframe tracking placed by the IMU alone, its points all new): its
+  // previous keyframe in the IMU chain, which the inertial edge ties it to.
+  const KeyFrameId previous = kf.previousKeyFrame();
+  if (previous.valid() && previous < kf.id()) {
+    const std::shared_ptr<KeyFrame> candidate = keyFrame(previous);
+    if (candidate && candidate->addChild(kf.id())) kf.setParent(previous);
+  }
 }
 
 void Map::updateDescriptor(MapPoint& point) {

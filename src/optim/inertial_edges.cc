@@ -97,6 +97,31 @@ Mat6 biasWalkInformation(const imu::ImuNoise& noise, double interval_s, double l
   return lambda_imu * 0.5 * (information + information.transpose());
 }
 
+void EdgeStatePrior::computeError() {
+  const SE3& T = estimate<0>();
+  const Mat3 R_0_t = measurement_.T_w_b.rotationMatrix().transpose();
+  error_.segment<3>(0) = so3Log(R_0_t * T.rotationMatrix());
+  error_.segment<3>(3) = R_0_t * (T.translation() - measurement_.T_w_b.translation());
+  error_.segment<3>(6) = estimate<1>() - measurement_.v_w_b;
+  error_.segment<3>(9) = estimate<2>() - measurement_.bias.b_g;
+  error_.segment<3>(12) = estimate<3>() - measurement_.bias.b_a;
+}
+
+void EdgeStatePrior::linearizeOplus() {
+  const SE3& T = estimate<0>();
+  const Mat3 R_0_t = measurement_.T_w_b.rotationMatrix().transpose();
+  const Vec3 e_R = so3Log(R_0_t * T.rotationMatrix());
+  jacobian<0>().setZero();
+  jacobian<0>().block<3, 3>(0, 0) = so3RightJacobianInverse(e_R);
+  jacobian<0>().block<3, 3>(3, 3) = R_0_t * T.rotationMatrix();
+  jacobian<1>().setZero();
+  jacobian<1>().block<3, 3>(6, 0).setIdentity();
+  jacobian<2>().setZero();
+  jacobian<2>().block<3, 3>(9, 0).setIdentity();
+  jacobian<3>().setZero();
+  jacobian<3>().block<3, 3>(12, 0).setIdentity();
+}
+
 void EdgeBiasWalk::computeError() {
   error_.head<3>() = estimate<2>() - estimate<0>();
   error_.tail<3>() = estimate<3>() - estimate<1>();

@@ -241,9 +241,14 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("frames_tracked", c.frames_tracked);
   metrics.set("frames_without_pose", c.frames - c.frames_with_pose);
   metrics.set("interrupted", report.interrupted ? 1 : 0);
+  metrics.setFlag("oracle_masks", report.oracle_masks);
   metrics.set("imu_initialised", c.imu_initialised ? 1 : 0);
   metrics.set("maps", c.maps);
   metrics.set("maps_created", c.maps_created);
+  metrics.set("frames_tracked_weak_imu", c.frames_tracked_weak_imu);
+  metrics.set("frames_imu_predicted", c.frames_imu_predicted);
+  metrics.set("relocalisations", c.relocalisations);
+  metrics.set("maps_extended", c.maps_extended);
   metrics.set("loops", c.loops);
   metrics.set("merges", c.merges);
   metrics.set("keyframes", c.keyframes);

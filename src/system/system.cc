@@ -14,6 +14,7 @@
 #include "ltlo/map/keyframe.h"
 #include "ltlo/mapping/local_mapper.h"
 #include "ltlo/tracking/frame_builder.h"
+#include "ltlo/tracking/oracle_mask_segmenter.h"
 
 namespace ltlo::system {
 namespace {
@@ -30,9 +31,11 @@ std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector
   return colours;
 }
 
-/// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit).
-std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings) {
+/// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit), or the ground-truth
+/// masks of the --oracle-masks ablation.
+std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings, bool oracle_masks) {
   const SegmentationOptions& seg = settings.segmentation;
+  if (oracle_masks) return std::make_unique<tracking::OracleMaskSegmenter>(seg.static_threshold);
   if (!seg.enable) return std::make_unique<tracking::AllStaticSegmenter>(seg.static_threshold);
   if (seg.dense_init) {
     // TODO(#11): the dense initial segmentation and state (Eq. 59-64).
@@ -57,9 +60,10 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
   tracking::TrackerOptions tracker_options;
   tracker_options.keyframe = settings_.keyframe;
+  tracker_options.tracking = settings_.tracking;
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
-  tracker_->setSegmenter(makeSegmenter(settings_));
+  tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks));
   tracker_->setLocalMappingCallback(
       [this](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { onNewKeyFrame(kf); });
 
@@ -67,13 +71,13 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   mapper_options.local_mapping = settings_.local_mapping;
   mapper_options.imu_init = settings_.imu_init;
   mapper_options.use_imu = use_imu_;
-  mapper_options.bf_px_m = tracker_options.bf_px_m;
+  // Every RGB-D edge (tracking, local BA, fusion, loop and global BA): bf = fx * virtual baseline.
+  mapper_options.bf_px_m = calib.camera.camera.fx() * settings_.tracking.virtual_baseline_m;
   mapper_ = std::make_unique<mapping::LocalMapper>(*atlas_, mapper_options, level_sigma2, &timing_);
 
   loop::LoopCloserOptions closer_options;
   closer_options.loop = settings_.loop;
-  // The same RGB-D edge weighting as tracking and local BA: bf = fx * baseline.
-  closer_options.virtual_baseline_m = tracker_options.bf_px_m / calib.camera.camera.fx();
+  closer_options.virtual_baseline_m = settings_.tracking.virtual_baseline_m;
   loop::MappingControl mapping_control{[this] { mapper_->pause(); }, [this] { mapper_->resume(); }};
   closer_ = std::make_unique<loop::LoopCloser>(*atlas_, closer_options, std::move(mapping_control), &timing_);
 
@@ -206,6 +210,13 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
       record.T_w_c = T_w_c;
     }
     if (record.tracked) ++frames_tracked_;
+    const tracking::TrackingStats& stats = tracker_->stats();
+    if (record.tracked && stats.inertial_link != 0 && stats.inliers < settings_.tracking.min_inliers) {
+      ++frames_tracked_weak_imu_;
+    }
+    if (!record.tracked && stats.inertial_link != 0) ++frames_imu_predicted_;
+    if (stats.relocalised) ++relocalisations_;
+    if (stats.map_extended) ++maps_extended_;
     std::lock_guard<std::mutex> lock(records_mutex_);
     records_.push_back(std::move(record));
   }
@@ -326,6 +337,10 @@ SystemCounts System::counts() const {
   const std::vector<map::MapId> map_ids = atlas_->mapIds();
   counts.maps = static_cast<int>(map_ids.size());
   counts.maps_created = tracker_->numMapsCreated();
+  counts.frames_tracked_weak_imu = frames_tracked_weak_imu_;
+  counts.frames_imu_predicted = frames_imu_predicted_;
+  counts.relocalisations = relocalisations_;
+  counts.maps_extended = maps_extended_;
   counts.loops = closer_->numLoops();
   counts.merges = closer_->numMerges();
   for (const map::MapId map_id : map_ids) {
@@ -347,6 +362,7 @@ RunReport System::report(double wall_s) const {
   report.timing = timing_.stages();
   report.wall_s = wall_s;
   report.peak_memory_mb = peakMemoryMb();
+  report.oracle_masks = options_.oracle_masks;
   return report;
 }
 

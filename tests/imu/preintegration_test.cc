@@ -211,6 +211,46 @@ TEST(ImuPreintegration, MergeEqualsPreintegrationOverUnion) {
   EXPECT_LT((dp_composed - merged.deltaP()).norm(), 1e-12);
 }
 
+// Tracking appends one frame's preintegration at a time (each linearised at the bias of its day):
+// the chain equals one preintegration over all samples at the first bias, and appending an
+// interval to itself doubles it.
+TEST(ImuPreintegration, FrameByFrameAppendEqualsPreintegrationOverUnion) {
+  const AnalyticTrajectory traj;
+  const ImuBias bias{Vec3(0.01, -0.02, 0.015), Vec3(0.1, -0.05, 0.08)};
+  std::mt19937 rng(11);
+  const ImuNoise noise = testNoise();
+  const std::vector<ImuSample> grid = traj.samples(0.0, 3.0, kRateHz, bias, &noise, &rng);
+  const double t_begin = 0.1001, frame_dt = 1.0 / 30.0;
+  Preintegrated chain(bias, noise);
+  double t = t_begin;
+  for (int frame = 0; frame < 60; ++frame, t += frame_dt) {
+    ImuBias frame_bias = bias;
+    frame_bias.b_a += Vec3(1e-3 * frame, 0.0, -5e-4 * frame);  // the tracker's bias moves on
+    chain.append(preintegrate(samplesInInterval(grid, t, t + frame_dt), frame_bias));
+  }
+  std::vector<ImuSample> union_samples;
+  double t_union = t_begin;
+  for (int frame = 0; frame < 60; ++frame, t_union += frame_dt) {
+    const std::vector<ImuSample> part = samplesInInterval(grid, t_union, t_union + frame_dt);
+    union_samples.insert(union_samples.end(), part.begin() + (union_samples.empty() ? 0 : 1), part.end());
+  }
+  const Preintegrated whole = preintegrate(union_samples, bias);
+  EXPECT_EQ(chain.numSteps(), whole.numSteps());
+  EXPECT_NEAR(chain.dt_s(), whole.dt_s(), 1e-12);
+  EXPECT_LT((chain.deltaR() - whole.deltaR()).norm(), 1e-12);
+  EXPECT_LT((chain.deltaV() - whole.deltaV()).norm(), 1e-11);
+  EXPECT_LT((chain.deltaP() - whole.deltaP()).norm(), 1e-11);
+  EXPECT_LT((chain.covariance() - whole.covariance()).norm(), 1e-10 * whole.covariance().norm());
+  EXPECT_LT((chain.d_p_d_b_a() - whole.d_p_d_b_a()).norm(), 1e-11);
+  EXPECT_LT((chain.d_v_d_b_g() - whole.d_v_d_b_g()).norm(), 1e-11);
+
+  Preintegrated doubled = preintegrate(samplesInInterval(grid, 0.5, 0.6), bias);
+  const int steps = doubled.numSteps();
+  doubled.append(doubled);
+  EXPECT_EQ(doubled.numSteps(), 2 * steps);
+  EXPECT_NEAR(doubled.dt_s(), 0.2, 1e-12);
+}
+
 // The propagated covariance is exactly sum_k J_k N_k J_k^T, where J_k is the numeric Jacobian of
 // the final deltas [Log(dR0^T dR), dv, dp] w.r.t. the readings of step k and N_k the step's noise
 // covariance (checks the linearisation, independently of sampling noise).

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <opencv2/imgcodecs.hpp>
 
@@ -26,12 +27,18 @@ void readAllFrames(const std::string& dir, const SequenceReaderOptions& options 
 
 std::string sequenceDir(const TempDir& tmp) { return tmp.file("seq"); }
 
+SequenceReaderOptions withMasks() {
+  SequenceReaderOptions options;
+  options.read_masks = true;
+  return options;
+}
+
 TEST(SequenceReader, ReadsDataFormatFramesValueByValue) {
   TempDir tmp("seq_values");
   TestSequenceSpec spec;
   spec.with_masks = true;
   test::writeDataFormatSequence(sequenceDir(tmp), spec);
-  SequenceReader reader = SequenceReader::open(sequenceDir(tmp));
+  SequenceReader reader = SequenceReader::open(sequenceDir(tmp), withMasks());
   EXPECT_EQ(reader.layout(), SequenceLayout::kDataFormat);
   ASSERT_EQ(reader.frameCount(), spec.num_frames);
   EXPECT_TRUE(reader.hasImu());
@@ -271,8 +278,9 @@ TEST(SequenceReaderErrors, MismatchedImageSizes) {
   const std::string mask_1 = sequenceDir(tmp) + "/masks/" + t1 + ".png";
 
   cv::imwrite(mask_1, cv::Mat(spec.height, spec.width + 1, CV_8UC1, cv::Scalar(0)));
+  readAllFrames(sequenceDir(tmp));  // masks are not read unless asked
   LTLO_EXPECT_CONTAINS(
-      inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
+      inputErrorOf([&] { readAllFrames(sequenceDir(tmp), withMasks()); }),
       associations + ":2: " + mask_1 + ": size 17x12 differs from the colour image 16x12");
 
   cv::imwrite(depth_1, cv::Mat(spec.height - 2, spec.width, CV_16UC1, cv::Scalar(1000)));
@@ -374,8 +382,33 @@ TEST(SequenceReaderErrors, MaskWithWrongType) {
   const std::string mask_0 =
       sequenceDir(tmp) + "/masks/" + test::timeText(test::frameTime(spec, 0)) + ".png";
   cv::imwrite(mask_0, cv::Mat(spec.height, spec.width, CV_16UC1, cv::Scalar(0)));
-  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp)); }),
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp), withMasks()); }),
                        "associations.txt:1: " + mask_0 + ": expected 8-bit 1-channel mask");
+}
+
+// The estimator never sees ground truth: by default masks/ is not opened (a mask that is not even
+// a PNG goes unnoticed) and frames carry no mask.
+TEST(SequenceReader, MasksAreOnlyReadWhenAsked) {
+  TempDir tmp("seq_masks_off");
+  TestSequenceSpec spec;
+  spec.with_masks = true;
+  test::writeDataFormatSequence(sequenceDir(tmp), spec);
+  const std::string mask_0 =
+      sequenceDir(tmp) + "/masks/" + test::timeText(test::frameTime(spec, 0)) + ".png";
+  {
+    std::ofstream garbage(mask_0, std::ios::trunc);
+    garbage << "not a png";
+  }
+  SequenceReader reader = SequenceReader::open(sequenceDir(tmp));
+  int frames = 0;
+  while (std::optional<RgbdImuFrame> frame = reader.next()) {
+    EXPECT_TRUE(frame->mask.empty());
+    EXPECT_TRUE(frame->mask_path.empty());
+    EXPECT_TRUE(reader.frameFiles(frame->index).mask_path.empty());
+    ++frames;
+  }
+  EXPECT_EQ(frames, spec.num_frames);
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp), withMasks()); }), mask_0);
 }
 
 }  // namespace

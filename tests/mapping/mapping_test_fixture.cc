@@ -89,7 +89,11 @@ void MappingOnSimulatedSequence::TearDownTestSuite() {
 LocalMapperOptions MappingOnSimulatedSequence::mapperOptions(bool use_imu) {
   LocalMapperOptions options;
   options.use_imu = use_imu;
-  options.bf_px_m = trackerOptions().bf_px_m;
+  // bf = fx * virtual baseline of the 320x240 test camera, as System wires it.
+  sim::SimOptions camera;
+  camera.width_px = 320;
+  camera.height_px = 240;
+  options.bf_px_m = camera.camera().fx() * trackerOptions().tracking.virtual_baseline_m;
   options.imu_init.min_keyframes = 6;
   options.imu_init.min_time_s = 2.0;
   options.imu_refinement_delays_s = {1.5, 3.0};

@@ -301,6 +301,35 @@ TEST(OptimEdges, PriorJacobiansMatchNumeric) {
   EXPECT_LT((velocity_prior.error() - Vec3(0.5, -0.5, 0.0)).norm(), 1e-12);
 }
 
+TEST(OptimEdges, StatePriorJacobiansMatchNumericAndResidualIsThePerturbation) {
+  std::mt19937 rng(9);
+  VertexPose pose(0, randomPose(rng, 2.0, 2.0));
+  VertexVelocity velocity(1, Vec3(0.4, -0.2, 0.1));
+  VertexGyroBias gyro(2, Vec3(0.002, -0.001, 0.003));
+  VertexAccBias acc(3, Vec3(0.03, 0.02, -0.04));
+  InertialState x0;
+  x0.T_w_b = pose.estimate() * randomPose(rng, 0.3, 0.2);
+  x0.v_w_b = Vec3(0.5, -0.1, 0.0);
+  x0.bias.b_g = Vec3(0.001, 0.0, 0.002);
+  x0.bias.b_a = Vec3(0.0, 0.01, -0.02);
+  EdgeStatePrior prior;
+  prior.setVertex(0, &pose);
+  prior.setVertex(1, &velocity);
+  prior.setVertex(2, &gyro);
+  prior.setVertex(3, &acc);
+  prior.setMeasurement(x0);
+  expectAllJacobians(prior);
+  // At x0 stepped by a small delta the residual is the delta (the marginal's coordinates).
+  Vec15 delta;
+  delta << 1e-4, -2e-4, 3e-4, 2e-4, 1e-4, -1e-4, 0.01, -0.02, 0.03, 1e-4, 2e-4, -3e-4, 1e-3, -2e-3, 3e-3;
+  pose.setEstimate(pose.plus(x0.T_w_b, delta.head<6>()));
+  velocity.setEstimate(x0.v_w_b + delta.segment<3>(6));
+  gyro.setEstimate(x0.bias.b_g + delta.segment<3>(9));
+  acc.setEstimate(x0.bias.b_a + delta.segment<3>(12));
+  prior.computeError();
+  EXPECT_LT((prior.error() - delta).norm(), 1e-7);
+}
+
 TEST(OptimEdges, RelativePoseJacobiansMatchNumeric) {
   std::mt19937 rng(9);
   for (int trial = 0; trial < 5; ++trial) {

@@ -85,7 +85,7 @@ void localBundleAdjustNewest(map::Map& map, const std::shared_ptr<map::KeyFrame>
   optim::LocalBaProblem problem;
   problem.model.camera = newest->camera();
   problem.model.T_c_x = newest->T_b_c().inverse();
-  problem.model.bf_px_m = TrackerOptions().bf_px_m;
+  problem.model.bf_px_m = newest->camera().fx() * TrackerOptions().tracking.virtual_baseline_m;
   const auto keyframes = map.keyFrames();  // by id
   const int n = static_cast<int>(keyframes.size());
   std::map<std::uint64_t, std::shared_ptr<map::KeyFrame>> in_problem;

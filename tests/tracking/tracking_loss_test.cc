@@ -7,6 +7,8 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <map>
 #include <opencv2/core.hpp>
 
@@ -52,6 +54,7 @@ class TrackingLoss : public ::testing::Test {
     inputs_ = new std::vector<io::RgbdImuFrame>();
     while (auto input = reader.next()) inputs_->push_back(*input);
     ground_truth_ = new io::Trajectory(reader.groundTruth());
+    true_bias_ = new imu::ImuBias(firstTrueBias((dir / "imu_biases.txt").string()));
     fs::remove_all(dir);
   }
   /// The shipped vocabulary, loaded on first use (nullptr when not found).
@@ -63,7 +66,22 @@ class TrackingLoss : public ::testing::Test {
     }
     return vocabulary_;
   }
+  /// The simulator's true biases at the start (imu_biases.txt: t b_g b_a per line after a header).
+  static imu::ImuBias firstTrueBias(const std::string& path) {
+    std::ifstream in(path);
+    std::string line;
+    imu::ImuBias bias;
+    while (std::getline(in, line)) {
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream fields(line);
+      double t_s = 0.0;
+      fields >> t_s >> bias.b_g.x() >> bias.b_g.y() >> bias.b_g.z() >> bias.b_a.x() >> bias.b_a.y() >> bias.b_a.z();
+      break;
+    }
+    return bias;
+  }
   static void TearDownTestSuite() {
+    delete true_bias_;
     delete calib_;
     delete inputs_;
     delete ground_truth_;
@@ -104,7 +122,9 @@ class TrackingLoss : public ::testing::Test {
   static std::vector<io::RgbdImuFrame>* inputs_;
   static io::Trajectory* ground_truth_;
   static bow::Vocabulary* vocabulary_;
+  static imu::ImuBias* true_bias_;
 };
+imu::ImuBias* TrackingLoss::true_bias_ = nullptr;
 SensorCalib* TrackingLoss::calib_ = nullptr;
 std::vector<io::RgbdImuFrame>* TrackingLoss::inputs_ = nullptr;
 io::Trajectory* TrackingLoss::ground_truth_ = nullptr;
@@ -203,7 +223,7 @@ TEST_F(TrackingLossRuns, AfterBlackFramesTheConstantVelocityPredictionRecoversTh
                                    translationError_m(run->records[static_cast<std::size_t>(k)].T_w_c, groundTruth(k)));
   }
   std::printf("  predicted (untracked) poses: max error %.4f m\n", max_predicted_error);
-  EXPECT_TRUE(resumed.stats.inliers >= TrackerOptions().min_inliers);
+  EXPECT_TRUE(resumed.stats.inliers >= TrackerOptions().tracking.min_inliers);
   EXPECT_FALSE(resumed.stats.new_map);
   EXPECT_EQ(tracker.numMapsCreated(), 0);
   EXPECT_EQ(run->atlas.numMaps(), 1u);
@@ -326,11 +346,95 @@ TEST_F(TrackingLossRuns, WithTheImuBlackFramesArePredictedByPreintegration) {
   const FrameRecord& resumed = run->records[static_cast<std::size_t>(kBlackEnd)];
   std::printf("IMU blackout 1.5 s: max predicted error %.4f m; frame %d tracked %d (new map %d, %d inliers)\n",
               max_predicted_error, kBlackEnd, resumed.tracked, resumed.stats.new_map, resumed.stats.inliers);
-  // Measured 0.032 m after 1.5 s (0.26 m with the plain finite-difference velocity, velocity_gain 1).
+  // The biases stay at zero while the simulated ones are ~0.03 m/s^2 (no IMU initialisation here):
+  // measured 0.067 m after 1.5 s, i.e. 0.5 b t^2 with b ~ 0.06 m/s^2 (0.029 m at the true biases, next
+  // test; 0.26 m with the old finite-difference velocity).
   EXPECT_LT(max_predicted_error, 0.08);
   EXPECT_TRUE(resumed.tracked);
   EXPECT_FALSE(resumed.stats.new_map);
   for (int k = kBlackEnd; k < n; ++k) EXPECT_TRUE(run->records[static_cast<std::size_t>(k)].tracked) << "frame " << k;
+}
+
+// The tracker's own part of a blackout, with the IMU initialised at the simulator's true biases and
+// gravity (no IMU initialisation error): 1.5 s of IMU-only prediction after 20 frames of
+// pose-inertial tracking drifts by the accelerometer noise, sigma_a sqrt(t^3 / 3) = 0.01 * 1.06
+// ~ 1.1 cm per axis (1.8 cm in 3-D), plus the velocity error times t (mm/s) and the bias walk
+// (negligible). The propagated covariance must say so: the error within 3 of its sigmas.
+TEST_F(TrackingLossRuns, WithTheTrueBiasesTheImuPredictionErrorFollowsTheNoise) {
+  std::unique_ptr<TrackerRun> run = makeRun(false);
+  const int n = kBlackEnd + 15;
+  for (int k = 0; k < n; ++k) {
+    if (k == 10) run->tracker->setImuInitialised(*true_bias_, imu::gravityWorld());
+    io::RgbdImuFrame input = (*inputs_)[static_cast<std::size_t>(k)];
+    if (k >= kBlackBegin && k < kBlackEnd) {
+      input.color_bgr = input.color_bgr.clone();
+      input.color_bgr.setTo(cv::Scalar::all(0));
+      // A new buffer: assigning Mat::zeros would write into the shared input's own depth.
+      input.depth_m = cv::Mat(input.depth_m.size(), input.depth_m.type(), cv::Scalar(0));
+    }
+    map::Frame frame = builder_.build(input, run->tracker->bias());
+    if (k == 0) frame.setPose_T_w_c(groundTruth(0));
+    run->tracker->track(frame);
+    FrameRecord r;
+    r.index = k;
+    r.has_pose = frame.hasPose();
+    r.tracked = run->tracker->frameTracked();
+    r.T_w_c = r.has_pose ? frame.T_w_c() : SE3();
+    r.stats = run->tracker->stats();
+    run->records.push_back(r);
+  }
+  double max_predicted_error = 0.0;
+  for (int k = kBlackBegin; k < kBlackEnd; ++k) {
+    const FrameRecord& r = run->records[static_cast<std::size_t>(k)];
+    EXPECT_TRUE(r.has_pose && !r.tracked && r.stats.used_imu) << "frame " << k;
+    max_predicted_error = std::max(max_predicted_error, translationError_m(r.T_w_c, groundTruth(k)));
+  }
+  const FrameRecord& last_black = run->records[static_cast<std::size_t>(kBlackEnd - 1)];
+  const FrameRecord& resumed = run->records[static_cast<std::size_t>(kBlackEnd)];
+  std::printf("IMU blackout 1.5 s at the true biases: max predicted error %.4f m (predicted sigma %.4f m); frame %d "
+              "tracked %d (%d inliers)\n",
+              max_predicted_error, last_black.stats.predicted_position_sigma_m, kBlackEnd, resumed.tracked,
+              resumed.stats.inliers);
+  EXPECT_LT(max_predicted_error, 0.04);  // measured 0.029 m (sigma 0.018 m)
+  EXPECT_LT(max_predicted_error, 3.0 * last_black.stats.predicted_position_sigma_m);
+  EXPECT_GT(last_black.stats.predicted_position_sigma_m, 0.005);
+  EXPECT_LT(last_black.stats.predicted_position_sigma_m, 0.04);
+  EXPECT_TRUE(resumed.tracked);
+  EXPECT_FALSE(resumed.stats.new_map);
+  EXPECT_EQ(run->tracker->numMapsCreated(), 0);
+}
+
+// With the IMU, a frame far from its prediction (here the tracker is fed a frame of 1.6 s earlier,
+// ~0.8 m back along the path: a kidnap) cannot be matched in its covariance-sized windows; it is
+// relocalised against the keyframe database, with no new map, and the frames after it track on.
+TEST_F(TrackingLossRuns, WithTheImuAKidnappedFrameRelocalisesWithoutANewMap) {
+  if (vocabulary() == nullptr) GTEST_SKIP() << "needs Vocabulary/ltlo_orb_k10_L5.bin (LTLO_SOURCE_DIR)";
+  std::unique_ptr<TrackerRun> run = makeRun(true);
+  constexpr int kTracked = 60, kRevisit = 10;
+  auto stepImu = [&](int k) {
+    if (k == 10 && !run->tracker->imuInitialised()) run->tracker->setImuInitialised(*true_bias_, imu::gravityWorld());
+    return step(*run, k);
+  };
+  for (int k = 0; k < kTracked; ++k) ASSERT_TRUE(stepImu(k).tracked) << "frame " << k;
+  ASSERT_TRUE(run->tracker->imuInitialised());
+  const FrameRecord revisit = step(*run, kRevisit);
+  const double error_m = translationError_m(revisit.T_w_c, groundTruth(kRevisit));
+  std::printf("IMU kidnap to frame %d after frame %d: tracked %d relocalised %d inliers %d error %.4f m\n", kRevisit,
+              kTracked - 1, revisit.tracked, revisit.stats.relocalised, revisit.stats.inliers, error_m);
+  EXPECT_TRUE(revisit.tracked);
+  EXPECT_TRUE(revisit.stats.relocalised);
+  EXPECT_LT(error_m, 0.02);
+  // The following frames (their IMU is that of the original sequence) track in the same map.
+  double max_after_m = 0.0;
+  for (int k = kRevisit + 1; k < kRevisit + 20; ++k) {
+    const FrameRecord r = step(*run, k);
+    EXPECT_TRUE(r.tracked) << "frame " << k;
+    max_after_m = std::max(max_after_m, translationError_m(r.T_w_c, groundTruth(k)));
+  }
+  std::printf("  next 19 frames: max error %.4f m\n", max_after_m);
+  EXPECT_LT(max_after_m, 0.03);
+  EXPECT_EQ(run->tracker->numMapsCreated(), 0);
+  EXPECT_EQ(run->atlas.numMaps(), 1u);
 }
 
 TEST_F(TrackingLossRuns, FramesWithoutDepthForOneAndAHalfSecondsEachGetAPose) {

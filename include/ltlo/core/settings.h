@@ -97,6 +97,50 @@ struct KeyFrameOptions {
   static KeyFrameOptions load(const SettingsFile& file);
 };
 
+/// Tracking: the inertial pose optimisation and the loss policy (Tracking.*), and the depth model
+/// of every RGB-D reprojection edge (RGBD.VirtualBaseline).
+struct TrackingOptions {
+  /// After IMU initialisation, optimise each frame's pose, velocity and biases with the static
+  /// reprojection edges and the preintegration link to the last keyframe or the last frame, whose
+  /// marginal enters as a prior (Tracking.InertialPoseOptimisation, 0/1). 0: the IMU only predicts
+  /// the pose and seeds the search (an ablation).
+  bool inertial_pose_optimisation = true;
+  /// pose inliers a frame needs to be tracked by vision alone (no IMU, or before its
+  /// initialisation) (Tracking.MinInliers, [6, 10000])
+  int min_inliers = 30;
+  /// pose inliers a frame needs to be tracked with the inertial optimisation: its IMU prior
+  /// already fixes the pose to ~mm over a frame, the inliers only have to correct it
+  /// (Tracking.MinInliersImu, [3, 10000], at most Tracking.MinInliers)
+  int min_inliers_imu = 10;
+  /// With the inertial optimisation, an untracked frame keeps the IMU prediction; while its
+  /// position standard deviation (largest axis, m) stays below this, a frame whose static
+  /// keypoints do not match the map extends the map at the predicted pose instead of starting a
+  /// new map (Tracking.MaxImuPositionSigma, [0.001, 10])
+  double max_imu_position_sigma_m = 0.05;
+  /// Standard deviation of the map's accelerometer-bias estimate, m/s^2, which the tracker holds
+  /// fixed at each keyframe link and so leaves out of its covariance: an IMU-only stretch of t
+  /// seconds adds 0.5 sigma t^2 to the predicted position's standard deviation (search windows,
+  /// Tracking.MaxImuPositionSigma) (Tracking.AccBiasSigma, [0, 10])
+  double acc_bias_sigma_m_s2 = 0.03;
+  /// Lost for at least this long (s, since the last tracked frame): a frame with enough static
+  /// keypoints starts a new map (or, see Tracking.MaxImuPositionSigma, extends the map); a
+  /// negative value never does (Tracking.NewMapAfter, [-1, 1000])
+  double new_map_after_s = 1.0;
+  /// While lost, the IMU preintegration from the last keyframe is kept at most this long (s);
+  /// beyond, it is re-anchored on the predicted state and the next keyframe starts a new IMU chain
+  /// (Tracking.MaxLostImuInterval, [0.1, 1000])
+  double max_lost_imu_interval_s = 5.0;
+  /// Virtual stereo baseline of the RGB-D edges, m: bf = fx * b, so a keypoint with depth d and
+  /// standard deviation sigma (px) has a depth standard deviation sigma d^2 / (fx b), that of a
+  /// stereo rig of baseline b with the same disparity error. For a sensor with depth noise
+  /// sigma_d = k d^2 at 1 px: b = 1 / (fx k); reading the depth at the rounded keypoint pixel on a
+  /// surface slanted by theta adds b_slope = 1 / tan(theta), 1/b^2 = 1/b_sensor^2 + 1/b_slope^2
+  /// (RGBD.VirtualBaseline, [0.001, 100]; 0.5 for a Kinect-class sensor: config_yaml/*.yaml)
+  double virtual_baseline_m = 0.5;
+
+  static TrackingOptions load(const SettingsFile& file);
+};
+
 /// Robust visual-inertial BA over a sliding window (thesis Eq. 50-58) and map maintenance.
 struct LocalMappingOptions {
   /// keyframes optimised (their covisible neighbours held fixed) (LocalMapping.WindowSize, [2,
@@ -186,6 +230,7 @@ struct Settings {
   OrbOptions orb;
   SegmentationOptions segmentation;
   KeyFrameOptions keyframe;
+  TrackingOptions tracking;
   LocalMappingOptions local_mapping;
   LoopOptions loop;
   DenseOptions dense;

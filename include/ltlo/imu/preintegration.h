@@ -40,8 +40,10 @@ class Preintegrated {
 
   /// Integrates all stored steps again with a new linearisation bias (exact, resets the Jacobians).
   void reintegrate(const ImuBias& new_bias);
-  /// Appends `next` (the interval that starts where this one ends) and re-integrates the union at
-  /// this preintegration's bias: the result equals a preintegration over the union of the samples.
+  /// Appends `next` (the interval that starts where this one ends): its raw steps are integrated
+  /// on at this preintegration's bias, so the result equals a preintegration over the union of the
+  /// samples (whatever bias `next` was linearised at). Costs O(next.numSteps()), independent of the
+  /// interval already held.
   void append(const Preintegrated& next);
   /// Merge of two consecutive preintegrations (keyframe culling); `first`'s bias is kept.
   static Preintegrated merged(const Preintegrated& first, const Preintegrated& second);

@@ -11,16 +11,18 @@ namespace ltlo::io {
 /// Ordered list of named values; keys keep insertion order, adding a key twice replaces it.
 class Metrics {
  public:
-  using Value = std::variant<int64_t, double, std::string>;
+  using Value = std::variant<int64_t, double, std::string, bool>;
 
   void set(const std::string& name, double value);
   void set(const std::string& name, int64_t value);
   void set(const std::string& name, int value) { set(name, static_cast<int64_t>(value)); }
   void set(const std::string& name, const std::string& value);
   void set(const std::string& name, const char* value) { set(name, std::string(value)); }
+  /// A yes/no value: JSON true/false, text "true"/"false", number() 1/0.
+  void setFlag(const std::string& name, bool value);
 
   bool has(const std::string& name) const;
-  /// The value as a number (throws std::out_of_range when absent or a string).
+  /// The value as a number, a flag as 1/0 (throws std::out_of_range when absent or a string).
   double number(const std::string& name) const;
   const std::vector<std::pair<std::string, Value>>& entries() const { return entries_; }
 

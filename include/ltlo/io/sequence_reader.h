@@ -24,8 +24,9 @@ struct RgbdImuFrame {
   cv::Mat depth_m;         ///< CV_32F metres, 0 = no reading (png value / DepthMapFactor)
   std::string color_path;
   std::string depth_path;
-  std::string mask_path;  ///< ground-truth mask file (masks/), empty when absent
-  cv::Mat mask;           ///< CV_8UC1, 255 = dynamic, 0 = static; empty when absent
+  std::string mask_path;  ///< ground-truth mask file (masks/), empty when absent or not read
+  cv::Mat mask;           ///< CV_8UC1, 255 = dynamic, 0 = static; empty when absent or not read
+                          ///< (SequenceReaderOptions::read_masks)
   /// Samples in [t of the previous frame, t_s] with interpolated samples at both ends (the
   /// boundary sample is shared by consecutive frames). The first frame holds the single sample
   /// at t_s. Empty without IMU or where the IMU stream does not reach.
@@ -61,6 +62,9 @@ struct SequenceReaderOptions {
   std::optional<SensorCalib> calib_override;
   double max_rgb_depth_dt_s = 0.02;  ///< association tolerance without associations.txt
   double max_mask_dt_s = 1e-4;       ///< mask file name vs frame timestamp tolerance
+  /// Attach and decode the ground-truth masks (masks/): only for diagnostics (the --oracle-masks
+  /// ablation, evaluation, tests). Off, masks/ is never opened and frames carry no mask.
+  bool read_masks = false;
 };
 
 /// Not thread-safe: one consumer calls next().

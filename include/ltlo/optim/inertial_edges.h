@@ -66,6 +66,26 @@ class EdgeBiasWalk final
   void linearizeOplus() override;
 };
 
+/// The state of one frame in tracking: body pose, velocity and biases.
+struct InertialState {
+  SE3 T_w_b;
+  Vec3 v_w_b = Vec3::Zero();  ///< m/s
+  imu::ImuBias bias;
+};
+
+/// Gaussian prior on a whole state (the marginalised previous frame of tracking), measurement
+/// x_0 = (T_w_b0, v_0, b_g0, b_a0):
+///   r = [Log(R_0^T R); R_0^T (p - p_0); v - v_0; b_g - b_g0; b_a - b_a0],
+/// which is the vertex perturbation [dphi; drho; dv; db_g; db_a] at x_0 to first order, so the
+/// 15x15 information of a marginal over (VertexPose, VertexVelocity, VertexGyroBias,
+/// VertexAccBias) is used as it is. Vertices: 0 pose, 1 v, 2 b_g, 3 b_a.
+class EdgeStatePrior final : public sparse_opt::BaseEdge<15, InertialState, VertexPose, VertexVelocity,
+                                                         VertexGyroBias, VertexAccBias> {
+ public:
+  void computeError() override;
+  void linearizeOplus() override;
+};
+
 /// Prior r = x - measurement on an R^3 vertex (velocity, bias, point).
 template <typename Vertex>
 class EdgeVec3Prior final : public sparse_opt::BaseEdge<3, Vec3, Vertex> {

@@ -12,6 +12,7 @@
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/imu/preintegration.h"
+#include "ltlo/optim/inertial_edges.h"
 #include "ltlo/optim/reprojection_edges.h"
 
 namespace ltlo::optim {
@@ -25,15 +26,14 @@ struct PoseObservation {
   double static_weight = 1.0;  ///< beta * gamma (thesis Eq. 53), 1 for a static point
 };
 
-/// Gaussian prior on the previous frame's state from its own (marginalised) optimisation, as a
-/// block-diagonal information in the vertex perturbations of vertices.h. With it the previous state
-/// is optimised together with the current one instead of held fixed (ORB-SLAM3's tracking against
-/// the last frame).
+/// Gaussian prior on the previous frame's state from its own optimisation (ORB-SLAM3's tracking
+/// against the last frame): the marginal information of [dphi; drho; dv; db_g; db_a] (the
+/// perturbations of VertexPose, VertexVelocity, VertexGyroBias, VertexAccBias, in that order) at
+/// the InertialLink's previous state, e.g. PoseOnlyResult::state_information of the previous
+/// frame or predictedStateInformation() of a predicted one. With it the previous state is
+/// optimised together with the current one instead of held fixed.
 struct PreviousStatePrior {
-  Mat6 pose_information = Mat6::Identity();      ///< [dphi; drho] of T_w_b_prev
-  Mat3 velocity_information = Mat3::Identity();  ///< (m/s)^-2
-  Mat3 gyro_bias_information = Mat3::Identity(); ///< (rad/s)^-2
-  Mat3 acc_bias_information = Mat3::Identity();  ///< (m/s^2)^-2
+  Mat15 information = Mat15::Identity();
 };
 
 /// The previous frame's state and the IMU preintegrated from it to the current frame. The previous
@@ -46,6 +46,9 @@ struct InertialLink {
   Vec3 g_w = imu::gravityWorld();
   double lambda_imu = 1.0;  ///< weight of the bias random walk (thesis Eq. 58)
   std::optional<PreviousStatePrior> prev_prior;  ///< absent: previous state fixed
+  /// With the previous state fixed (no prior): leave its velocity free, without a prior (a keyframe
+  /// whose velocity is not known yet: the inertial edge then estimates it from the two poses).
+  bool prev_velocity_free = false;
 };
 
 struct PoseOnlyProblem {
@@ -67,10 +70,15 @@ struct PoseOnlyOptions {
 
 struct PoseOnlyResult {
   SE3 T_w_b;
-  /// Current-frame information of [dphi; drho] (VertexPose) from the last round's inliers, e.g.
-  /// the prior of the next pose-only problem (PreviousStatePrior::pose_information). Zero when the pose
-  /// is not constrained (too few inliers without IMU).
+  /// Marginal information of the current pose [dphi; drho] (VertexPose) from the last round's
+  /// inliers (and, with the IMU, everything else marginalised out). Zero when the pose is not
+  /// constrained (too few inliers without IMU).
   Mat6 pose_information = Mat6::Zero();
+  /// With the IMU: marginal information of the whole current state [dphi; drho; dv; db_g; db_a]
+  /// at the result, the previous state marginalised out (the Schur complement of the final
+  /// Hessian of the inlier, inertial, bias-walk and prior edges): the PreviousStatePrior of the
+  /// next frame's problem. Zero without the IMU.
+  Mat15 state_information = Mat15::Zero();
   Vec3 v_w_b = Vec3::Zero();
   imu::ImuBias bias;
   std::vector<bool> inliers;  ///< per observation, in input order
@@ -82,5 +90,18 @@ struct PoseOnlyResult {
 /// (observation information, without the static weight) exceeds the threshold of its dimension or
 /// its point is behind the camera; outliers are left out of the next round but re-tested after it.
 PoseOnlyResult optimizePose(const PoseOnlyProblem& problem, const PoseOnlyOptions& options = PoseOnlyOptions());
+
+/// Information of a current state predicted through `link` alone (no observations): the previous
+/// state's prior (or the previous state held fixed) pushed through the inertial and bias-walk
+/// edges and marginalised, linearised at `current` (normally imu::predict of the previous state,
+/// where the inertial residual vanishes). The inverse covariance of an IMU-only prediction, e.g.
+/// of a frame while tracking is lost; equal to optimizePose's state_information with no
+/// observations.
+Mat15 predictedStateInformation(const InertialLink& link, const InertialState& current);
+
+/// Marginal information of the first `keep` coordinates of an information matrix (Schur
+/// complement of the others): e.g. the pose block of a state information. The marginalised block
+/// must be positive definite; a symmetric result.
+MatX marginalInformation(const MatX& information, int keep);
 
 }  // namespace ltlo::optim

@@ -41,6 +41,12 @@ struct SystemCounts {
   int frames_tracked = 0;     ///< frames tracked against the map
   int maps = 0;               ///< maps of the Atlas holding content (Atlas::numMaps)
   int maps_created = 0;       ///< maps started after tracking loss
+  /// frames tracked with fewer than Tracking.MinInliers pose inliers, carried by the inertial
+  /// optimisation (Tracking.MinInliersImu)
+  int frames_tracked_weak_imu = 0;
+  int frames_imu_predicted = 0;  ///< untracked frames that got the IMU-only prediction
+  int relocalisations = 0;       ///< frames relocalised against the keyframe database
+  int maps_extended = 0;         ///< keyframes placed at the IMU prediction while lost
   int loops = 0;              ///< same-map loops corrected
   int merges = 0;             ///< maps merged
   int keyframes = 0;          ///< keyframes of all maps
@@ -58,6 +64,8 @@ struct RunReport {
   double wall_s = 0.0;          ///< whole run (reading + SLAM), s
   double peak_memory_mb = 0.0;  ///< peak resident set size, MB
   bool interrupted = false;     ///< stopped early (signal or error)
+  /// the --oracle-masks ablation: ground-truth masks replaced the segmentation (diagnostic run)
+  bool oracle_masks = false;
 };
 
 /// Peak resident set size of this process so far, MB (getrusage ru_maxrss).

@@ -76,6 +76,10 @@ struct SystemOptions {
   /// false: local mapping and loop closing run synchronously inside trackFrame after each keyframe
   /// (deterministic, for tests); true: each in its own thread.
   bool threaded = true;
+  /// The --oracle-masks ablation (diagnostic only): every frame's ground-truth mask
+  /// (io::RgbdImuFrame::mask, read with SequenceReaderOptions::read_masks) replaces the
+  /// segmentation (tracking::OracleMaskSegmenter); the run's metrics record it.
+  bool oracle_masks = false;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
@@ -160,6 +164,11 @@ class System {
   std::uint64_t imu_generation_ = 0;
   int frames_ = 0;
   int frames_tracked_ = 0;
+  // Outcomes of the loss policy (tracking thread): see SystemCounts.
+  int frames_tracked_weak_imu_ = 0;
+  int frames_imu_predicted_ = 0;
+  int relocalisations_ = 0;
+  int maps_extended_ = 0;
 
   mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;

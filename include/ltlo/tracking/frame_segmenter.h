@@ -17,6 +17,7 @@
 /// behaviour) and ClusterOnlySegmenter (Seg.DenseInit = 0: depth clusters, every gamma 1) below;
 /// the dense segmenter of thesis Eq. 59-64 and the --oracle-masks ablation elsewhere.
 #include <memory>
+#include <optional>
 
 #include "ltlo/core/calib.h"
 #include "ltlo/core/lie.h"
@@ -50,6 +51,10 @@ struct MotionPrior {
   SE3 T_w_b_prev;
   Vec3 v_w_b_prev = Vec3::Zero();
   imu::ImuBias bias_prev;
+  /// Marginal information of the previous state [dphi; drho; dv; db_g; db_a] (the perturbations of
+  /// optim/vertices.h) from tracking's pose-inertial optimisation or IMU prediction; absent when
+  /// tracking has none (vision only, before the IMU is initialised).
+  std::optional<Mat15> prev_information;
   /// The predicted state of the current frame (what the tracker would use without segmentation).
   SE3 T_w_b_pred;
   Vec3 v_w_b_pred = Vec3::Zero();

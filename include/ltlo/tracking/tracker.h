@@ -11,12 +11,26 @@
 /// from its reference keyframe (latestPose_T_w_b(ref) * T_refb_c), so corrections and merges do
 /// not break tracking; the constant-velocity model is relative and stays valid.
 ///
-/// Loss policy: a frame with fewer than min_inliers pose inliers is not tracked (kLost) and gets the
-/// predicted pose (IMU once initialised, else constant velocity for up to max_prediction_s after the
-/// last tracked frame, then the last pose held). While lost, every frame first tries the motion
-/// model (doubled windows), then relocalisation in the active map (with a vocabulary). Lost for
-/// new_map_after_s and the frame can start a map: Atlas::createNewMap() and a new map is
-/// initialised at the frame's predicted pose (same world frame; the old map is kept for merging).
+/// With the IMU initialised (and TrackingOptions::inertial_pose_optimisation), every frame's state
+/// (pose, velocity, biases) is optimised with its static-weighted reprojection edges and the
+/// preintegration link either to the last keyframe, whose state is held fixed (right after a
+/// keyframe, a map change, a relocalisation or an IMU (re)initialisation, or when local mapping
+/// changed the keyframe), or to the last frame, whose state enters with the marginal information of
+/// its own optimisation (ORB-SLAM3's PoseInertialOptimizationLastFrame; an information filter over
+/// frames). Velocities then come from this optimisation and from VI local BA, never from pose
+/// differences. The predicted state carries its propagated information too: its standard
+/// deviations widen the search windows after a gap.
+///
+/// Loss policy: a frame with fewer pose inliers than needed (Tracking.MinInliers by vision,
+/// Tracking.MinInliersImu with the inertial optimisation) is not tracked (kLost) and gets the
+/// predicted state (with the IMU: the IMU-only prediction and its propagated information; else the
+/// constant-velocity model for up to max_prediction_s after the last tracked frame, then the last
+/// pose held). While lost, every frame first tries the motion model (doubled windows), then
+/// relocalisation in the active map (with a vocabulary). Lost for new_map_after_s and the frame has
+/// enough static keypoints: with the IMU and the predicted position still within
+/// Tracking.MaxImuPositionSigma, a keyframe extends the active map at the predicted pose (the IMU
+/// chain continues); otherwise Atlas::createNewMap() and a new map is initialised at the frame's
+/// predicted pose (same world frame; the old map is kept for merging).
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -31,6 +45,7 @@
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
+#include "ltlo/optim/pose_only_problem.h"
 #include "ltlo/tracking/frame_segmenter.h"
 #include "ltlo/tracking/relocaliser.h"
 
@@ -47,10 +62,11 @@ const char* trackingStateName(TrackingState state);
 
 struct TrackerOptions {
   KeyFrameOptions keyframe;  ///< overlap / weak-tracking / interval decision (core settings)
+  /// inertial pose optimisation, inlier thresholds, new-map policy, IMU re-anchoring, virtual
+  /// baseline of the RGB-D edges (core settings, Tracking.* / RGBD.*)
+  TrackingOptions tracking;
   /// static keypoints with depth needed by the first frame to start a map
   int min_init_features = 100;
-  /// tracking is lost below this many pose inliers after the local-map step
-  int min_inliers = 30;
   /// fewest frames between keyframes (0: a keyframe may follow the previous one directly)
   int min_frames_between_keyframes = 0;
   /// new map points: all unmatched static keypoints closer than this (m), else the closest
@@ -63,33 +79,23 @@ struct TrackerOptions {
   double last_frame_radius_px = 15.0;
   /// half window of the local-map search, level-0 px (times the predicted scale)
   double local_map_radius_px = 3.0;
+  /// With the IMU, a search window is at least this many standard deviations of the predicted
+  /// reprojection (from the predicted state's covariance), up to max_search_radius_px.
+  double search_sigmas = 3.0;
+  double max_search_radius_px = 80.0;
   /// ratio test of the local-map search (best vs second best on the same level)
   double local_map_ratio = 0.8;
   /// local keyframes at most
   int max_local_keyframes = 60;
-  /// bf = fx * virtual baseline (px m) for the RGB-D edges of the pose optimisation
-  double bf_px_m = 40.0;
-  /// After setImuInitialised(): also optimise the pose with the inertial link to the last frame
-  /// (held fixed). Off by default: the last frame's velocity is then a finite difference of
-  /// vision-only poses (5-10 mm jitter per frame at 30 fps, i.e. 0.1-0.3 m/s of velocity noise), and
-  /// the tight 33 ms preintegration pins the pose to it; on the noise-free simulated sequence this
-  /// drifted to 0.24 m ATE. It needs velocities from VI bundle adjustment (mapping) or a prior on the
-  /// previous state. Off, the IMU predicts the pose and seeds the search only.
-  bool inertial_pose_optimisation = false;
-  /// Without inertial_pose_optimisation, an IMU-predicted frame's velocity is the predicted one
-  /// corrected by this share of (finite difference of the optimised positions - predicted): a
-  /// complementary filter (1: the plain finite difference). It sets the velocity the IMU
-  /// prediction starts from, e.g. over a blackout.
+  /// Without the inertial optimisation (the ablation), an IMU-predicted frame's velocity is the
+  /// predicted one corrected by this share of (finite difference of the optimised positions -
+  /// predicted): a complementary filter (1: the plain finite difference). Unused with it.
   double velocity_gain = 0.1;
 
   // ---- tracking loss ----
-  /// While lost, the constant-velocity model keeps predicting for this long after the last tracked
-  /// frame (s); later frames hold the last predicted pose.
+  /// While lost without the IMU, the constant-velocity model keeps predicting for this long after
+  /// the last tracked frame (s); later frames hold the last predicted pose.
   double max_prediction_s = 1.0;
-  /// Lost for at least this long (s, since the last tracked frame) and the frame has
-  /// min_init_features static keypoints with depth: a new map is started at the predicted pose.
-  /// A negative value never starts a new map.
-  double new_map_after_s = 1.0;
   /// Relocalisation is accepted with at least this many pose inliers after the local-map search.
   int min_relocalisation_inliers = 50;
   RelocalisationOptions relocalisation;
@@ -107,6 +113,13 @@ struct TrackingStats {
   bool imu_from_keyframe = false;
   bool relocalised = false;    ///< the frame was relocalised (BoW + RANSAC)
   bool new_map = false;        ///< the frame started a new map
+  /// the frame extended the active map at its IMU-predicted pose (lost, Tracking.MaxImuPositionSigma)
+  bool map_extended = false;
+  /// the inertial optimisation's link: 0 none (vision only), 1 the last keyframe, 2 the last frame
+  int inertial_link = 0;
+  /// standard deviations of the predicted state (largest axis; 0 without the IMU's information)
+  double predicted_position_sigma_m = 0.0;
+  double predicted_rotation_sigma_rad = 0.0;
   bool map_refreshed = false;  ///< the last frame's pose was re-derived (map version / active map)
 };
 
@@ -162,7 +175,12 @@ class Tracker {
   /// called again with refined values (they replace the old ones).
   void setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w);
   bool imuInitialised() const { return imu_initialised_; }
+  /// The bias new frames are preintegrated at: the last optimised frame's (inertial optimisation),
+  /// else the IMU initialisation's or the last keyframe's.
   const imu::ImuBias& bias() const { return bias_; }
+  /// Marginal information of the last frame's state [dphi; drho; dv; db_g; db_a] (inertial
+  /// optimisation or IMU-only prediction); nullopt when it has none (vision only, before the IMU).
+  std::optional<Mat15> stateInformation() const;
 
   /// Keyframes created by this tracker (all maps).
   int numKeyFrames() const { return num_keyframes_; }
@@ -177,11 +195,29 @@ class Tracker {
   void forceLost();
 
  private:
+  /// What the IMU tells about the current frame before matching (tracker_inertial.cc).
+  struct ImuPrediction {
+    bool valid = false;  ///< the IMU predicted the state
+    optim::InertialState state;
+    /// The inertial optimisation's link (absent: the IMU only predicts, or no usable link).
+    std::optional<optim::InertialLink> link;
+    int link_kind = 0;  ///< TrackingStats::inertial_link
+    /// Information of the predicted state (valid with a link).
+    Mat15 information = Mat15::Zero();
+  };
+  /// A frame's optimised (or predicted) state and its marginal information.
+  struct StateInformation {
+    bool valid = false;
+    Mat15 information = Mat15::Zero();
+  };
+
   TrackingState initialise(map::Frame& frame);
   /// Re-derives the last frame's pose from its reference keyframe after a map change.
   void refreshAfterMapChange(map::Map& map);
-  /// Predicted body pose of `frame` (sets its velocity and bias with the IMU).
+  /// Predicted body pose of `frame` (sets its velocity and bias with the IMU; fills imu_prediction_).
   SE3 predictPose_T_w_b(map::Frame& frame);
+  /// IMU prediction and inertial link from the last keyframe or the last frame (tracker_inertial.cc).
+  ImuPrediction predictWithImu(const map::Frame& frame);
   /// The motion prior of the segmentation step for `frame` predicted at T_w_b_pred.
   MotionPrior motionPrior(const map::Frame& frame, const SE3& T_w_b_pred) const;
   /// Runs the segmentation step (no-op without a segmenter); returns the refined state if any.
@@ -190,12 +226,27 @@ class Tracker {
   int trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred);
   /// Relocalisation in the active map; returns pose inliers (0 when not relocalised).
   int relocalise(map::Frame& frame);
+  /// Lost frame: the predicted state, then a new map or a keyframe at the prediction when due.
+  void handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Vec3& v_w_b_pred);
   /// Bookkeeping of a frame that leaves track() with a pose (tracked or predicted).
   void recordFramePose(const map::Frame& frame);
   int matchLastFrame(map::Frame& frame, double radius_scale);
   int searchLocalMap(map::Frame& frame);
-  /// Pose-only optimisation over frame.map_points; marks outliers; returns inliers.
-  int optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_outliers);
+  /// Search half window (px) for a point predicted at depth_m: base_px, widened to search_sigmas
+  /// standard deviations of the predicted reprojection (IMU prediction after a gap).
+  float searchRadius(float base_px, double depth_m, double fx_px) const;
+  /// Pose-only optimisation over frame.map_points, with the inertial link when given (the
+  /// pose-inertial optimisation); marks outliers; returns inliers. Sets the frame's state and
+  /// frame_information_.
+  int optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_outliers,
+                   const optim::InertialLink* link = nullptr);
+  /// The link of the inertial optimisation (nullptr: vision only).
+  const optim::InertialLink* inertialLink() const;
+  /// Inlier threshold of the current frame (with or without the inertial optimisation).
+  int minInliers() const;
+  /// The frame's static keypoints that match nothing become map points of a keyframe at its
+  /// (IMU-predicted) pose in the active map; the IMU chain continues.
+  void extendMapAtPrediction(map::Frame& frame);
   void updateLocalMap(const map::Frame& frame);
   int addNewMapPoints(map::KeyFrame& kf, map::Frame& frame);
 
@@ -245,7 +296,25 @@ class Tracker {
   bool imu_initialised_ = false;
   imu::ImuBias bias_;
   Vec3 g_w_ = Vec3(0.0, 0.0, -9.81);
-  std::optional<imu::Preintegrated> imu_since_keyframe_;
+  /// IMU since the last keyframe (appended in place, O(1) per frame; shared with the inertial
+  /// optimisation's keyframe link while it runs).
+  std::shared_ptr<imu::Preintegrated> imu_since_keyframe_;
+  /// The preintegration since the last keyframe was re-anchored while lost: the next keyframe
+  /// starts a new IMU chain.
+  bool imu_chain_broken_ = false;
+
+  // ---- inertial optimisation (tracker_inertial.cc) ----
+  /// The next frame links to the last keyframe (state fixed) instead of the last frame.
+  bool link_to_keyframe_ = true;
+  /// The last keyframe's velocity and biases are inertial estimates (else the keyframe link leaves
+  /// its velocity free and uses the tracker's bias).
+  bool last_kf_inertial_ = false;
+  ImuPrediction imu_prediction_;
+  /// The current frame's state information (set by optimisePose and the lost path).
+  StateInformation frame_information_;
+  /// The previous frame's (the link's "last frame").
+  StateInformation prev_information_;
+  imu::ImuBias prev_bias_;
 };
 
 }  // namespace ltlo::tracking
