@@ -101,8 +101,10 @@ void visitImuInit(O& o, V& v) {
   v.real("ImuInit.MinTime", o.min_time_s, 0.1, 100.0);
   v.integer("ImuInit.MinKeyFrames", o.min_keyframes, 3, 1000);
   v.integer("ImuInit.Iterations", o.iterations, 1, 1000);
-  v.real("ImuInit.PriorGyroBias", o.prior_gyro_bias, 0.0, 1e12);
-  v.real("ImuInit.PriorAccBias", o.prior_acc_bias, 0.0, 1e12);
+  v.real("ImuInit.BiasPriorSamples", o.bias_prior_samples, 0.0, 1e6);
+  v.boolean("ImuInit.VisualInertialRefinement", o.visual_inertial_refinement);
+  v.integer("ImuInit.RefineIterations", o.refine_iterations, 1, 1000);
+  v.integer("ImuInit.RefineMaxKeyFrames", o.refine_max_keyframes, 3, 10000);
 }
 
 std::string numberText(double value) {

@@ -1,6 +1,7 @@
 #pragma once
-/// Window problems on plain inputs (namespace ltlo::optim): local visual(-inertial) bundle adjustment
-/// and inertial-only IMU initialisation. Inputs are ids + Eigen values so optim does not depend on
+/// Window problems on plain inputs (namespace ltlo::optim): local and full visual(-inertial) bundle
+/// adjustment (with the gravity direction as an unknown for the IMU-initialisation refinement) and
+/// inertial-only IMU initialisation. Inputs are ids + Eigen values so optim does not depend on
 /// map/; the caller copies states in and writes results back under its own locks.
 #include <atomic>
 #include <memory>
@@ -23,6 +24,9 @@ struct BaKeyFrame {
   Vec3 v_w_b = Vec3::Zero();  ///< used when the keyframe has an inertial link
   imu::ImuBias bias;          ///< used when the keyframe has an inertial link
   bool fixed = false;         ///< in the problem as a constraint only (gauge, window border)
+  /// With `fixed`: only the pose is held (the gauge of a full visual-inertial BA); the velocity and
+  /// biases are optimised.
+  bool fixed_pose_only = false;
 };
 
 struct BaPoint {
@@ -46,14 +50,27 @@ struct BaInertialLink {
   std::shared_ptr<const imu::Preintegrated> pim;
 };
 
+/// Prior r = b - mean on the biases of one keyframe with an inertial link (per-axis information).
+struct BaBiasPrior {
+  int keyframe_id = 0;
+  imu::ImuBias mean;
+  double gyro_information = 0.0;  ///< 1/(rad/s)^2
+  double acc_information = 0.0;   ///< 1/(m/s^2)^2
+};
+
 struct LocalBaProblem {
   ProjectionModel model;  ///< T_c_x = T_c_b
   std::vector<BaKeyFrame> keyframes;
   std::vector<BaPoint> points;
   std::vector<BaObservation> observations;
   std::vector<BaInertialLink> inertial;  ///< empty: visual-only BA
+  /// Gravity in w (m/s^2); with estimate_gravity, the start of its direction (magnitude kept).
   Vec3 g_w = imu::gravityWorld();
+  /// Optimise the gravity direction (2 DoF, EdgeInertialGravity) with the states: the visual-inertial
+  /// refinement of the IMU initialisation. Needs inertial links.
+  bool estimate_gravity = false;
   double lambda_imu = 1.0;  ///< bias random-walk weight (thesis Eq. 58)
+  std::vector<BaBiasPrior> bias_priors;  ///< keyframes must have an inertial link
 };
 
 struct LocalBaOptions {
@@ -74,11 +91,26 @@ struct LocalBaResult {
   /// Per observation r^T Omega_obs r at the result, without the static weight: the |r|^2 of the
   /// thesis' Eq. 53 (staticWeightedCost) for the closed-form weight updates.
   std::vector<double> residual_chi2;
+  Vec3 g_w = Vec3::Zero();            ///< problem.g_w, or the optimised one with estimate_gravity
   sparse_opt::Summary summary;        ///< of the last pass
+  double initial_chi2 = 0.0;          ///< of the first pass (robust), before any step
 };
 
 /// Throws LTLO assertion errors on unknown ids; observations of points/keyframes not given are bugs.
 LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOptions& options = LocalBaOptions());
+
+/// Per-axis information of the zero-mean bias priors of the IMU initialisation and its refinement:
+/// the evidence of `samples` IMU readings that the bias is zero, widened by the bias random walk
+/// over the window,
+///   sigma^2 = sigma_sample^2 / samples + sigma_walk^2 window_s,
+///   sigma_sample^2 = density^2 / nominal_dt_s (ImuNoise: one reading's discrete variance),
+/// so the prior only holds what the window cannot tell (e.g. a horizontal b_a against a tilt of
+/// gravity when the body does not turn) and never pins an observable bias. samples = 0: no prior.
+struct BiasPriorInformation {
+  double gyro = 0.0;  ///< 1/(rad/s)^2
+  double acc = 0.0;   ///< 1/(m/s^2)^2
+};
+BiasPriorInformation biasPriorInformation(const imu::ImuNoise& noise, double window_s, double samples);
 
 /// Inertial-only initialisation with known (fixed) keyframe poses: velocities, one bias pair for the
 /// window and the gravity direction R_w_g (g_w = R_w_g (0, 0, -G)); scale is known (RGB-D).
@@ -88,7 +120,7 @@ struct ImuInitProblem {
   std::vector<std::shared_ptr<const imu::Preintegrated>> pims;
   imu::ImuBias bias_init;
   double gravity_m_s2 = imu::kGravity_m_s2;
-  /// Information of zero-mean priors on the biases (keeps them bounded on short windows).
+  /// Per-axis information of zero-mean priors on the biases (biasPriorInformation).
   double gyro_bias_prior_information = 1e2;
   double acc_bias_prior_information = 1e2;
   int iterations = 20;
