@@ -65,6 +65,7 @@ void visitLocalMapping(O& o, V& v) {
   v.real("LocalMapping.DynamicCost", o.dynamic_cost, 0.01, 1000.0);
   v.real("LocalMapping.LambdaImu", o.lambda_imu, 0.0, 1e6);
   v.real("LocalMapping.MinPointBeta", o.min_point_beta, 0.0, 1.0);
+  v.boolean("LocalMapping.VisualVarianceEstimation", o.visual_variance_estimation);
   v.real("LocalMapping.RedundantRatio", o.redundant_ratio, 0.5, 1.0);
 }
 

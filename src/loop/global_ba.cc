@@ -26,6 +26,7 @@ GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const Globa
   build.min_point_beta = options.min_point_beta;
   build.g_w = options.g_w;
   build.lambda_imu = options.lambda_imu;
+  build.visual_variance_estimation = options.visual_variance_estimation;
   const MapBaProblem built = buildMapBa(map, selection, build);
   solution.keyframes = built.keyframes;
   solution.points = built.points;

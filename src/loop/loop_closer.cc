@@ -243,6 +243,7 @@ bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::M
   merge_options.bf_px_m = kf->camera().K()(0, 0) * options.virtual_baseline_m;
   merge_options.min_point_beta = options.min_point_beta;
   merge_options.lambda_imu = options.lambda_imu;
+  merge_options.visual_variance_estimation = options.visual_variance_estimation;
   {
     MappingPause pause(mapping);
     if (kf->isBad() || accepted->isBad()) return false;
@@ -297,6 +298,7 @@ void LoopCloser::Impl::globalBa(map::Map& map, const std::optional<Vec3>& g_w) {
     ba_options.min_point_beta = options.min_point_beta;
     ba_options.g_w = g_w;
     ba_options.lambda_imu = options.lambda_imu;
+    ba_options.visual_variance_estimation = options.visual_variance_estimation;
     ba_options.stop_flag = &ba_stop;
     const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map, ba_options);
     if (solution.valid && !ba_stop.load()) {

@@ -136,6 +136,9 @@ MapBaProblem buildMapBa(const map::Map& map, const MapBaSelection& selection, co
     out.points.push_back(point);
     problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
   }
+  if (options.g_w && options.visual_variance_estimation && !problem.inertial.empty()) {
+    problem.visual_information_scale = optim::visualInformationScale(problem);
+  }
   return out;
 }
 

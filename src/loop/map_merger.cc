@@ -59,6 +59,7 @@ WeldingResult weldingBundleAdjust(map::Map& map, const map::KeyFrame& current, c
   build.min_point_beta = merge.min_point_beta;
   build.g_w = merge.g_w;
   build.lambda_imu = merge.lambda_imu;
+  build.visual_variance_estimation = merge.visual_variance_estimation;
   build.max_fixed_observers = merge.welding_fixed_observers;
   const MapBaProblem built = buildMapBa(map, selection, build);
   result.optimised_keyframes = built.optimised_keyframes;

@@ -191,6 +191,8 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
     problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
   }
 
+  if (context.visual_variance_estimation) problem.visual_information_scale = optim::visualInformationScale(problem);
+
   optim::LocalBaOptions ba_options;
   ba_options.iterations = options.refine_iterations;
   ba_options.num_threads = context.num_threads;
@@ -200,6 +202,7 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
     for (const Entry& e : entries) (e.fixed ? stats->fixed_keyframes : stats->optimised_keyframes)++;
     stats->points = static_cast<int>(points.size());
     stats->observations = static_cast<int>(problem.observations.size());
+    stats->visual_sigma_scale = 1.0 / std::sqrt(problem.visual_information_scale);
     stats->initial_chi2 = result.initial_chi2;
     stats->final_chi2 = result.summary.final_chi2;
   }
@@ -259,7 +262,8 @@ std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain,
     const std::optional<ImuInitEstimate> refined =
         refineImuWithVisualInertialBa(map, chain, g_w, options, context, &stats);
     log::info("IMU visual-inertial BA at kf ", newest, ": ", stats.optimised_keyframes, " keyframes optimised, ",
-              stats.fixed_keyframes, " held, ", stats.points, " points, ", stats.observations, " observations, chi2 ",
+              stats.fixed_keyframes, " held, ", stats.points, " points, ", stats.observations,
+              " observations (camera noise ", stats.visual_sigma_scale, " x the model), chi2 ",
               stats.initial_chi2, " -> ", stats.final_chi2, (refined ? "" : " (not finite, not applied)"));
     return refined;
   };

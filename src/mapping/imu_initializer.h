@@ -46,6 +46,7 @@ struct RefinementContext {
   double bf_px_m = 40.0;         ///< RGB-D edges (as local BA)
   double min_point_beta = 0.5;   ///< points with a lower static score are left out
   double lambda_imu = 1.0;       ///< bias random-walk weight, Eq. 58
+  bool visual_variance_estimation = true;  ///< LocalMapping.VisualVarianceEstimation
   int num_threads = 1;
   std::vector<float> level_sigma2;  ///< OrbExtractor::levelSigma2()
 };
@@ -55,6 +56,7 @@ struct ImuRefinementStats {
   int fixed_keyframes = 0;
   int points = 0;
   int observations = 0;
+  double visual_sigma_scale = 1.0;  ///< estimated camera noise over the modelled one (sqrt of the variance factor)
   double initial_chi2 = 0.0;
   double final_chi2 = 0.0;
 };

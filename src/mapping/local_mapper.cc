@@ -180,7 +180,8 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
   std::optional<ImuInitEstimate> current;
   if (state.initialised) current = ImuInitEstimate{state.g_w, state.bias};
   const RefinementContext context{options.bf_px_m, options.local_mapping.min_point_beta,
-                                  options.local_mapping.lambda_imu, options.ba_threads, level_sigma2};
+                                  options.local_mapping.lambda_imu,
+                                  options.local_mapping.visual_variance_estimation, options.ba_threads, level_sigma2};
   const std::optional<ImuInitEstimate> estimate = estimateImu(map, chain, options.imu_init, context, current);
   if (!estimate) {
     log::warn("IMU initialisation at kf ", kf->id(), " gave a non-finite estimate; retrying later");

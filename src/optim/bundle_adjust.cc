@@ -146,7 +146,7 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
     LTLO_ASSERT(point_it != point_vertices.end(), "localBundleAdjust: unknown point id " << obs.point_id);
     LTLO_ASSERT(obs.sigma_px > 0.0, "localBundleAdjust: sigma_px = " << obs.sigma_px << ", expected > 0");
     VertexPose* pose = kf_vertices[static_cast<size_t>(index_of(obs.keyframe_id))].pose;
-    const double inv_sigma2 = 1.0 / (obs.sigma_px * obs.sigma_px);
+    const double inv_sigma2 = problem.visual_information_scale / (obs.sigma_px * obs.sigma_px);
     ObservationEdge entry;
     if (obs.depth_m > 0.0) {
       auto edge = std::make_unique<RgbdEdge>(problem.model);
@@ -213,6 +213,42 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
   for (BaPoint& point : result.points) point.p_w = point_vertices.at(point.id)->estimate();
   result.g_w = gravity != nullptr ? imu::gravityFromRotation(gravity->estimate(), gravity_m_s2) : problem.g_w;
   return result;
+}
+
+double visualVarianceFactor(const LocalBaProblem& problem) {
+  // Medians of the chi-square distribution with 2 and 3 degrees of freedom.
+  constexpr double kMedianChi2_2 = 1.3863;
+  constexpr double kMedianChi2_3 = 2.3660;
+  std::unordered_map<int, const BaKeyFrame*> keyframes;
+  for (const BaKeyFrame& kf : problem.keyframes) keyframes.emplace(kf.id, &kf);
+  std::unordered_map<int, const BaPoint*> points;
+  for (const BaPoint& point : problem.points) points.emplace(point.id, &point);
+  std::vector<double> ratios;
+  ratios.reserve(problem.observations.size());
+  for (const BaObservation& obs : problem.observations) {
+    if (obs.static_weight < 0.5 || obs.sigma_px <= 0.0) continue;  // dynamic or doubtful: not noise
+    const auto kf = keyframes.find(obs.keyframe_id);
+    const auto point = points.find(obs.point_id);
+    if (kf == keyframes.end() || point == points.end()) continue;
+    const Vec3 p_c = problem.model.T_c_x * (kf->second->T_w_b.inverse() * point->second->p_w);
+    if (p_c.z() <= 0.0) continue;
+    const double inv_sigma2 = 1.0 / (obs.sigma_px * obs.sigma_px);
+    if (obs.depth_m > 0.0) {
+      const Vec3 r = problem.model.rgbdObservation(obs.uv, obs.depth_m) - problem.model.projectRgbd(p_c);
+      ratios.push_back(r.squaredNorm() * inv_sigma2 / kMedianChi2_3);
+    } else {
+      const Vec2 r = obs.uv - problem.model.project(p_c);
+      ratios.push_back(r.squaredNorm() * inv_sigma2 / kMedianChi2_2);
+    }
+  }
+  if (ratios.size() < 10) return 1.0;
+  const auto middle = ratios.begin() + static_cast<std::ptrdiff_t>(ratios.size() / 2);
+  std::nth_element(ratios.begin(), middle, ratios.end());
+  return *middle;
+}
+
+double visualInformationScale(const LocalBaProblem& problem) {
+  return 1.0 / std::clamp(visualVarianceFactor(problem), 1e-2, 1e2);
 }
 
 BiasPriorInformation biasPriorInformation(const imu::ImuNoise& noise, double window_s, double samples) {

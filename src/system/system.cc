@@ -77,6 +77,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   closer_options.virtual_baseline_m = tracker_options.bf_px_m / calib.camera.camera.fx();
   closer_options.min_point_beta = settings_.local_mapping.min_point_beta;
   closer_options.lambda_imu = settings_.local_mapping.lambda_imu;
+  closer_options.visual_variance_estimation = settings_.local_mapping.visual_variance_estimation;
   loop::MappingControl mapping_control{[this] { mapper_->pause(); }, [this] { mapper_->resume(); },
                                        [this]() -> std::optional<Vec3> {
                                          const mapping::ImuState imu = mapper_->imuState();

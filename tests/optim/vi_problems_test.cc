@@ -286,6 +286,47 @@ TEST(ImuRefinement, VisualInertialBaImprovesGravityAndBiasesOverInertialOnly) {
   EXPECT_NEAR(refined.g_w.norm(), 9.81, 1e-9);  // the magnitude is kept
 }
 
+TEST(ImuRefinement, VisualVarianceFactorMeasuresTheCameraNoise) {
+  // Keypoints 0.3 px accurate (pixels and u_r) against the 1 px model: factor 0.09. A fifth of the
+  // observations gross outliers: the median moves to the inliers' 62.5th percentile (x1.4 for 3
+  // dof); moving points (static weight < 0.5) with large residuals are not counted at all.
+  std::mt19937 rng(23);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(-40.0, 40.0);
+  const ProjectionModel model = testModel();
+  LocalBaProblem problem;
+  problem.model = model;
+  const SE3 T_w_b(so3ExpQuat(Vec3(0.1, -0.2, 0.3)), Vec3(0.5, -0.2, 0.1));
+  problem.keyframes.push_back(BaKeyFrame{0, T_w_b});
+  auto observe = [&](int m, double pixel_sigma, double static_weight, bool outlier) {
+    const Vec3 p_w = visiblePoint(rng, model, T_w_b);
+    problem.points.push_back(BaPoint{m, p_w});
+    const Vec3 p_c = model.T_c_x * (T_w_b.inverse() * p_w);
+    BaObservation obs;
+    obs.keyframe_id = 0;
+    obs.point_id = m;
+    obs.uv = model.camera.project(p_c) + pixel_sigma * Vec2(normal(rng), normal(rng));
+    if (outlier) obs.uv += Vec2(uniform(rng), uniform(rng));
+    const double u_r = model.projectRgbd(p_c).z() + pixel_sigma * normal(rng);
+    obs.depth_m = model.bf_px_m / (obs.uv.x() - u_r);
+    obs.static_weight = static_weight;
+    problem.observations.push_back(obs);
+  };
+  for (int m = 0; m < 400; ++m) observe(m, 0.3, 1.0, false);
+  const double clean = visualVarianceFactor(problem);
+  for (int m = 400; m < 800; ++m) observe(m, 0.3, 0.1, true);  // moving: left out
+  const double with_moving = visualVarianceFactor(problem);
+  for (int m = 800; m < 900; ++m) observe(m, 0.3, 1.0, true);  // 20% of the static ones wrong
+  const double with_outliers = visualVarianceFactor(problem);
+  std::printf("[ VARFACTOR] clean %.4f, with moving points %.4f, with 20%% outliers %.4f (true 0.09)\n", clean,
+              with_moving, with_outliers);
+  EXPECT_NEAR(clean, 0.09, 0.02);
+  EXPECT_EQ(with_moving, clean);
+  EXPECT_GT(with_outliers, clean);
+  EXPECT_LT(with_outliers, 1.6 * 0.09);
+  EXPECT_NEAR(visualInformationScale(problem), 1.0 / with_outliers, 1e-12);
+}
+
 TEST(ImuRefinement, BiasPriorFollowsTheImuNoiseAndWalk) {
   imu::ImuNoise noise;
   noise.gyro_density = 1e-3;

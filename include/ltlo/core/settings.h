@@ -117,6 +117,11 @@ struct LocalMappingOptions {
   double lambda_imu = 1.0;
   /// map points whose beta ends below are deleted as dynamic (LocalMapping.MinPointBeta, [0, 1])
   double min_point_beta = 0.5;
+  /// The visual-inertial BAs of the IMU refinement and of loop closing (full BA, welding BA) weight
+  /// the reprojection edges by the camera noise estimated from their residuals (the variance factor
+  /// of optim::visualVarianceFactor) instead of the 1 px-per-pyramid-level model, so camera and IMU
+  /// count by their actual noise (LocalMapping.VisualVarianceEstimation, 0/1)
+  bool visual_variance_estimation = true;
   /// a keyframe is culled when this fraction of its points is seen by >= 3 other keyframes
   /// (LocalMapping.RedundantRatio, [0.5, 1])
   double redundant_ratio = 0.9;

@@ -25,6 +25,9 @@ struct GlobalBaOptions {
   /// origin keyframes hold their pose only). nullopt: vision only (the origins are fixed).
   std::optional<Vec3> g_w;
   double lambda_imu = 1.0;  ///< bias random-walk weight, Eq. 58 (LocalMapping.LambdaImu)
+  /// Visual-inertial: reprojection edges weighted by the camera noise estimated from their
+  /// residuals (LocalMapping.VisualVarianceEstimation).
+  bool visual_variance_estimation = true;
   int num_threads = 2;
   const std::atomic<bool>* stop_flag = nullptr;  ///< a new loop aborts the BA
 };

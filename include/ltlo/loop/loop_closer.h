@@ -38,6 +38,9 @@ struct LoopCloserOptions {
   double min_point_beta = 0.5;
   /// Weight of the bias random walk in the visual-inertial BAs, Eq. 58 (LocalMapping.LambdaImu).
   double lambda_imu = 1.0;
+  /// The visual-inertial BAs estimate the camera noise from their residuals
+  /// (LocalMapping.VisualVarianceEstimation).
+  bool visual_variance_estimation = true;
   bool run_global_ba = true;       ///< full BA after each loop (in its own thread)
   std::size_t queue_capacity = 64;
 };

@@ -26,6 +26,7 @@ struct MergeOptions {
   double bf_px_m = 40.0;            ///< RGB-D edges of the welding BA
   double min_point_beta = 0.5;      ///< points with a lower static score are left out
   double lambda_imu = 1.0;          ///< bias random-walk weight, Eq. 58
+  bool visual_variance_estimation = true;  ///< LocalMapping.VisualVarianceEstimation
 };
 
 /// What the welding BA did (zero when it did not run).

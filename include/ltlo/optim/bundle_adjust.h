@@ -71,7 +71,21 @@ struct LocalBaProblem {
   bool estimate_gravity = false;
   double lambda_imu = 1.0;  ///< bias random-walk weight (thesis Eq. 58)
   std::vector<BaBiasPrior> bias_priors;  ///< keyframes must have an inertial link
+  /// Multiplies the information of every reprojection edge (visualInformationScale: the inverse of
+  /// the visual variance factor, so the camera and the IMU are weighted by their actual noise).
+  double visual_information_scale = 1.0;
 };
+
+/// A posteriori variance factor of the reprojection edges at the problem's start values (Helmert's
+/// variance component for the camera): the median over observations of r^T Omega r divided by the
+/// median of the chi-square distribution with the edge's dof (3 RGB-D, 2 monocular), so outliers and
+/// moving points (static weight < 0.5 are left out) barely move it. 1: the residuals are as the model
+/// says (sigma_px per level); 0.1: the keypoints are sqrt(10) times more precise than modelled.
+/// 1 with fewer than 10 usable observations. Reads the problem only.
+double visualVarianceFactor(const LocalBaProblem& problem);
+/// 1 / visualVarianceFactor clamped to [1e-2, 1e2]: the visual_information_scale of a
+/// visual-inertial problem whose camera noise is not known better than the 1 px-per-level model.
+double visualInformationScale(const LocalBaProblem& problem);
 
 struct LocalBaOptions {
   int iterations = 10;
