@@ -137,7 +137,7 @@ MapBaProblem buildMapBa(const map::Map& map, const MapBaSelection& selection, co
     problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
   }
   if (options.g_w && options.visual_variance_estimation && !problem.inertial.empty()) {
-    problem.visual_information_scale = optim::visualInformationScale(problem);
+    problem.inertial_information_scale = optim::inertialInformationScale(problem);
   }
   return out;
 }

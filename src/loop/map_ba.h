@@ -24,7 +24,7 @@ struct MapBaOptions {
   std::optional<Vec3> g_w;
   double lambda_imu = 1.0;       ///< bias random-walk weight, Eq. 58
   /// Visual-inertial: weight the reprojection edges by the camera noise estimated from their
-  /// residuals (optim::visualInformationScale; LocalMapping.VisualVarianceEstimation).
+  /// residuals (optim::inertialInformationScale; LocalMapping.VisualVarianceEstimation).
   bool visual_variance_estimation = true;
   std::size_t max_fixed_observers = 0;  ///< other keyframes seeing the points, most shared first
 };

@@ -191,7 +191,7 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
     problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
   }
 
-  if (context.visual_variance_estimation) problem.visual_information_scale = optim::visualInformationScale(problem);
+  if (context.visual_variance_estimation) problem.inertial_information_scale = optim::inertialInformationScale(problem);
 
   optim::LocalBaOptions ba_options;
   ba_options.iterations = options.refine_iterations;
@@ -202,7 +202,7 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
     for (const Entry& e : entries) (e.fixed ? stats->fixed_keyframes : stats->optimised_keyframes)++;
     stats->points = static_cast<int>(points.size());
     stats->observations = static_cast<int>(problem.observations.size());
-    stats->visual_sigma_scale = 1.0 / std::sqrt(problem.visual_information_scale);
+    stats->visual_sigma_scale = std::sqrt(problem.inertial_information_scale);
     stats->initial_chi2 = result.initial_chi2;
     stats->final_chi2 = result.summary.final_chi2;
   }

@@ -91,6 +91,7 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
       inertial->setVertex(4, vj.pose);
       inertial->setVertex(5, vj.velocity);
       inertial->setVertex(6, gravity);
+      inertial->setInformation(problem.inertial_information_scale * inertial->information());
       graph.addEdge(std::move(inertial));
     } else {
       auto inertial = std::make_unique<EdgeInertial>(link.pim, problem.g_w);
@@ -100,6 +101,7 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
       inertial->setVertex(3, vi.acc_bias);
       inertial->setVertex(4, vj.pose);
       inertial->setVertex(5, vj.velocity);
+      inertial->setInformation(problem.inertial_information_scale * inertial->information());
       graph.addEdge(std::move(inertial));
     }
     auto walk = std::make_unique<EdgeBiasWalk>();
@@ -107,7 +109,8 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
     walk->setVertex(1, vi.acc_bias);
     walk->setVertex(2, vj.gyro_bias);
     walk->setVertex(3, vj.acc_bias);
-    walk->setInformation(biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), 1e-3), problem.lambda_imu));
+    walk->setInformation(problem.inertial_information_scale *
+                         biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), 1e-3), problem.lambda_imu));
     graph.addEdge(std::move(walk));
   }
 
@@ -119,14 +122,14 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
       auto edge = std::make_unique<EdgeGyroBiasPrior>();
       edge->setVertex(0, v.gyro_bias);
       edge->setMeasurement(prior.mean.b_g);
-      edge->setInformation(prior.gyro_information * Mat3::Identity());
+      edge->setInformation(problem.inertial_information_scale * prior.gyro_information * Mat3::Identity());
       graph.addEdge(std::move(edge));
     }
     if (prior.acc_information > 0.0) {
       auto edge = std::make_unique<EdgeAccBiasPrior>();
       edge->setVertex(0, v.acc_bias);
       edge->setMeasurement(prior.mean.b_a);
-      edge->setInformation(prior.acc_information * Mat3::Identity());
+      edge->setInformation(problem.inertial_information_scale * prior.acc_information * Mat3::Identity());
       graph.addEdge(std::move(edge));
     }
   }
@@ -146,7 +149,7 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
     LTLO_ASSERT(point_it != point_vertices.end(), "localBundleAdjust: unknown point id " << obs.point_id);
     LTLO_ASSERT(obs.sigma_px > 0.0, "localBundleAdjust: sigma_px = " << obs.sigma_px << ", expected > 0");
     VertexPose* pose = kf_vertices[static_cast<size_t>(index_of(obs.keyframe_id))].pose;
-    const double inv_sigma2 = problem.visual_information_scale / (obs.sigma_px * obs.sigma_px);
+    const double inv_sigma2 = 1.0 / (obs.sigma_px * obs.sigma_px);
     ObservationEdge entry;
     if (obs.depth_m > 0.0) {
       auto edge = std::make_unique<RgbdEdge>(problem.model);
@@ -247,8 +250,8 @@ double visualVarianceFactor(const LocalBaProblem& problem) {
   return *middle;
 }
 
-double visualInformationScale(const LocalBaProblem& problem) {
-  return 1.0 / std::clamp(visualVarianceFactor(problem), 1e-2, 1e2);
+double inertialInformationScale(const LocalBaProblem& problem) {
+  return std::clamp(visualVarianceFactor(problem), 1e-2, 1e2);
 }
 
 BiasPriorInformation biasPriorInformation(const imu::ImuNoise& noise, double window_s, double samples) {

@@ -297,7 +297,9 @@ TEST(ImuRefinement, VisualVarianceFactorMeasuresTheCameraNoise) {
   LocalBaProblem problem;
   problem.model = model;
   const SE3 T_w_b(so3ExpQuat(Vec3(0.1, -0.2, 0.3)), Vec3(0.5, -0.2, 0.1));
-  problem.keyframes.push_back(BaKeyFrame{0, T_w_b});
+  BaKeyFrame keyframe;
+  keyframe.T_w_b = T_w_b;
+  problem.keyframes.push_back(keyframe);
   auto observe = [&](int m, double pixel_sigma, double static_weight, bool outlier) {
     const Vec3 p_w = visiblePoint(rng, model, T_w_b);
     problem.points.push_back(BaPoint{m, p_w});
@@ -324,7 +326,7 @@ TEST(ImuRefinement, VisualVarianceFactorMeasuresTheCameraNoise) {
   EXPECT_EQ(with_moving, clean);
   EXPECT_GT(with_outliers, clean);
   EXPECT_LT(with_outliers, 1.6 * 0.09);
-  EXPECT_NEAR(visualInformationScale(problem), 1.0 / with_outliers, 1e-12);
+  EXPECT_NEAR(inertialInformationScale(problem), with_outliers, 1e-12);
 }
 
 TEST(ImuRefinement, BiasPriorFollowsTheImuNoiseAndWalk) {

@@ -71,9 +71,11 @@ struct LocalBaProblem {
   bool estimate_gravity = false;
   double lambda_imu = 1.0;  ///< bias random-walk weight (thesis Eq. 58)
   std::vector<BaBiasPrior> bias_priors;  ///< keyframes must have an inertial link
-  /// Multiplies the information of every reprojection edge (visualInformationScale: the inverse of
-  /// the visual variance factor, so the camera and the IMU are weighted by their actual noise).
-  double visual_information_scale = 1.0;
+  /// Multiplies the information of the inertial, bias random-walk and bias-prior edges
+  /// (inertialInformationScale: the camera's variance factor), so camera and IMU count by their
+  /// actual noise while the reprojection edges keep their 1 px-per-level model, Huber kernel and
+  /// chi2 gates (the same outlier decisions as every other BA).
+  double inertial_information_scale = 1.0;
 };
 
 /// A posteriori variance factor of the reprojection edges at the problem's start values (Helmert's
@@ -83,9 +85,10 @@ struct LocalBaProblem {
 /// says (sigma_px per level); 0.1: the keypoints are sqrt(10) times more precise than modelled.
 /// 1 with fewer than 10 usable observations. Reads the problem only.
 double visualVarianceFactor(const LocalBaProblem& problem);
-/// 1 / visualVarianceFactor clamped to [1e-2, 1e2]: the visual_information_scale of a
-/// visual-inertial problem whose camera noise is not known better than the 1 px-per-level model.
-double visualInformationScale(const LocalBaProblem& problem);
+/// visualVarianceFactor clamped to [1e-2, 1e2]: the inertial_information_scale of a visual-inertial
+/// problem whose camera noise is not known better than the 1 px-per-level model (scaling the IMU
+/// side by the factor has the optimum of scaling the camera side by its inverse).
+double inertialInformationScale(const LocalBaProblem& problem);
 
 struct LocalBaOptions {
   int iterations = 10;
