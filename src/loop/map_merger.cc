@@ -7,6 +7,7 @@
 #include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/optim/pose_graph.h"
 #include "map_ba.h"
+#include "seam_fusion.h"
 
 namespace ltlo::loop {
 
@@ -54,6 +55,19 @@ WeldingResult weldingBundleAdjust(map::Map& map, const map::KeyFrame& current, c
   if (auto border = walkChain(map, candidate_kf, n - 1 - after, true, selection.optimised)) {
     selection.fixed.push_back(border);
   }
+  // Both sides still hold their own points of the structure around the place: fuse them, so the
+  // BA welds the whole overlap, not only the points the place match fused.
+  const std::vector<std::shared_ptr<map::KeyFrame>> current_side(
+      selection.optimised.begin(), selection.optimised.begin() + static_cast<std::ptrdiff_t>(candidate_start));
+  const std::vector<std::shared_ptr<map::KeyFrame>> candidate_side(
+      selection.optimised.begin() + static_cast<std::ptrdiff_t>(candidate_start), selection.optimised.end());
+  SeamFusionOptions fusion;
+  fusion.bf_px_m = merge.bf_px_m;
+  fusion.min_point_beta = merge.min_point_beta;
+  const SeamFusionStats fused =
+      fuseAcrossSeam(map, current_side, pointsSeenBy(map, candidate_side, merge.min_point_beta), fusion);
+  result.fused_points = fused.replaced;
+  result.linked_points = fused.linked;
   MapBaOptions build;
   build.bf_px_m = merge.bf_px_m;
   build.min_point_beta = merge.min_point_beta;
@@ -124,7 +138,9 @@ std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& 
   result.correction = correctLoop(*target_map, *place, correction);
   if (merge.g_w) {
     result.welding = weldingBundleAdjust(*target_map, current, candidate, merge);
-    log::info("welding BA at the seam: ", result.welding.optimised_keyframes, " keyframes optimised, ",
+    log::info("welding at the seam: ", result.welding.fused_points, " duplicate points fused, ",
+              result.welding.linked_points, " observations added; BA ", result.welding.optimised_keyframes,
+              " keyframes optimised, ",
               result.welding.fixed_keyframes, " held, ", result.welding.points, " points, ",
               result.welding.inertial_links, " inertial links, chi2 ", result.welding.initial_chi2, " -> ",
               result.welding.final_chi2);

@@ -115,6 +115,10 @@ inline SceneMap buildSceneMap(map::Map& map, const SceneWorld& world, const std:
     }
     out.kfs.push_back(kf);
   }
+  for (const auto& [world_index, point] : point_of) {
+    map.updateDescriptor(*point);
+    map.updateNormalAndDistances(*point);
+  }
   return out;
 }
 

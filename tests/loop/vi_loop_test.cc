@@ -173,15 +173,19 @@ TEST(MapMerger, FourDofAlignmentKeepsGravityAndClosesTheGap) {
                                                              *se3_scene.old_side.kfs.back(), LoopOptions());
   ASSERT_TRUE(se3_merged.has_value());
   const MergeErrors se3 = mergeErrors(se3_scene, merge.welding_keyframes);
-  std::printf("[ MERGE4DOF] %d inliers; welding %d optimised + %d held keyframes, %d points, %d inertial links, chi2 "
+  std::printf("[ MERGE4DOF] %d inliers; welding: %d duplicates fused, %d observations added, %d optimised + %d held "
+              "keyframes, %d points, %d inertial links, chi2 "
               "%.3g -> %.3g; new side max errors: position %.3f -> %.4f m, velocity %.3f -> %.4f m/s, tilt %.4f -> "
               "%.4f deg (outside the welding window changed %.2e deg); SE3 merge: position %.4f m, tilt %.3f deg\n",
-              merged->inliers, merged->welding.optimised_keyframes, merged->welding.fixed_keyframes,
+              merged->inliers, merged->welding.fused_points, merged->welding.linked_points,
+              merged->welding.optimised_keyframes, merged->welding.fixed_keyframes,
               merged->welding.points, merged->welding.inertial_links, merged->welding.initial_chi2,
               merged->welding.final_chi2, before.position_m, after.position_m, before.velocity_m_s, after.velocity_m_s,
               before.tilt_deg, after.tilt_deg, after.tilt_change_outside_deg, se3.position_m, se3.tilt_deg);
   EXPECT_EQ(scene.atlas.numMaps(), 1u);
   EXPECT_EQ(merged->welding.optimised_keyframes, 2 * merge.welding_keyframes);
+  // The new side's own points of the old side's structure around the place become one point each.
+  EXPECT_GT(merged->welding.fused_points, 200);
   EXPECT_GT(merged->welding.inertial_links, 2 * merge.welding_keyframes - 4);
   EXPECT_GT(before.position_m, 0.3);
   EXPECT_LT(after.position_m, 0.005);

@@ -29,8 +29,10 @@ struct MergeOptions {
   bool visual_variance_estimation = true;  ///< LocalMapping.VisualVarianceEstimation
 };
 
-/// What the welding BA did (zero when it did not run).
+/// What the welding did (zero when it did not run).
 struct WeldingResult {
+  int fused_points = 0;   ///< duplicates across the seam merged (seam fusion)
+  int linked_points = 0;  ///< observations added across the seam
   int optimised_keyframes = 0;
   int fixed_keyframes = 0;
   int points = 0;
@@ -53,10 +55,12 @@ struct MergeResult {
 std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& current, const map::KeyFrame& candidate,
                                         const LoopOptions& options, const MergeOptions& merge = MergeOptions());
 
-/// The welding BA on its own (mergeAtPlace runs it with gravity): the window of `merge` around
-/// `current` and `candidate` (both in `map`) optimised, the keyframes just outside each window in
-/// time and up to welding_fixed_observers other observers held; poses, velocities, biases and
-/// points written back. Visual-inertial with merge.g_w, vision only without.
+/// The welding on its own (mergeAtPlace runs it with gravity): the points of the window around
+/// `candidate` are fused into the keyframes of the window around `current` by projection (both
+/// sides' duplicates of the same structure become one point), then the BA of both windows, the
+/// keyframes just outside each window in time and up to welding_fixed_observers other observers
+/// held; poses, velocities, biases and points written back. Visual-inertial with merge.g_w, vision
+/// only without.
 WeldingResult weldingBundleAdjust(map::Map& map, const map::KeyFrame& current, const map::KeyFrame& candidate,
                                   const MergeOptions& merge);
 
