@@ -81,6 +81,7 @@ void visitLocalMapping(O& o, V& v) {
   v.real("LocalMapping.DynamicCost", o.dynamic_cost, 0.01, 1000.0);
   v.real("LocalMapping.LambdaImu", o.lambda_imu, 0.0, 1e6);
   v.real("LocalMapping.MinPointBeta", o.min_point_beta, 0.0, 1.0);
+  v.boolean("LocalMapping.VisualVarianceEstimation", o.visual_variance_estimation);
   v.real("LocalMapping.RedundantRatio", o.redundant_ratio, 0.5, 1.0);
 }
 
@@ -117,8 +118,10 @@ void visitImuInit(O& o, V& v) {
   v.real("ImuInit.MinTime", o.min_time_s, 0.1, 100.0);
   v.integer("ImuInit.MinKeyFrames", o.min_keyframes, 3, 1000);
   v.integer("ImuInit.Iterations", o.iterations, 1, 1000);
-  v.real("ImuInit.PriorGyroBias", o.prior_gyro_bias, 0.0, 1e12);
-  v.real("ImuInit.PriorAccBias", o.prior_acc_bias, 0.0, 1e12);
+  v.real("ImuInit.BiasPriorSamples", o.bias_prior_samples, 0.0, 1e6);
+  v.boolean("ImuInit.VisualInertialRefinement", o.visual_inertial_refinement);
+  v.integer("ImuInit.RefineIterations", o.refine_iterations, 1, 1000);
+  v.integer("ImuInit.RefineMaxKeyFrames", o.refine_max_keyframes, 3, 10000);
 }
 
 std::string numberText(double value) {

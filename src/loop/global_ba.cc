@@ -5,77 +5,53 @@
 
 #include "ltlo/core/log.h"
 #include "ltlo/optim/bundle_adjust.h"
+#include "map_ba.h"
 
 namespace ltlo::loop {
 
 GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const GlobalBaOptions& options) {
   GlobalBaSolution solution;
   GlobalBaResult& result = solution.result;
-  std::vector<std::shared_ptr<map::KeyFrame>>& keyframes = solution.keyframes;
+  MapBaSelection selection;
   for (const std::shared_ptr<map::KeyFrame>& kf : map.keyFrames()) {
-    if (!kf->isBad()) keyframes.push_back(kf);
+    if (!kf->isBad()) selection.optimised.push_back(kf);
   }
-  if (keyframes.size() < 2) return solution;
-
-  optim::LocalBaProblem problem;
-  const map::KeyFrame& first = *keyframes.front();
-  problem.model.camera = first.camera();
-  problem.model.T_c_x = first.T_b_c().inverse();
-  problem.model.bf_px_m = first.camera().K()(0, 0) * options.virtual_baseline_m;
-
-  const std::vector<map::KeyFrameId> origins = map.originKeyFrames();
-  const std::unordered_set<map::KeyFrameId> fixed(origins.begin(), origins.end());
-  std::unordered_map<map::KeyFrameId, int> kf_index;
-  for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) {
-    optim::BaKeyFrame v;
-    v.id = static_cast<int>(problem.keyframes.size());
-    v.T_w_b = kf->T_w_b();
-    solution.T_w_b_before.push_back(v.T_w_b);
-    v.fixed = fixed.count(kf->id()) > 0;
-    kf_index[kf->id()] = v.id;
-    problem.keyframes.push_back(v);
+  if (selection.optimised.size() < 2) return solution;
+  for (const map::KeyFrameId id : map.originKeyFrames()) {
+    if (std::shared_ptr<map::KeyFrame> origin = map.keyFrame(id)) selection.gauge.push_back(origin);
   }
-  bool any_fixed = false;
-  for (const optim::BaKeyFrame& v : problem.keyframes) any_fixed = any_fixed || v.fixed;
-  if (!any_fixed) problem.keyframes.front().fixed = true;
-
-  std::vector<std::shared_ptr<map::MapPoint>>& points = solution.points;
-  for (const std::shared_ptr<map::MapPoint>& point : map.mapPoints()) {
-    if (point->isBad()) continue;
-    std::vector<optim::BaObservation> observations;
-    for (const auto& [kf_id, index] : point->observations()) {
-      const auto it = kf_index.find(kf_id);
-      if (it == kf_index.end()) continue;
-      const map::KeyFrame& kf = *keyframes[static_cast<std::size_t>(it->second)];
-      const features::Keypoint& kp = kf.keypoints()[static_cast<std::size_t>(index)];
-      optim::BaObservation obs;
-      obs.keyframe_id = it->second;
-      obs.point_id = static_cast<int>(points.size());
-      obs.uv = Vec2(kp.x_px, kp.y_px);
-      obs.depth_m = kf.depth_m(index);
-      obs.sigma_px = kf.scaleFactors()[static_cast<std::size_t>(kp.octave)];
-      observations.push_back(obs);
-    }
-    if (observations.size() < 2) continue;
-    problem.points.push_back(optim::BaPoint{static_cast<int>(points.size()), point->p_w()});
-    points.push_back(point);
-    problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
-  }
-  result.keyframes = static_cast<int>(keyframes.size());
-  result.points = static_cast<int>(points.size());
-  result.observations = static_cast<int>(problem.observations.size());
-  if (points.empty()) return solution;
+  MapBaOptions build;
+  const map::KeyFrame& first = *selection.optimised.front();
+  build.bf_px_m = first.camera().K()(0, 0) * options.virtual_baseline_m;
+  build.min_point_beta = options.min_point_beta;
+  build.g_w = options.g_w;
+  build.lambda_imu = options.lambda_imu;
+  build.visual_variance_estimation = options.visual_variance_estimation;
+  const MapBaProblem built = buildMapBa(map, selection, build);
+  solution.keyframes = built.keyframes;
+  solution.points = built.points;
+  for (const optim::BaKeyFrame& v : built.problem.keyframes) solution.T_w_b_before.push_back(v.T_w_b);
+  result.keyframes = static_cast<int>(built.keyframes.size());
+  result.points = static_cast<int>(built.points.size());
+  result.observations = static_cast<int>(built.problem.observations.size());
+  result.inertial_links = static_cast<int>(built.problem.inertial.size());
+  if (built.points.empty()) return solution;
 
   optim::LocalBaOptions ba_options;
   ba_options.iterations = options.iterations;
   ba_options.num_threads = options.num_threads;
   ba_options.stop_flag = options.stop_flag;
-  const optim::LocalBaResult solved = optim::localBundleAdjust(problem, ba_options);
+  const optim::LocalBaResult solved = optim::localBundleAdjust(built.problem, ba_options);
   if (options.stop_flag != nullptr && options.stop_flag->load()) return solution;  // discarded (invalid)
-  for (const optim::BaKeyFrame& v : solved.keyframes) solution.T_w_b_after.push_back(v.T_w_b);
+  solution.inertial = inertialKeyFrames(built);
+  for (const optim::BaKeyFrame& v : solved.keyframes) {
+    solution.T_w_b_after.push_back(v.T_w_b);
+    solution.v_w_b_after.push_back(v.v_w_b);
+    solution.bias_after.push_back(v.bias);
+  }
   for (const optim::BaPoint& p : solved.points) solution.p_w_after.push_back(p.p_w);
   for (const bool inlier : solved.inliers) result.outliers += inlier ? 0 : 1;
-  result.initial_chi2 = solved.summary.initial_chi2;
+  result.initial_chi2 = solved.initial_chi2;
   result.final_chi2 = solved.summary.final_chi2;
   solution.valid = true;
   return solution;
@@ -97,11 +73,18 @@ int applyGlobalBundleAdjustment(map::Map& map, const GlobalBaSolution& solution)
     const auto parent = correction.find(kf->parent());
     if (parent == correction.end()) continue;
     kf->setPose_T_w_b(parent->second * kf->T_w_b());
+    kf->setVelocity(parent->second.rotationMatrix() * kf->v_w_b());
     correction[kf->id()] = parent->second;
     ++propagated;
   }
   for (std::size_t k = 0; k < solution.keyframes.size(); ++k) {
-    if (!solution.keyframes[k]->isBad()) solution.keyframes[k]->setPose_T_w_b(solution.T_w_b_after[k]);
+    map::KeyFrame& kf = *solution.keyframes[k];
+    if (kf.isBad()) continue;
+    kf.setPose_T_w_b(solution.T_w_b_after[k]);
+    if (solution.inertial[k]) {
+      kf.setVelocity(solution.v_w_b_after[k]);
+      kf.setBias(solution.bias_after[k]);
+    }
   }
   std::unordered_set<map::MapPointId> optimised;
   for (std::size_t p = 0; p < solution.points.size(); ++p) {
@@ -116,8 +99,8 @@ int applyGlobalBundleAdjustment(map::Map& map, const GlobalBaSolution& solution)
   map.bumpVersion();
   const GlobalBaResult& result = solution.result;
   log::info("global BA: ", result.keyframes, " keyframes, ", result.points, " points, ", result.observations,
-            " observations, ", result.outliers, " outliers, chi2 ", result.initial_chi2, " -> ", result.final_chi2,
-            "; ", propagated, " newer keyframes moved with their parents");
+            " observations, ", result.inertial_links, " inertial links, ", result.outliers, " outliers, chi2 ",
+            result.initial_chi2, " -> ", result.final_chi2, "; ", propagated, " newer keyframes moved with their parents");
   return propagated;
 }
 

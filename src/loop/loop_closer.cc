@@ -81,13 +81,16 @@ struct LoopCloser::Impl {
   void recordEvent(const LoopEvent& event);
 
   // ---- full BA ----
-  /// Starts the full BA of `map` (in its own thread from run(), else synchronously).
-  void startGlobalBa(map::Map& map);
+  /// The IMU's gravity once initialised (nullopt before).
+  std::optional<Vec3> gravity() const { return mapping.gravity_w ? mapping.gravity_w() : std::nullopt; }
+  /// Starts the full BA of `map` (in its own thread from run(), else synchronously), visual-inertial
+  /// with g_w.
+  void startGlobalBa(map::Map& map, const std::optional<Vec3>& g_w);
   /// Aborts a running full BA and joins its thread (before any correction writes the map).
   void abortGlobalBa();
   /// Joins the full-BA thread without aborting it.
   void joinGlobalBa();
-  void globalBa(map::Map& map);
+  void globalBa(map::Map& map, const std::optional<Vec3>& g_w);
 
   map::Atlas& atlas;
   const LoopCloserOptions options;
@@ -172,11 +175,14 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
     // The full BA works on a snapshot it writes back: abort it before the map changes under it.
     abortGlobalBa();
     LoopCorrectionResult correction;
+    LoopCorrectionOptions correction_options;
     {
       MappingPause pause(mapping);
       // Local mapping may have culled either end since the verification.
       if (kf->isBad() || candidate->isBad()) return false;
-      correction = correctLoop(map, *loop);  // bumps the map's version (tracking refreshes)
+      // Read with local mapping held, so no IMU refinement changes gravity meanwhile.
+      correction_options.g_w = gravity();
+      correction = correctLoop(map, *loop, correction_options);  // bumps the map's version (tracking refreshes)
     }
     if (timer) timer->stop();
     log::info("loop closed: ", kf->id(), " ~ ", candidate->id(), " in ", map.id(), " (", event.inliers,
@@ -185,7 +191,7 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
     recordEvent(event);
     keyframes_since_correction = 0;
     resetDetection();
-    if (options.run_global_ba) startGlobalBa(map);
+    if (options.run_global_ba) startGlobalBa(map, correction_options.g_w);
     return true;
   }
   return false;
@@ -233,12 +239,18 @@ bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::M
   const SE3 T_w_b_before = kf->T_w_b();
   abortGlobalBa();
   std::optional<MergeResult> merged;
+  MergeOptions merge_options;
+  merge_options.bf_px_m = kf->camera().K()(0, 0) * options.virtual_baseline_m;
+  merge_options.min_point_beta = options.min_point_beta;
+  merge_options.lambda_imu = options.lambda_imu;
+  merge_options.visual_variance_estimation = options.visual_variance_estimation;
   {
     MappingPause pause(mapping);
     if (kf->isBad() || accepted->isBad()) return false;
+    merge_options.g_w = gravity();
     // Atlas::mergeMaps bumps both versions and makes the target active if the source was;
-    // correctLoop bumps the target's again.
-    merged = mergeAtPlace(atlas, *kf, *accepted, options.loop);
+    // correctLoop and the welding BA bump the target's again.
+    merged = mergeAtPlace(atlas, *kf, *accepted, options.loop, merge_options);
   }
   if (timer) timer->stop();
   if (!merged) return false;
@@ -257,11 +269,11 @@ bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::M
   resetDetection();
   detection_map = merged->target;
   map::Map* target = atlas.map(merged->target);
-  if (options.run_global_ba && target != nullptr) startGlobalBa(*target);
+  if (options.run_global_ba && target != nullptr) startGlobalBa(*target, merge_options.g_w);
   return true;
 }
 
-void LoopCloser::Impl::startGlobalBa(map::Map& map) {
+void LoopCloser::Impl::startGlobalBa(map::Map& map, const std::optional<Vec3>& g_w) {
   abortGlobalBa();
   ba_stop.store(false);
   {
@@ -269,13 +281,13 @@ void LoopCloser::Impl::startGlobalBa(map::Map& map) {
     ba_running = true;
   }
   if (in_run.load()) {
-    ba_thread = std::thread([this, &map] { globalBa(map); });
+    ba_thread = std::thread([this, &map, g_w] { globalBa(map, g_w); });
   } else {
-    globalBa(map);
+    globalBa(map, g_w);
   }
 }
 
-void LoopCloser::Impl::globalBa(map::Map& map) {
+void LoopCloser::Impl::globalBa(map::Map& map, const std::optional<Vec3>& g_w) {
   if (in_run.load()) log::setThreadName("loop.ba");
   try {
     std::optional<ScopedTimer> timer;
@@ -283,6 +295,10 @@ void LoopCloser::Impl::globalBa(map::Map& map) {
     GlobalBaOptions ba_options;
     ba_options.iterations = options.loop.full_ba_iterations;
     ba_options.virtual_baseline_m = options.virtual_baseline_m;
+    ba_options.min_point_beta = options.min_point_beta;
+    ba_options.g_w = g_w;
+    ba_options.lambda_imu = options.lambda_imu;
+    ba_options.visual_variance_estimation = options.visual_variance_estimation;
     ba_options.stop_flag = &ba_stop;
     const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map, ba_options);
     if (solution.valid && !ba_stop.load()) {

@@ -92,7 +92,7 @@ std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::K
   return loop;
 }
 
-LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int iterations) {
+LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, const LoopCorrectionOptions& options) {
   LoopCorrectionResult result;
   const std::shared_ptr<map::KeyFrame> current = map.keyFrame(loop.current);
   const std::shared_ptr<map::KeyFrame> loop_kf = map.keyFrame(loop.loop);
@@ -103,11 +103,18 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
   const std::vector<std::shared_ptr<map::KeyFrame>> keyframes = map.keyFrames();
   std::unordered_map<map::KeyFrameId, SE3> T_w_b_old;
   for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) T_w_b_old[kf->id()] = kf->T_w_b();
+  const bool with_gravity = options.g_w.has_value();
   std::set<std::pair<map::KeyFrameId, map::KeyFrameId>> old_edges;
-  for (const map::EssentialEdge& e : map::essentialGraphEdges(map)) old_edges.insert(orderedPair(e.from, e.to));
+  for (const map::EssentialEdge& e : map::essentialGraphEdges(map, map::kEssentialCovisibilityWeight, with_gravity)) {
+    old_edges.insert(orderedPair(e.from, e.to));
+  }
 
-  // 1. The current keyframe's covisible window moves rigidly with it: T_new = C * T_old.
-  const SE3 C = loop.T_w_b_current_corrected * T_w_b_old.at(current->id()).inverse();
+  // 1. The current keyframe's covisible window moves rigidly with it: T_new = C * T_old (with
+  //    gravity: C's yaw and the translation that puts the current keyframe where the loop says).
+  const SE3& T_w_b_current_old = T_w_b_old.at(current->id());
+  SE3 C = loop.T_w_b_current_corrected * T_w_b_current_old.inverse();
+  if (with_gravity) C = optim::fourDofCorrection(C, *options.g_w, T_w_b_current_old.translation());
+  const Mat3 R_C = C.rotationMatrix();
   std::vector<std::shared_ptr<map::KeyFrame>> window{current};
   for (const auto& [id, weight] : current->covisibles()) {
     if (id == loop_kf->id()) continue;
@@ -124,6 +131,7 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
       corrected_by[point_id] = kf->id();
     }
     kf->setPose_T_w_b(C * kf->T_w_b());
+    if (with_gravity) kf->setVelocity(R_C * kf->v_w_b());
   }
 
   // 2. Fusion: the current keyframe's keypoints take the loop points.
@@ -158,7 +166,7 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
     nodes.push_back(node);
   }
   std::vector<optim::PoseGraphEdge> edges;
-  for (const map::EssentialEdge& e : map::essentialGraphEdges(map)) {
+  for (const map::EssentialEdge& e : map::essentialGraphEdges(map, map::kEssentialCovisibilityWeight, with_gravity)) {
     if (node_of.count(e.from) == 0 || node_of.count(e.to) == 0) continue;
     const bool existed =
         old_edges.count(orderedPair(e.from, e.to)) > 0 && T_w_b_old.count(e.from) > 0 && T_w_b_old.count(e.to) > 0;
@@ -170,7 +178,9 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
     edges.push_back(edge);
   }
   result.graph_edges = static_cast<int>(edges.size());
-  const optim::PoseGraphResult optimised = optim::optimizePoseGraph(nodes, edges, iterations);
+  const optim::PoseGraphResult optimised =
+      with_gravity ? optim::optimizePoseGraph4Dof(nodes, edges, *options.g_w, options.iterations)
+                   : optim::optimizePoseGraph(nodes, edges, options.iterations);
   result.initial_cost = optimised.summary.initial_chi2;
   result.final_cost = optimised.summary.final_chi2;
 
@@ -182,6 +192,8 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
     const SE3& T_new = optimised.nodes[static_cast<std::size_t>(it->second)].T_w_b;
     correction[kf->id()] = T_new * T_w_b_input.at(kf->id()).inverse();
     kf->setPose_T_w_b(T_new);
+    // The velocity is in the world frame: it turns with the pose (a yaw about gravity here).
+    if (with_gravity) kf->setVelocity(correction[kf->id()].rotationMatrix() * kf->v_w_b());
   }
   for (const std::shared_ptr<map::MapPoint>& point : map.mapPoints()) {
     if (point->isBad()) continue;
@@ -206,8 +218,8 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int ite
   }
   map.bumpVersion();
   log::info("loop closed: kf ", loop.current, " -> kf ", loop.loop, ", window ", result.window_size, ", fused ",
-            result.fused_points, ", graph ", result.graph_edges, " edges, chi2 ", result.initial_cost, " -> ",
-            result.final_cost);
+            result.fused_points, ", ", (with_gravity ? "4-DoF" : "SE3"), " graph ", result.graph_edges,
+            " edges, chi2 ", result.initial_cost, " -> ", result.final_cost);
   return result;
 }
 

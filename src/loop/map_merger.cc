@@ -1,30 +1,150 @@
 #include "ltlo/loop/map_merger.h"
 
+#include <memory>
+#include <vector>
+
 #include "ltlo/core/log.h"
+#include "ltlo/optim/bundle_adjust.h"
+#include "ltlo/optim/pose_graph.h"
+#include "map_ba.h"
+#include "seam_fusion.h"
 
 namespace ltlo::loop {
 
+namespace {
+
+bool usable(const std::shared_ptr<map::KeyFrame>& kf) { return kf != nullptr && !kf->isBad(); }
+
+/// Walks the IMU chain from `start` (excluded) up to `count` keyframes backwards (or forwards),
+/// adding them to `window`; the first keyframe beyond is returned as the border (may be null).
+std::shared_ptr<map::KeyFrame> walkChain(const map::Map& map, const std::shared_ptr<map::KeyFrame>& start, int count,
+                                         bool backwards, std::vector<std::shared_ptr<map::KeyFrame>>& window) {
+  std::shared_ptr<map::KeyFrame> at = start;
+  for (int n = 0; n <= count; ++n) {
+    const std::shared_ptr<map::KeyFrame> next =
+        map.keyFrame(backwards ? at->previousKeyFrame() : at->nextKeyFrame());
+    if (!usable(next)) return nullptr;
+    if (n == count) return next;
+    window.push_back(next);
+    at = next;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+WeldingResult weldingBundleAdjust(map::Map& map, const map::KeyFrame& current, const map::KeyFrame& candidate,
+                                  const MergeOptions& merge) {
+  WeldingResult result;
+  const std::shared_ptr<map::KeyFrame> current_kf = map.keyFrame(current.id());
+  const std::shared_ptr<map::KeyFrame> candidate_kf = map.keyFrame(candidate.id());
+  if (!usable(current_kf) || !usable(candidate_kf)) return result;
+  // Current side: the keyframe and its predecessors; recognised side: the keyframe and its
+  // neighbours in time, up to half after it and the rest before. The keyframes just beyond are
+  // held, so the inertial links at the window's ends keep their velocities and biases.
+  MapBaSelection selection;
+  const int n = std::max(1, merge.welding_keyframes);
+  selection.optimised.push_back(current_kf);
+  if (auto border = walkChain(map, current_kf, n - 1, true, selection.optimised)) selection.fixed.push_back(border);
+  const std::size_t candidate_start = selection.optimised.size();
+  selection.optimised.push_back(candidate_kf);
+  if (auto border = walkChain(map, candidate_kf, (n - 1) / 2, false, selection.optimised)) {
+    selection.fixed.push_back(border);
+  }
+  const int after = static_cast<int>(selection.optimised.size() - candidate_start) - 1;
+  if (auto border = walkChain(map, candidate_kf, n - 1 - after, true, selection.optimised)) {
+    selection.fixed.push_back(border);
+  }
+  // Both sides still hold their own points of the structure around the place: fuse them, so the
+  // BA welds the whole overlap, not only the points the place match fused.
+  const std::vector<std::shared_ptr<map::KeyFrame>> current_side(
+      selection.optimised.begin(), selection.optimised.begin() + static_cast<std::ptrdiff_t>(candidate_start));
+  const std::vector<std::shared_ptr<map::KeyFrame>> candidate_side(
+      selection.optimised.begin() + static_cast<std::ptrdiff_t>(candidate_start), selection.optimised.end());
+  SeamFusionOptions fusion;
+  fusion.bf_px_m = merge.bf_px_m;
+  fusion.min_point_beta = merge.min_point_beta;
+  const SeamFusionStats fused =
+      fuseAcrossSeam(map, current_side, pointsSeenBy(map, candidate_side, merge.min_point_beta), fusion);
+  result.fused_points = fused.replaced;
+  result.linked_points = fused.linked;
+  MapBaOptions build;
+  build.bf_px_m = merge.bf_px_m;
+  build.min_point_beta = merge.min_point_beta;
+  build.g_w = merge.g_w;
+  build.lambda_imu = merge.lambda_imu;
+  build.visual_variance_estimation = merge.visual_variance_estimation;
+  build.max_fixed_observers = merge.welding_fixed_observers;
+  const MapBaProblem built = buildMapBa(map, selection, build);
+  result.optimised_keyframes = built.optimised_keyframes;
+  result.fixed_keyframes = built.fixed_keyframes;
+  result.points = static_cast<int>(built.points.size());
+  result.inertial_links = static_cast<int>(built.problem.inertial.size());
+  if (built.optimised_keyframes == 0 || built.points.empty()) return result;
+
+  optim::LocalBaOptions ba_options;
+  ba_options.iterations = merge.welding_iterations;
+  const optim::LocalBaResult solved = optim::localBundleAdjust(built.problem, ba_options);
+  result.initial_chi2 = solved.initial_chi2;
+  result.final_chi2 = solved.summary.final_chi2;
+  const std::vector<bool> inertial = inertialKeyFrames(built);
+  for (std::size_t k = 0; k < built.keyframes.size(); ++k) {
+    map::KeyFrame& kf = *built.keyframes[k];
+    const optim::BaKeyFrame& in = built.problem.keyframes[k];
+    const optim::BaKeyFrame& out = solved.keyframes[k];
+    if (kf.isBad() || !out.T_w_b.translation().allFinite()) continue;
+    if (!in.fixed) kf.setPose_T_w_b(out.T_w_b);
+    if (inertial[k] && (!in.fixed || in.fixed_pose_only) && out.v_w_b.allFinite()) {
+      kf.setVelocity(out.v_w_b);
+      kf.setBias(out.bias);
+    }
+  }
+  for (std::size_t m = 0; m < built.points.size(); ++m) {
+    if (!built.points[m]->isBad() && solved.points[m].p_w.allFinite()) built.points[m]->setPosition(solved.points[m].p_w);
+  }
+  map.bumpVersion();
+  return result;
+}
+
 std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& current, const map::KeyFrame& candidate,
-                                        const LoopOptions& options) {
+                                        const LoopOptions& options, const MergeOptions& merge) {
   const map::MapId source = current.mapId();
   const map::MapId target = candidate.mapId();
   if (source == target) return std::nullopt;
   map::Map* target_map = atlas.map(target);
   if (target_map == nullptr || atlas.map(source) == nullptr) return std::nullopt;
 
-  const std::optional<LoopClosure> place = verifyLoop(current, candidate, *target_map, options);
+  std::optional<LoopClosure> place = verifyLoop(current, candidate, *target_map, options);
   if (!place) return std::nullopt;
   MergeResult result;
   result.source = source;
   result.target = target;
   result.inliers = static_cast<int>(place->matches.size());
-  result.T_target_source = place->T_w_b_current_corrected * current.T_w_b().inverse();
+  const SE3 T_w_b_current = current.T_w_b();
+  result.T_target_source = place->T_w_b_current_corrected * T_w_b_current.inverse();
+  if (merge.g_w) {
+    // Both maps are in the run's gravity-aligned world: only yaw about gravity and translation
+    // may differ (the current keyframe's position goes where the place match says).
+    result.T_target_source = optim::fourDofCorrection(result.T_target_source, *merge.g_w, T_w_b_current.translation());
+    place->T_w_b_current_corrected = result.T_target_source * T_w_b_current;
+  }
   atlas.mergeMaps(source, target, result.T_target_source);
   log::info("merged ", source, " into ", target, " at kf ", current.id(), " ~ kf ", candidate.id(), " (",
-            result.inliers, " inliers)");
+            result.inliers, " inliers, ", (merge.g_w ? "4-DoF" : "SE3"), " alignment)");
   // The current keyframe is now in the target frame at (nearly) its corrected pose; the loop
   // correction fuses the duplicated points and ties the two spanning trees with the loop edge.
-  result.correction = correctLoop(*target_map, *place);
+  LoopCorrectionOptions correction;
+  correction.g_w = merge.g_w;
+  result.correction = correctLoop(*target_map, *place, correction);
+  if (merge.g_w) {
+    result.welding = weldingBundleAdjust(*target_map, current, candidate, merge);
+    log::info("welding at the seam: ", result.welding.fused_points, " duplicate points fused, ",
+              result.welding.linked_points, " observations added; BA ", result.welding.optimised_keyframes,
+              " keyframes optimised, ",
+              result.welding.fixed_keyframes, " held, ", result.welding.points, " points, ",
+              result.welding.inertial_links, " inertial links, chi2 ", result.welding.initial_chi2, " -> ",
+              result.welding.final_chi2);
+  }
   return result;
 }
 

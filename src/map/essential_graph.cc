@@ -8,7 +8,7 @@
 
 namespace ltlo::map {
 
-std::vector<EssentialEdge> essentialGraphEdges(const Map& map, int min_covisibility_weight) {
+std::vector<EssentialEdge> essentialGraphEdges(const Map& map, int min_covisibility_weight, bool with_inertial) {
   const std::vector<std::shared_ptr<KeyFrame>> keyframes = map.keyFrames();
   std::unordered_set<KeyFrameId> present;
   for (const std::shared_ptr<KeyFrame>& kf : keyframes) {
@@ -32,6 +32,14 @@ std::vector<EssentialEdge> essentialGraphEdges(const Map& map, int min_covisibil
       if (claim(kf->id(), other)) {
         const auto [low, high] = ordered(kf->id(), other);
         edges.push_back({low, high, EdgeKind::kLoop, kf->weight(other)});
+      }
+    }
+  }
+  if (with_inertial) {
+    for (const std::shared_ptr<KeyFrame>& kf : keyframes) {
+      const KeyFrameId previous = kf->previousKeyFrame();
+      if (previous.valid() && claim(previous, kf->id())) {
+        edges.push_back({previous, kf->id(), EdgeKind::kInertial, kf->weight(previous)});
       }
     }
   }

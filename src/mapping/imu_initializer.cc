@@ -1,6 +1,12 @@
 #include "imu_initializer.h"
 
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+#include <unordered_set>
+
 #include "ltlo/core/assert.h"
+#include "ltlo/core/log.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/optim/bundle_adjust.h"
 
@@ -34,8 +40,10 @@ std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const
   for (const std::shared_ptr<map::KeyFrame>& kf : chain.keyframes) problem.T_w_b.push_back(kf->T_w_b());
   problem.pims = chain.pims;
   problem.bias_init = bias_init;
-  problem.gyro_bias_prior_information = options.prior_gyro_bias;
-  problem.acc_bias_prior_information = options.prior_acc_bias;
+  const optim::BiasPriorInformation prior =
+      optim::biasPriorInformation(chain.pims.front()->noise(), chain.span_s(), options.bias_prior_samples);
+  problem.gyro_bias_prior_information = prior.gyro;
+  problem.acc_bias_prior_information = prior.acc;
   problem.iterations = options.iterations;
   const optim::ImuInitResult result = optim::initializeImu(problem);
   bool finite = result.g_w.allFinite() && result.bias.b_g.allFinite() && result.bias.b_a.allFinite();
@@ -55,6 +63,180 @@ std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const
   return estimate;
 }
 
+namespace {
+
+bool usable(const std::shared_ptr<map::KeyFrame>& kf) { return kf != nullptr && !kf->isBad(); }
+
+double gammaOf(const map::KeyFrame& kf, const std::vector<double>& gamma, int keypoint) {
+  const int cluster = kf.clusterOf(keypoint);
+  return cluster >= 0 && cluster < static_cast<int>(gamma.size()) ? gamma[static_cast<std::size_t>(cluster)] : 1.0;
+}
+
+}  // namespace
+
+std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, const ImuChain& chain, const Vec3& g_w,
+                                                             const ImuInitOptions& options,
+                                                             const RefinementContext& context,
+                                                             ImuRefinementStats* stats) {
+  LTLO_ASSERT(chain.keyframes.size() >= 2 && chain.pims.size() + 1 == chain.keyframes.size(),
+              "IMU refinement on a chain of " << chain.keyframes.size() << " keyframes and " << chain.pims.size()
+                                              << " preintegrations");
+  LTLO_ASSERT(!context.level_sigma2.empty(), "IMU refinement needs the per-level keypoint variances");
+  // ---- keyframes: the chain's latest (optimised), the one before them (held), observers (held) ----
+  const std::size_t count = chain.keyframes.size();
+  const std::size_t window = std::min<std::size_t>(count, static_cast<std::size_t>(std::max(3, options.refine_max_keyframes)));
+  const std::size_t first = count - window;
+  struct Entry {
+    std::shared_ptr<map::KeyFrame> kf;
+    bool fixed = false;
+    bool pose_only = false;  ///< gauge: pose held, velocity and biases optimised
+    std::vector<double> gamma;
+  };
+  std::vector<Entry> entries;
+  std::unordered_map<map::KeyFrameId, std::size_t> index_of;
+  auto add = [&](const std::shared_ptr<map::KeyFrame>& kf, bool fixed) {
+    if (!usable(kf) || !index_of.emplace(kf->id(), entries.size()).second) return;
+    entries.push_back({kf, fixed, false, kf->gamma()});
+  };
+  optim::LocalBaProblem problem;
+  const std::size_t border = first > 0 ? first - 1 : first;
+  for (std::size_t k = border; k < count; ++k) add(chain.keyframes[k], k < first);
+  for (std::size_t k = border + 1; k < count; ++k) {
+    const auto i = index_of.find(chain.keyframes[k - 1]->id());
+    const auto j = index_of.find(chain.keyframes[k]->id());
+    if (i == index_of.end() || j == index_of.end()) continue;
+    problem.inertial.push_back({static_cast<int>(i->second), static_cast<int>(j->second), chain.pims[k - 1]});
+  }
+  if (problem.inertial.empty()) return std::nullopt;
+  const std::size_t optimised_end = entries.size();
+
+  std::vector<std::shared_ptr<map::MapPoint>> candidates;
+  std::unordered_set<map::MapPointId> seen;
+  std::unordered_map<map::KeyFrameId, int> observer_counts;
+  for (std::size_t k = 0; k < optimised_end; ++k) {
+    if (entries[k].fixed) continue;
+    for (const map::MapPointId id : entries[k].kf->mapPoints()) {
+      if (!id.valid() || !seen.insert(id).second) continue;
+      const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+      if (!point || point->isBad() || point->beta() < context.min_point_beta) continue;
+      candidates.push_back(point);
+      for (const auto& [observer, index] : point->observations()) {
+        if (index_of.count(observer) == 0) ++observer_counts[observer];
+      }
+    }
+  }
+  std::vector<std::pair<int, map::KeyFrameId>> by_count;
+  for (const auto& [id, observations] : observer_counts) by_count.emplace_back(-observations, id);
+  std::sort(by_count.begin(), by_count.end());
+  for (const auto& [negative_count, id] : by_count) {
+    if (entries.size() - optimised_end >= window) break;
+    add(map.keyFrame(id), true);
+  }
+  if (std::none_of(entries.begin(), entries.end(), [](const Entry& e) { return e.fixed; })) {
+    entries.front().fixed = true;  // the oldest of the chain: gauge (gravity is optimised)
+    entries.front().pose_only = true;
+  }
+
+  // ---- the problem ----
+  const map::KeyFrame& newest = *chain.keyframes.back();
+  problem.model.camera = newest.camera();
+  problem.model.T_c_x = newest.T_b_c().inverse();
+  problem.model.bf_px_m = context.bf_px_m;
+  problem.g_w = g_w;
+  problem.estimate_gravity = true;
+  problem.lambda_imu = context.lambda_imu;
+  for (std::size_t k = 0; k < entries.size(); ++k) {
+    optim::BaKeyFrame v;
+    v.id = static_cast<int>(k);
+    v.T_w_b = entries[k].kf->T_w_b();
+    v.v_w_b = entries[k].kf->v_w_b();
+    v.bias = entries[k].kf->bias();
+    v.fixed = entries[k].fixed;
+    v.fixed_pose_only = entries[k].pose_only;
+    problem.keyframes.push_back(v);
+  }
+  // The weak zero-mean bias prior (as the initialisation's) on the oldest optimised keyframe; the
+  // random walk carries it along the chain.
+  const optim::BiasPriorInformation prior =
+      optim::biasPriorInformation(chain.pims.front()->noise(), chain.span_s(), options.bias_prior_samples);
+  const auto oldest_free = index_of.find(chain.keyframes[first]->id());
+  if ((prior.gyro > 0.0 || prior.acc > 0.0) && oldest_free != index_of.end()) {
+    problem.bias_priors.push_back({static_cast<int>(oldest_free->second), imu::ImuBias(), prior.gyro, prior.acc});
+  }
+  std::vector<std::shared_ptr<map::MapPoint>> points;
+  for (const std::shared_ptr<map::MapPoint>& point : candidates) {
+    const int point_id = static_cast<int>(points.size());
+    const double beta = point->beta();
+    std::vector<optim::BaObservation> observations;
+    for (const auto& [observer, index] : point->observations()) {
+      const auto it = index_of.find(observer);
+      if (it == index_of.end()) continue;
+      const Entry& entry = entries[it->second];
+      if (index < 0 || index >= entry.kf->numKeypoints()) continue;
+      const features::Keypoint& kp = entry.kf->keypoints()[static_cast<std::size_t>(index)];
+      const std::size_t level =
+          std::min<std::size_t>(static_cast<std::size_t>(std::max(kp.octave, 0)), context.level_sigma2.size() - 1);
+      optim::BaObservation obs;
+      obs.keyframe_id = static_cast<int>(it->second);
+      obs.point_id = point_id;
+      obs.uv = Vec2(kp.x_px, kp.y_px);
+      obs.depth_m = entry.kf->depth_m(index);
+      obs.sigma_px = std::sqrt(static_cast<double>(context.level_sigma2[level]));
+      obs.static_weight = beta * gammaOf(*entry.kf, entry.gamma, index);
+      observations.push_back(obs);
+    }
+    if (observations.size() < 2) continue;
+    problem.points.push_back(optim::BaPoint{point_id, point->p_w()});
+    points.push_back(point);
+    problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
+  }
+
+  if (context.visual_variance_estimation) problem.inertial_information_scale = optim::inertialInformationScale(problem);
+
+  optim::LocalBaOptions ba_options;
+  ba_options.iterations = options.refine_iterations;
+  ba_options.num_threads = context.num_threads;
+  const optim::LocalBaResult result = optim::localBundleAdjust(problem, ba_options);
+  if (stats != nullptr) {
+    *stats = ImuRefinementStats();
+    for (const Entry& e : entries) (e.fixed ? stats->fixed_keyframes : stats->optimised_keyframes)++;
+    stats->points = static_cast<int>(points.size());
+    stats->observations = static_cast<int>(problem.observations.size());
+    stats->visual_sigma_scale = std::sqrt(problem.inertial_information_scale);
+    stats->initial_chi2 = result.initial_chi2;
+    stats->final_chi2 = result.summary.final_chi2;
+  }
+  bool finite = result.g_w.allFinite();
+  for (std::size_t k = 0; k < optimised_end; ++k) {
+    const optim::BaKeyFrame& out = result.keyframes[k];
+    finite = finite && out.T_w_b.translation().allFinite() && out.T_w_b.quaternion().coeffs().allFinite() &&
+             out.v_w_b.allFinite() && out.bias.b_g.allFinite() && out.bias.b_a.allFinite();
+  }
+  if (!finite) return std::nullopt;
+
+  // ---- write back (what went bad meanwhile is skipped) ----
+  for (std::size_t k = 0; k < optimised_end; ++k) {
+    map::KeyFrame& kf = *entries[k].kf;
+    const optim::BaKeyFrame& out = result.keyframes[k];
+    if (kf.isBad() || (entries[k].fixed && !entries[k].pose_only)) continue;
+    if (!entries[k].fixed) kf.setPose_T_w_b(out.T_w_b);
+    kf.setVelocity(out.v_w_b);
+    kf.setBias(out.bias);
+  }
+  for (std::size_t m = 0; m < points.size(); ++m) {
+    if (!points[m]->isBad() && result.points[m].p_w.allFinite()) points[m]->setPosition(result.points[m].p_w);
+  }
+  map.bumpVersion();
+
+  ImuInitEstimate estimate;
+  estimate.g_w = result.g_w;
+  estimate.bias = result.keyframes[optimised_end - 1].bias;
+  estimate.keyframes = static_cast<int>(window);
+  estimate.span_s = chain.keyframes.back()->t_s() - chain.keyframes[first]->t_s();
+  estimate.final_chi2 = result.summary.final_chi2;
+  return estimate;
+}
+
 void predictInertialState(const map::Map& map, map::KeyFrame& kf, const Vec3& g_w) {
   const std::shared_ptr<map::KeyFrame> previous = map.keyFrame(kf.previousKeyFrame());
   const std::optional<imu::Preintegrated> pim = kf.imuFromPrevious();
@@ -69,6 +251,31 @@ void predictInertialState(const map::Map& map, map::KeyFrame& kf, const Vec3& g_
   state_i.p_w_b = T_w_b_i.translation();
   state_i.v_w_b = previous->v_w_b();
   kf.setVelocity(imu::predict(state_i, *pim, previous_bias, g_w).v_w_b);
+}
+
+std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain, const ImuInitOptions& options,
+                                           const RefinementContext& context,
+                                           const std::optional<ImuInitEstimate>& current) {
+  const map::KeyFrameId newest = chain.keyframes.back()->id();
+  auto refine = [&](const Vec3& g_w) {
+    ImuRefinementStats stats;
+    const std::optional<ImuInitEstimate> refined =
+        refineImuWithVisualInertialBa(map, chain, g_w, options, context, &stats);
+    log::info("IMU visual-inertial BA at kf ", newest, ": ", stats.optimised_keyframes, " keyframes optimised, ",
+              stats.fixed_keyframes, " held, ", stats.points, " points, ", stats.observations,
+              " observations (camera noise ", stats.visual_sigma_scale, " x the model), chi2 ",
+              stats.initial_chi2, " -> ", stats.final_chi2, (refined ? "" : " (not finite, not applied)"));
+    return refined;
+  };
+  if (current && options.visual_inertial_refinement) return refine(current->g_w);
+  const std::optional<ImuInitEstimate> inertial_only =
+      initialiseImuOnChain(chain, options, current ? current->bias : imu::ImuBias());
+  if (!inertial_only || current || !options.visual_inertial_refinement) return inertial_only;
+  log::info("IMU inertial-only initialisation at kf ", newest, ": g_w = (", inertial_only->g_w.transpose(),
+            ") m/s^2, b_g = (", inertial_only->bias.b_g.transpose(), ") rad/s, b_a = (",
+            inertial_only->bias.b_a.transpose(), ") m/s^2");
+  const std::optional<ImuInitEstimate> refined = refine(inertial_only->g_w);
+  return refined ? refined : inertial_only;
 }
 
 }  // namespace ltlo::mapping

@@ -1,7 +1,10 @@
 #pragma once
 /// IMU initialisation of local mapping (private to ltlo_mapping): inertial-only optimisation of
 /// velocities, one bias pair and the gravity direction over the keyframes' IMU chain with their
-/// (fixed) poses; scale is known from depth, and the map is not rotated (g_w in the map frame).
+/// (fixed) poses, then refinements by a full visual-inertial BA (poses, velocities, per-keyframe
+/// biases, gravity direction and points); scale is known from depth, and the map is not rotated (g_w
+/// in the map frame). The zero-mean bias priors follow the IMU's noise and random walk
+/// (optim::biasPriorInformation, ImuInit.BiasPriorSamples).
 #include <memory>
 #include <optional>
 #include <vector>
@@ -38,8 +41,56 @@ struct ImuInitEstimate {
 std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const ImuInitOptions& options,
                                                     const imu::ImuBias& bias_init);
 
+/// What the refinement BA needs besides ImuInitOptions.
+struct RefinementContext {
+  double bf_px_m = 40.0;         ///< RGB-D edges (as local BA)
+  double min_point_beta = 0.5;   ///< points with a lower static score are left out
+  double lambda_imu = 1.0;       ///< bias random-walk weight, Eq. 58
+  bool visual_variance_estimation = true;  ///< LocalMapping.VisualVarianceEstimation
+  int num_threads = 1;
+  std::vector<float> level_sigma2;  ///< OrbExtractor::levelSigma2()
+};
+
+struct ImuRefinementStats {
+  int optimised_keyframes = 0;
+  int fixed_keyframes = 0;
+  int points = 0;
+  int observations = 0;
+  double visual_sigma_scale = 1.0;  ///< estimated camera noise over the modelled one (sqrt of the variance factor)
+  double initial_chi2 = 0.0;
+  double final_chi2 = 0.0;
+};
+
+/// The refinement of the IMU initialisation (ORB-SLAM3's VI-BA 1 and 2, without scale): a full
+/// visual-inertial BA of the latest ImuInit.RefineMaxKeyFrames keyframes of `chain` with their
+/// static points, per-keyframe velocities and biases (bias random walk between consecutive ones,
+/// the weak zero-mean prior on the oldest) and the gravity direction starting from `g_w`; the
+/// keyframe before the window and the other keyframes seeing the points are held, else the oldest
+/// optimised keyframe's pose is the gauge. On a finite result writes poses, velocities, biases and
+/// points back (bumping the map version, so tracking re-anchors) and returns the new g_w and the
+/// newest keyframe's biases; nullopt (nothing written) otherwise.
+std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, const ImuChain& chain, const Vec3& g_w,
+                                                             const ImuInitOptions& options,
+                                                             const RefinementContext& context,
+                                                             ImuRefinementStats* stats = nullptr);
+
 /// Velocity (and, when it is still zero, bias) of a keyframe inserted after the initialisation,
 /// predicted from its predecessor through the preintegration when tracking left it at zero.
 void predictInertialState(const map::Map& map, map::KeyFrame& kf, const Vec3& g_w);
+
+}  // namespace ltlo::mapping
+
+namespace ltlo::mapping {
+
+/// Local mapping's IMU step on `chain`. `current` absent (first initialisation): the inertial-only
+/// initialisation, then, with ImuInit.VisualInertialRefinement, at once the visual-inertial BA from
+/// its result (the inertial-only problem takes the tracked poses as exact, so their errors go into
+/// the biases and gravity; ORB-SLAM3's initialisation runs its full inertial BA the same way).
+/// `current` given (a refinement): the visual-inertial BA from current->g_w, or without
+/// ImuInit.VisualInertialRefinement the inertial-only initialisation again from current->bias.
+/// nullopt when no finite estimate came out (then nothing of the map changed).
+std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain, const ImuInitOptions& options,
+                                           const RefinementContext& context,
+                                           const std::optional<ImuInitEstimate>& current);
 
 }  // namespace ltlo::mapping

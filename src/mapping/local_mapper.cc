@@ -174,10 +174,15 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
       chain.span_s() < options.imu_init.min_time_s) {
     return false;
   }
+  const bool refinement = state.initialised && options.imu_init.visual_inertial_refinement;
   std::optional<ScopedTimer> timer;
-  if (timing != nullptr) timer.emplace(*timing, "mapping.imu_init");
-  const std::optional<ImuInitEstimate> estimate =
-      initialiseImuOnChain(chain, options.imu_init, state.initialised ? state.bias : imu::ImuBias());
+  if (timing != nullptr) timer.emplace(*timing, refinement ? "mapping.imu_refine" : "mapping.imu_init");
+  std::optional<ImuInitEstimate> current;
+  if (state.initialised) current = ImuInitEstimate{state.g_w, state.bias};
+  const RefinementContext context{options.bf_px_m, options.local_mapping.min_point_beta,
+                                  options.local_mapping.lambda_imu,
+                                  options.local_mapping.visual_variance_estimation, options.ba_threads, level_sigma2};
+  const std::optional<ImuInitEstimate> estimate = estimateImu(map, chain, options.imu_init, context, current);
   if (!estimate) {
     log::warn("IMU initialisation at kf ", kf->id(), " gave a non-finite estimate; retrying later");
     return false;

@@ -1,6 +1,7 @@
 #include "ltlo/optim/bundle_adjust.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <unordered_map>
 #include <sparse_opt/robust_kernel.h>
@@ -54,14 +55,25 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
     auto velocity = std::make_unique<VertexVelocity>(4 * k + 1, kf.v_w_b);
     auto gyro_bias = std::make_unique<VertexGyroBias>(4 * k + 2, kf.bias.b_g);
     auto acc_bias = std::make_unique<VertexAccBias>(4 * k + 3, kf.bias.b_a);
-    velocity->setFixed(kf.fixed);
-    gyro_bias->setFixed(kf.fixed);
-    acc_bias->setFixed(kf.fixed);
+    const bool state_fixed = kf.fixed && !kf.fixed_pose_only;
+    velocity->setFixed(state_fixed);
+    gyro_bias->setFixed(state_fixed);
+    acc_bias->setFixed(state_fixed);
     v.velocity = graph.addVertex(std::move(velocity));
     v.gyro_bias = graph.addVertex(std::move(gyro_bias));
     v.acc_bias = graph.addVertex(std::move(acc_bias));
   };
 
+  // Gravity direction (refinement of the IMU initialisation): one vertex after the points' ids.
+  LTLO_ASSERT(!problem.estimate_gravity || !problem.inertial.empty(),
+              "localBundleAdjust: the gravity direction needs inertial links");
+  const double gravity_m_s2 = problem.g_w.norm();
+  VertexGravityDir* gravity = nullptr;
+  if (problem.estimate_gravity) {
+    const int gravity_id = 4 * num_keyframes + static_cast<int>(problem.points.size());
+    gravity = graph.addVertex(
+        std::make_unique<VertexGravityDir>(gravity_id, imu::gravityRotationFromDirection(problem.g_w)));
+  }
   for (const BaInertialLink& link : problem.inertial) {
     LTLO_ASSERT(link.pim != nullptr, "localBundleAdjust: inertial link without preintegration");
     const int i = index_of(link.keyframe_i);
@@ -70,21 +82,56 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
     ensure_inertial_vertices(j);
     const KeyFrameVertices& vi = kf_vertices[static_cast<size_t>(i)];
     const KeyFrameVertices& vj = kf_vertices[static_cast<size_t>(j)];
-    auto inertial = std::make_unique<EdgeInertial>(link.pim, problem.g_w);
-    inertial->setVertex(0, vi.pose);
-    inertial->setVertex(1, vi.velocity);
-    inertial->setVertex(2, vi.gyro_bias);
-    inertial->setVertex(3, vi.acc_bias);
-    inertial->setVertex(4, vj.pose);
-    inertial->setVertex(5, vj.velocity);
-    graph.addEdge(std::move(inertial));
+    if (gravity != nullptr) {
+      auto inertial = std::make_unique<EdgeInertialGravity>(link.pim, gravity_m_s2);
+      inertial->setVertex(0, vi.pose);
+      inertial->setVertex(1, vi.velocity);
+      inertial->setVertex(2, vi.gyro_bias);
+      inertial->setVertex(3, vi.acc_bias);
+      inertial->setVertex(4, vj.pose);
+      inertial->setVertex(5, vj.velocity);
+      inertial->setVertex(6, gravity);
+      inertial->setInformation(problem.inertial_information_scale * inertial->information());
+      graph.addEdge(std::move(inertial));
+    } else {
+      auto inertial = std::make_unique<EdgeInertial>(link.pim, problem.g_w);
+      inertial->setVertex(0, vi.pose);
+      inertial->setVertex(1, vi.velocity);
+      inertial->setVertex(2, vi.gyro_bias);
+      inertial->setVertex(3, vi.acc_bias);
+      inertial->setVertex(4, vj.pose);
+      inertial->setVertex(5, vj.velocity);
+      inertial->setInformation(problem.inertial_information_scale * inertial->information());
+      graph.addEdge(std::move(inertial));
+    }
     auto walk = std::make_unique<EdgeBiasWalk>();
     walk->setVertex(0, vi.gyro_bias);
     walk->setVertex(1, vi.acc_bias);
     walk->setVertex(2, vj.gyro_bias);
     walk->setVertex(3, vj.acc_bias);
-    walk->setInformation(biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), 1e-3), problem.lambda_imu));
+    walk->setInformation(problem.inertial_information_scale *
+                         biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), 1e-3), problem.lambda_imu));
     graph.addEdge(std::move(walk));
+  }
+
+  for (const BaBiasPrior& prior : problem.bias_priors) {
+    const KeyFrameVertices& v = kf_vertices[static_cast<size_t>(index_of(prior.keyframe_id))];
+    LTLO_ASSERT(v.gyro_bias != nullptr, "localBundleAdjust: bias prior on keyframe " << prior.keyframe_id
+                                                                                   << " without an inertial link");
+    if (prior.gyro_information > 0.0) {
+      auto edge = std::make_unique<EdgeGyroBiasPrior>();
+      edge->setVertex(0, v.gyro_bias);
+      edge->setMeasurement(prior.mean.b_g);
+      edge->setInformation(problem.inertial_information_scale * prior.gyro_information * Mat3::Identity());
+      graph.addEdge(std::move(edge));
+    }
+    if (prior.acc_information > 0.0) {
+      auto edge = std::make_unique<EdgeAccBiasPrior>();
+      edge->setVertex(0, v.acc_bias);
+      edge->setMeasurement(prior.mean.b_a);
+      edge->setInformation(problem.inertial_information_scale * prior.acc_information * Mat3::Identity());
+      graph.addEdge(std::move(edge));
+    }
   }
 
   std::unordered_map<int, VertexPoint*> point_vertices;
@@ -137,6 +184,7 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
 
   LocalBaResult result;
   result.summary = graph.optimize(solver_options);
+  result.initial_chi2 = result.summary.initial_chi2;
   const bool stopped = options.stop_flag != nullptr && options.stop_flag->load();
   if (options.reject_outliers && !stopped) {
     for (ObservationEdge& entry : edges) {
@@ -166,7 +214,57 @@ LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOpti
   }
   result.points = problem.points;
   for (BaPoint& point : result.points) point.p_w = point_vertices.at(point.id)->estimate();
+  result.g_w = gravity != nullptr ? imu::gravityFromRotation(gravity->estimate(), gravity_m_s2) : problem.g_w;
   return result;
+}
+
+double visualVarianceFactor(const LocalBaProblem& problem) {
+  // Medians of the chi-square distribution with 2 and 3 degrees of freedom.
+  constexpr double kMedianChi2_2 = 1.3863;
+  constexpr double kMedianChi2_3 = 2.3660;
+  std::unordered_map<int, const BaKeyFrame*> keyframes;
+  for (const BaKeyFrame& kf : problem.keyframes) keyframes.emplace(kf.id, &kf);
+  std::unordered_map<int, const BaPoint*> points;
+  for (const BaPoint& point : problem.points) points.emplace(point.id, &point);
+  std::vector<double> ratios;
+  ratios.reserve(problem.observations.size());
+  for (const BaObservation& obs : problem.observations) {
+    if (obs.static_weight < 0.5 || obs.sigma_px <= 0.0) continue;  // dynamic or doubtful: not noise
+    const auto kf = keyframes.find(obs.keyframe_id);
+    const auto point = points.find(obs.point_id);
+    if (kf == keyframes.end() || point == points.end()) continue;
+    const Vec3 p_c = problem.model.T_c_x * (kf->second->T_w_b.inverse() * point->second->p_w);
+    if (p_c.z() <= 0.0) continue;
+    const double inv_sigma2 = 1.0 / (obs.sigma_px * obs.sigma_px);
+    if (obs.depth_m > 0.0) {
+      const Vec3 r = problem.model.rgbdObservation(obs.uv, obs.depth_m) - problem.model.projectRgbd(p_c);
+      ratios.push_back(r.squaredNorm() * inv_sigma2 / kMedianChi2_3);
+    } else {
+      const Vec2 r = obs.uv - problem.model.project(p_c);
+      ratios.push_back(r.squaredNorm() * inv_sigma2 / kMedianChi2_2);
+    }
+  }
+  if (ratios.size() < 10) return 1.0;
+  const auto middle = ratios.begin() + static_cast<std::ptrdiff_t>(ratios.size() / 2);
+  std::nth_element(ratios.begin(), middle, ratios.end());
+  return *middle;
+}
+
+double inertialInformationScale(const LocalBaProblem& problem) {
+  return std::clamp(visualVarianceFactor(problem), 1e-2, 1e2);
+}
+
+BiasPriorInformation biasPriorInformation(const imu::ImuNoise& noise, double window_s, double samples) {
+  LTLO_ASSERT(window_s >= 0.0 && samples >= 0.0,
+              "biasPriorInformation: window_s = " << window_s << ", samples = " << samples);
+  BiasPriorInformation information;
+  if (samples <= 0.0) return information;
+  const Mat6 walk = noise.biasWalkCovariance(std::max(window_s, 0.0));
+  const double gyro_variance = noise.gyroCovariance()(0, 0) / samples + walk(0, 0);
+  const double acc_variance = noise.accCovariance()(0, 0) / samples + walk(3, 3);
+  information.gyro = 1.0 / gyro_variance;
+  information.acc = 1.0 / acc_variance;
+  return information;
 }
 
 ImuInitResult linearImuInit(const ImuInitProblem& problem) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -78,7 +79,14 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   loop::LoopCloserOptions closer_options;
   closer_options.loop = settings_.loop;
   closer_options.virtual_baseline_m = settings_.tracking.virtual_baseline_m;
-  loop::MappingControl mapping_control{[this] { mapper_->pause(); }, [this] { mapper_->resume(); }};
+  closer_options.min_point_beta = settings_.local_mapping.min_point_beta;
+  closer_options.lambda_imu = settings_.local_mapping.lambda_imu;
+  closer_options.visual_variance_estimation = settings_.local_mapping.visual_variance_estimation;
+  loop::MappingControl mapping_control{[this] { mapper_->pause(); }, [this] { mapper_->resume(); },
+                                       [this]() -> std::optional<Vec3> {
+                                         const mapping::ImuState imu = mapper_->imuState();
+                                         return imu.initialised ? std::optional<Vec3>(imu.g_w) : std::nullopt;
+                                       }};
   closer_ = std::make_unique<loop::LoopCloser>(*atlas_, closer_options, std::move(mapping_control), &timing_);
 
   if (options_.threaded) {

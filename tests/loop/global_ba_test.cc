@@ -183,5 +183,62 @@ TEST(GlobalBundleAdjustment, ApplyMovesKeyFramesAndPointsCreatedDuringTheRunWith
   EXPECT_LT(max_point_error_m, 1e-4);
 }
 
+// One keyframe sees a "box" (its right image half, cluster 1) whose points moved by 1.5 px since the
+// others saw them: inside the chi2 gate, so only the static weight beta * gamma (thesis Eq. 53) keeps
+// them from pulling the keyframe. Points of low beta stay out of the BA.
+double poseErrorWithBoxGamma(double box_gamma, GlobalBaResult* result_out) {
+  const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);
+  std::mt19937 rng(33);
+  std::uniform_real_distribution<double> lateral(-1.5, 1.5), depth(3.0, 5.0);
+  std::vector<Vec3> p_w_true;
+  for (int i = 0; i < kNumPoints; ++i) p_w_true.emplace_back(lateral(rng), lateral(rng), depth(rng));
+  map::Map map;
+  std::vector<std::shared_ptr<map::KeyFrame>> kfs;
+  std::vector<SE3> T_w_b_true;
+  for (int k = 0; k < kNumKeyFrames; ++k) {
+    T_w_b_true.emplace_back(so3Exp(Vec3(0.0, 0.03 * k, 0.0)), Vec3(0.1 * k, 0.02 * k, 0.0));
+    const bool boxed = k == kNumKeyFrames - 1;
+    features::OrbFeatures features;
+    std::vector<float> depths;
+    for (const Vec3& p_w : p_w_true) {
+      const Vec3 p_c = T_w_b_true.back().inverse() * p_w;
+      Vec2 uv = camera.project(p_c);
+      if (boxed && uv.x() >= 320.0) uv.x() += 1.5;
+      features.keypoints.push_back(features::Keypoint{static_cast<float>(uv.x()), static_cast<float>(uv.y()), 0.0f, 0.0f, 0});
+      features.descriptors.push_back({});
+      depths.push_back(static_cast<float>(p_c.z()));
+    }
+    map::Frame frame(0.1 * k, camera, SE3(), std::move(features), std::move(depths), {1.0f, 1.2f});
+    if (boxed) {
+      map::ClusterSegmentation segmentation;
+      segmentation.labels = cv::Mat(480, 640, CV_8U, cv::Scalar(0));
+      segmentation.labels.colRange(320, 640).setTo(1);
+      segmentation.gamma = {1.0, box_gamma, 1.0};  // static background, the box, no depth
+      frame.setSegmentation(segmentation, 0.01);
+    }
+    frame.setPose_T_w_b(T_w_b_true.back());
+    kfs.push_back(map.createKeyFrame(frame));
+  }
+  for (int i = 0; i < kNumPoints; ++i) {
+    const auto point = map.createMapPoint(p_w_true[static_cast<std::size_t>(i)], kfs[0]->id());
+    for (const auto& kf : kfs) EXPECT_TRUE(map.addObservation(*kf, i, *point));
+    if (i < 5) point->setBeta(0.2);  // found dynamic: left out (LocalMapping.MinPointBeta = 0.5)
+  }
+  const GlobalBaResult result = runGlobalBundleAdjustment(map);
+  if (result_out != nullptr) *result_out = result;
+  return (kfs.back()->T_w_b().translation() - T_w_b_true.back().translation()).norm();
+}
+
+TEST(GlobalBundleAdjustment, StaticWeightsKeepAMovedBoxFromPullingTheKeyFrame) {
+  GlobalBaResult weighted;
+  const double error_weighted_m = poseErrorWithBoxGamma(0.05, &weighted);
+  const double error_unweighted_m = poseErrorWithBoxGamma(1.0, nullptr);
+  std::printf("[ GBA BETA ] keyframe seeing a moved box: error %.2e m with the box's gamma 0.05, %.2e m with gamma 1\n",
+              error_weighted_m, error_unweighted_m);
+  EXPECT_EQ(weighted.points, kNumPoints - 5);
+  EXPECT_GT(error_unweighted_m, 2e-3);
+  EXPECT_LT(error_weighted_m, 0.1 * error_unweighted_m);
+}
+
 }  // namespace
 }  // namespace ltlo::loop

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -157,6 +158,61 @@ TEST(LoopCorrector, EssentialGraphRemovesDrift) {
   EXPECT_EQ(current.loopEdges()[0], first.id());
   EXPECT_EQ(first.loopEdges()[0], current.id());
   EXPECT_GT(current.weight(first.id()), 0);
+}
+
+TEST(LoopCorrector, FourDofWithGravityTurnsVelocitiesAndKeepsRollAndPitch) {
+  // The drift of the second half is a turn about gravity (-z) and a translation: what a 4-DoF
+  // correction can remove. Each keyframe moves along its heading at 1 m/s (body velocity (1, 0, 0)
+  // rotated by its drifted pose).
+  Scene scene;
+  buildScene(scene, SE3::exp((Vec6() << 0.0, 0.0, 0.01, 0.01, 0.005, 0.002).finished()));
+  const Vec3 v_b(1.0, 0.0, 0.0);
+  for (const std::shared_ptr<map::KeyFrame>& kf : scene.kfs) kf->setVelocity(kf->T_w_b().rotationMatrix() * v_b);
+  auto velocityError = [&] {
+    double worst = 0.0;
+    for (std::size_t k = 0; k < scene.kfs.size(); ++k) {
+      worst = std::max(worst, (scene.kfs[k]->v_w_b() - scene.T_w_b_true[k].rotationMatrix() * v_b).norm());
+    }
+    return worst;
+  };
+  const Vec3 up_w(0.0, 0.0, 1.0);
+  std::vector<Vec3> up_in_body;
+  for (const std::shared_ptr<map::KeyFrame>& kf : scene.kfs) up_in_body.push_back(kf->T_w_b().rotationMatrix().transpose() * up_w);
+  const double end_before = endToStartError_m(scene);
+  const double velocity_before = velocityError();
+
+  map::KeyFrame& current = *scene.kfs.back();
+  map::KeyFrame& first = *scene.kfs.front();
+  LoopClosure loop;
+  loop.current = current.id();
+  loop.loop = first.id();
+  // The place match also carries a small tilt error (0.3 deg): gravity says otherwise, so it is dropped.
+  loop.T_w_b_current_corrected =
+      SE3(so3ExpQuat(Vec3(0.005, 0.0, 0.0)) * scene.T_w_b_true.back().quaternion(), scene.T_w_b_true.back().translation());
+  for (int n = 0; n < 10; ++n) loop.matches.push_back(LoopMatch{n, first.mapPoint(n)});
+  LoopCorrectionOptions options;
+  options.g_w = Vec3(0.0, 0.0, -9.81);
+  const LoopCorrectionResult result = correctLoop(scene.map, loop, options);
+
+  double tilt_change = 0.0, body_velocity_change = 0.0;
+  for (std::size_t k = 0; k < scene.kfs.size(); ++k) {
+    const Mat3 R_w_b = scene.kfs[k]->T_w_b().rotationMatrix();
+    tilt_change = std::max(tilt_change, (R_w_b.transpose() * up_w - up_in_body[k]).norm());
+    body_velocity_change = std::max(body_velocity_change, (R_w_b.transpose() * scene.kfs[k]->v_w_b() - v_b).norm());
+  }
+  const double end_after = endToStartError_m(scene);
+  const double velocity_after = velocityError();
+  std::printf("[ LOOP4DOF ] end-to-start error %.4f -> %.4f m, max velocity error %.3f -> %.4f m/s, roll/pitch change "
+              "%.1e, body-frame velocity change %.1e, %d edges\n",
+              end_before, end_after, velocity_before, velocity_after, tilt_change, body_velocity_change,
+              result.graph_edges);
+  EXPECT_GT(end_before, 0.1);
+  EXPECT_LT(end_after, end_before / 5.0);
+  EXPECT_LT(tilt_change, 1e-9);            // roll and pitch are observable through gravity: untouched
+  EXPECT_LT(body_velocity_change, 1e-9);   // velocities turn with their poses
+  EXPECT_GT(velocity_before, 0.05);
+  // The graph spreads the heading error over the lap (as the positions, see EssentialGraphRemovesDrift).
+  EXPECT_LT(velocity_after, velocity_before / 2.0);
 }
 
 TEST(LoopCorrector, LeavesADriftFreeMapInPlace) {

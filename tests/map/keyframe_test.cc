@@ -240,6 +240,19 @@ TEST(EssentialGraph, TreeLoopAndStrongCovisibilityEdgesOnce) {
   EXPECT_EQ(with_loop[4].from, b->id());
   EXPECT_EQ(with_loop[4].to, d->id());
   EXPECT_EQ(essentialGraphEdges(map, 151).size(), 4u);  // no covisibility edge that strong
+
+  // With the IMU: the chain a -> b -> c -> d adds c-d (not yet linked; a-b and b-c are tree edges)
+  // as an inertial edge, ordered earlier -> later.
+  b->setPreviousKeyFrame(a->id());
+  c->setPreviousKeyFrame(b->id());
+  d->setPreviousKeyFrame(c->id());
+  EXPECT_EQ(essentialGraphEdges(map).size(), 5u);  // without it, unchanged
+  const std::vector<EssentialEdge> inertial = essentialGraphEdges(map, kEssentialCovisibilityWeight, true);
+  ASSERT_EQ(inertial.size(), 6u);
+  EXPECT_EQ(inertial[5].kind, EdgeKind::kInertial);
+  EXPECT_EQ(inertial[5].from, c->id());
+  EXPECT_EQ(inertial[5].to, d->id());
+  EXPECT_EQ(inertial[5].weight, 40);
 }
 
 }  // namespace

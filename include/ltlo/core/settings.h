@@ -161,6 +161,11 @@ struct LocalMappingOptions {
   double lambda_imu = 1.0;
   /// map points whose beta ends below are deleted as dynamic (LocalMapping.MinPointBeta, [0, 1])
   double min_point_beta = 0.5;
+  /// The visual-inertial BAs of the IMU refinement and of loop closing (full BA, welding BA) weight
+  /// the reprojection edges by the camera noise estimated from their residuals (the variance factor
+  /// of optim::visualVarianceFactor) instead of the 1 px-per-pyramid-level model, so camera and IMU
+  /// count by their actual noise (LocalMapping.VisualVarianceEstimation, 0/1)
+  bool visual_variance_estimation = true;
   /// a keyframe is culled when this fraction of its points is seen by >= 3 other keyframes
   /// (LocalMapping.RedundantRatio, [0.5, 1])
   double redundant_ratio = 0.9;
@@ -211,10 +216,22 @@ struct ImuInitOptions {
   int min_keyframes = 10;
   /// inertial-only optimisation iterations (ImuInit.Iterations, [1, 1000])
   int iterations = 10;
-  /// information of the zero prior on b_g, 1/(rad/s)^2 (ImuInit.PriorGyroBias, [0, 1e12])
-  double prior_gyro_bias = 1e2;
-  /// information of the zero prior on b_a, 1/(m/s^2)^2 (ImuInit.PriorAccBias, [0, 1e12])
-  double prior_acc_bias = 1e5;
+  /// Strength of the zero-mean priors on b_g and b_a, counted in IMU readings: each prior has the
+  /// variance of one reading's noise (IMU.NoiseGyro / IMU.NoiseAcc squared times IMU.Frequency)
+  /// divided by this, plus the bias random walk (IMU.GyroWalk / IMU.AccWalk) over the window
+  /// (optim::biasPriorInformation); 0: no prior (ImuInit.BiasPriorSamples, [0, 1e6])
+  double bias_prior_samples = 1.0;
+  /// Refine the estimate at the delays after the first initialisation with a full visual-inertial BA
+  /// (poses, velocities, biases, gravity direction and points; scale fixed by depth); 0: re-run the
+  /// inertial-only initialisation on the current poses, the ablation (ImuInit.VisualInertialRefinement,
+  /// 0/1)
+  bool visual_inertial_refinement = true;
+  /// iterations per pass of the refinement BA (two passes: robust, then without outliers)
+  /// (ImuInit.RefineIterations, [1, 1000])
+  int refine_iterations = 10;
+  /// keyframes the refinement BA optimises at most (the latest of the IMU chain; observers of their
+  /// points beyond are held), which bounds its cost (ImuInit.RefineMaxKeyFrames, [3, 10000])
+  int refine_max_keyframes = 60;
 
   static ImuInitOptions load(const SettingsFile& file);
 };

@@ -2,7 +2,10 @@
 /// LoopCloser (namespace ltlo::loop): the loop-closing thread. For every keyframe local mapping has
 /// processed: place recognition on the static keyframes (LoopDetector), geometric verification
 /// (verifyLoop), and either a loop correction in the same map (correctLoop with local mapping paused,
-/// then a vision-only full BA in its own thread) or a merge with another Atlas map (mergeAtPlace).
+/// then a full BA in its own thread) or a merge with another Atlas map (mergeAtPlace). Once local
+/// mapping has initialised the IMU (MappingControl::gravity_w), corrections and merges are 4-DoF
+/// (yaw about gravity and translation), velocities turn with the poses, merges are welded by a
+/// visual-inertial BA and the full BA is visual-inertial; before that, SE3 and vision only.
 /// The keyframe then enters the keyframe database.
 ///
 /// Threads: local mapping calls insertKeyFrame(); the loop thread runs run(); the full BA runs in a
@@ -14,8 +17,10 @@
 /// Thread-safe public API; the closer owns its queue, detector and event list.
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
+#include "ltlo/core/eigen_types.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/core/timing.h"
 #include "ltlo/loop/global_ba.h"
@@ -28,14 +33,26 @@ struct LoopCloserOptions {
   LoopOptions loop;  ///< enabled, consistency, inliers, full BA iterations, static ratio
   /// Virtual stereo baseline of the RGB-D edges of the full BA (m).
   double virtual_baseline_m = 0.08;
+  /// Points with a lower static score beta stay out of the full and welding BA
+  /// (LocalMapping.MinPointBeta).
+  double min_point_beta = 0.5;
+  /// Weight of the bias random walk in the visual-inertial BAs, Eq. 58 (LocalMapping.LambdaImu).
+  double lambda_imu = 1.0;
+  /// The visual-inertial BAs estimate the camera noise from their residuals
+  /// (LocalMapping.VisualVarianceEstimation).
+  bool visual_variance_estimation = true;
   bool run_global_ba = true;       ///< full BA after each loop (in its own thread)
   std::size_t queue_capacity = 64;
 };
 
-/// Pause/resume of local mapping around a correction (System wires LocalMapper::pause/resume).
+/// Pause/resume of local mapping around a correction (System wires LocalMapper::pause/resume) and
+/// the IMU state local mapping estimates.
 struct MappingControl {
   std::function<void()> pause;
   std::function<void()> resume;
+  /// Gravity in the run's world frame (m/s^2) once the IMU is initialised, nullopt before (or
+  /// without an IMU, or not wired). Called from the loop thread; must be thread-safe.
+  std::function<std::optional<Vec3>()> gravity_w = nullptr;
 };
 
 /// One accepted loop or merge (for logs, metrics.json and tests).

@@ -2,7 +2,8 @@
 /// Loop verification and correction on a Map (namespace ltlo::loop): 3-D-3-D correspondences by BoW
 /// matching, SE3 RANSAC, then the correction of ORB-SLAM's loop closing without scale (RGB-D):
 /// move the current keyframe's covisible window, fuse the duplicated points, add the loop edge,
-/// optimise the essential graph and move every map point with its keyframe.
+/// optimise the essential graph (SE3, or 4-DoF once gravity is known) and move every map point with
+/// its keyframe.
 #include <cstddef>
 #include <optional>
 #include <vector>
@@ -58,11 +59,23 @@ struct LoopCorrectionResult {
   double final_cost = 0.0;
 };
 
-/// Applies `loop` to `map` (keyframes' T_w_b and points' p_w). The loop keyframe is the gauge. Edges
-/// that existed before the correction keep their pre-loop relative pose; new ones (the loop edge,
-/// connections made by fusion) take the corrected poses. Points move with the keyframe that
-/// corrected them in the window, else with their reference keyframe (else first observer).
+struct LoopCorrectionOptions {
+  int iterations = 20;  ///< of the essential-graph optimisation
+  /// Gravity in the map's world frame (m/s^2) once the IMU is initialised: the correction is then
+  /// 4-DoF (yaw about gravity and translation; roll and pitch are observable through gravity), the
+  /// essential graph also links keyframes consecutive in time, and keyframe velocities turn with
+  /// their poses. nullopt: 6-DoF (SE3) correction, velocities untouched.
+  std::optional<Vec3> g_w;
+};
+
+/// Applies `loop` to `map` (keyframes' T_w_b (and v_w_b) and points' p_w). The loop keyframe is the
+/// gauge. The current keyframe's window first moves rigidly by the loop's correction (with g_w its
+/// yaw and translation only, keeping the current keyframe's corrected position). Edges that existed
+/// before the correction keep their pre-loop relative pose; new ones (the loop edge, connections
+/// made by fusion) take the corrected poses. Points move with the keyframe that corrected them in
+/// the window, else with their reference keyframe (else first observer).
 /// Call with local mapping paused (it moves poses and points and changes the graph).
-LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, int iterations = 20);
+LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop,
+                                 const LoopCorrectionOptions& options = LoopCorrectionOptions());
 
 }  // namespace ltlo::loop

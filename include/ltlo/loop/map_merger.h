@@ -2,7 +2,9 @@
 /// Map merging (namespace ltlo::loop): when a keyframe of the active map recognises a place of
 /// another Atlas map, align the two by the same 3-D-3-D RANSAC as a loop, move the active map into
 /// the other's frame (Atlas::mergeMaps) and close the loop across the seam (fusion, loop edge,
-/// essential graph).
+/// essential graph). Once the IMU is initialised both maps share the run's gravity-aligned world
+/// (a new map starts at the predicted pose), so the alignment keeps gravity: yaw about it and
+/// translation only (4 DoF); a visual-inertial welding BA then joins the seam.
 #include <optional>
 
 #include "ltlo/core/settings.h"
@@ -11,17 +13,55 @@
 
 namespace ltlo::loop {
 
+struct MergeOptions {
+  /// Gravity in the world of both maps (m/s^2) once the IMU is initialised: 4-DoF alignment and
+  /// essential graph, velocities turned, then the welding BA. nullopt: SE3 alignment, no welding
+  /// BA (the full BA after the merge joins the maps).
+  std::optional<Vec3> g_w;
+  /// Welding window: the current keyframe and its predecessors in time, and the recognised
+  /// keyframe with its neighbours in time, this many on each side (ORB-SLAM3's merge window).
+  int welding_keyframes = 10;
+  int welding_iterations = 10;      ///< per pass of the welding BA (two passes)
+  std::size_t welding_fixed_observers = 30;  ///< other keyframes seeing the window's points, held
+  double bf_px_m = 40.0;            ///< RGB-D edges of the welding BA
+  double min_point_beta = 0.5;      ///< points with a lower static score are left out
+  double lambda_imu = 1.0;          ///< bias random-walk weight, Eq. 58
+  bool visual_variance_estimation = true;  ///< LocalMapping.VisualVarianceEstimation
+};
+
+/// What the welding did (zero when it did not run).
+struct WeldingResult {
+  int fused_points = 0;   ///< duplicates across the seam merged (seam fusion)
+  int linked_points = 0;  ///< observations added across the seam
+  int optimised_keyframes = 0;
+  int fixed_keyframes = 0;
+  int points = 0;
+  int inertial_links = 0;
+  double initial_chi2 = 0.0;
+  double final_chi2 = 0.0;
+};
+
 struct MergeResult {
   map::MapId source;    ///< the map of `current`, merged away
   map::MapId target;    ///< the map of the recognised place, kept
-  SE3 T_target_source;  ///< applied to everything of `source`
+  SE3 T_target_source;  ///< applied to everything of `source` (4-DoF with gravity)
   int inliers = 0;      ///< RANSAC inliers of the place match
   LoopCorrectionResult correction;
+  WeldingResult welding;
 };
 
 /// nullopt (and nothing changed) when both keyframes are in the same map or the place match fails
 /// verification. Call with tracking and local mapping paused on both maps.
 std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& current, const map::KeyFrame& candidate,
-                                        const LoopOptions& options);
+                                        const LoopOptions& options, const MergeOptions& merge = MergeOptions());
+
+/// The welding on its own (mergeAtPlace runs it with gravity): the points of the window around
+/// `candidate` are fused into the keyframes of the window around `current` by projection (both
+/// sides' duplicates of the same structure become one point), then the BA of both windows, the
+/// keyframes just outside each window in time and up to welding_fixed_observers other observers
+/// held; poses, velocities, biases and points written back. Visual-inertial with merge.g_w, vision
+/// only without.
+WeldingResult weldingBundleAdjust(map::Map& map, const map::KeyFrame& current, const map::KeyFrame& candidate,
+                                  const MergeOptions& merge);
 
 }  // namespace ltlo::loop

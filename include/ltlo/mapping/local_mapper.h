@@ -37,7 +37,8 @@ struct LocalMapperOptions {
   double bf_px_m = 40.0;
   int ba_threads = 1;                 ///< linearisation threads of the local BA
   std::size_t queue_capacity = 64;    ///< keyframes waiting; insertKeyFrame blocks beyond
-  /// Refinements of the IMU estimate (re-initialisation over the whole chain with the refined
+  /// Refinements of the IMU estimate (a full visual-inertial BA with the gravity direction, or with
+  /// ImuInit.VisualInertialRefinement = 0 the inertial-only initialisation again on the refined
   /// poses), at these keyframe-time delays after the first initialisation (s, increasing; ORB-SLAM3
   /// runs its VI-BA 1 and 2 at about 5 and 15 s).
   std::vector<double> imu_refinement_delays_s = {5.0, 15.0};
@@ -67,7 +68,8 @@ struct LocalMapperCounters {
 class LocalMapper {
  public:
   /// `level_sigma2` is OrbExtractor::levelSigma2(); `timing` (may be nullptr) receives the stages
-  /// "mapping.keyframe" (whole processing), "mapping.local_ba", "mapping.imu_init".
+  /// "mapping.keyframe" (whole processing), "mapping.local_ba", "mapping.imu_init" (inertial-only
+  /// initialisations), "mapping.imu_refine" (visual-inertial refinements).
   LocalMapper(map::Atlas& atlas, const LocalMapperOptions& options, std::vector<float> level_sigma2,
               TimingStats* timing = nullptr);
   LocalMapper(const LocalMapper&) = delete;

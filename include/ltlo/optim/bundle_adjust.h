@@ -1,6 +1,7 @@
 #pragma once
-/// Window problems on plain inputs (namespace ltlo::optim): local visual(-inertial) bundle adjustment
-/// and inertial-only IMU initialisation. Inputs are ids + Eigen values so optim does not depend on
+/// Window problems on plain inputs (namespace ltlo::optim): local and full visual(-inertial) bundle
+/// adjustment (with the gravity direction as an unknown for the IMU-initialisation refinement) and
+/// inertial-only IMU initialisation. Inputs are ids + Eigen values so optim does not depend on
 /// map/; the caller copies states in and writes results back under its own locks.
 #include <atomic>
 #include <memory>
@@ -23,6 +24,9 @@ struct BaKeyFrame {
   Vec3 v_w_b = Vec3::Zero();  ///< used when the keyframe has an inertial link
   imu::ImuBias bias;          ///< used when the keyframe has an inertial link
   bool fixed = false;         ///< in the problem as a constraint only (gauge, window border)
+  /// With `fixed`: only the pose is held (the gauge of a full visual-inertial BA); the velocity and
+  /// biases are optimised.
+  bool fixed_pose_only = false;
 };
 
 struct BaPoint {
@@ -46,15 +50,45 @@ struct BaInertialLink {
   std::shared_ptr<const imu::Preintegrated> pim;
 };
 
+/// Prior r = b - mean on the biases of one keyframe with an inertial link (per-axis information).
+struct BaBiasPrior {
+  int keyframe_id = 0;
+  imu::ImuBias mean;
+  double gyro_information = 0.0;  ///< 1/(rad/s)^2
+  double acc_information = 0.0;   ///< 1/(m/s^2)^2
+};
+
 struct LocalBaProblem {
   ProjectionModel model;  ///< T_c_x = T_c_b
   std::vector<BaKeyFrame> keyframes;
   std::vector<BaPoint> points;
   std::vector<BaObservation> observations;
   std::vector<BaInertialLink> inertial;  ///< empty: visual-only BA
+  /// Gravity in w (m/s^2); with estimate_gravity, the start of its direction (magnitude kept).
   Vec3 g_w = imu::gravityWorld();
+  /// Optimise the gravity direction (2 DoF, EdgeInertialGravity) with the states: the visual-inertial
+  /// refinement of the IMU initialisation. Needs inertial links.
+  bool estimate_gravity = false;
   double lambda_imu = 1.0;  ///< bias random-walk weight (thesis Eq. 58)
+  std::vector<BaBiasPrior> bias_priors;  ///< keyframes must have an inertial link
+  /// Multiplies the information of the inertial, bias random-walk and bias-prior edges
+  /// (inertialInformationScale: the camera's variance factor), so camera and IMU count by their
+  /// actual noise while the reprojection edges keep their 1 px-per-level model, Huber kernel and
+  /// chi2 gates (the same outlier decisions as every other BA).
+  double inertial_information_scale = 1.0;
 };
+
+/// A posteriori variance factor of the reprojection edges at the problem's start values (Helmert's
+/// variance component for the camera): the median over observations of r^T Omega r divided by the
+/// median of the chi-square distribution with the edge's dof (3 RGB-D, 2 monocular), so outliers and
+/// moving points (static weight < 0.5 are left out) barely move it. 1: the residuals are as the model
+/// says (sigma_px per level); 0.1: the keypoints are sqrt(10) times more precise than modelled.
+/// 1 with fewer than 10 usable observations. Reads the problem only.
+double visualVarianceFactor(const LocalBaProblem& problem);
+/// visualVarianceFactor clamped to [1e-2, 1e2]: the inertial_information_scale of a visual-inertial
+/// problem whose camera noise is not known better than the 1 px-per-level model (scaling the IMU
+/// side by the factor has the optimum of scaling the camera side by its inverse).
+double inertialInformationScale(const LocalBaProblem& problem);
 
 struct LocalBaOptions {
   int iterations = 10;
@@ -74,11 +108,26 @@ struct LocalBaResult {
   /// Per observation r^T Omega_obs r at the result, without the static weight: the |r|^2 of the
   /// thesis' Eq. 53 (staticWeightedCost) for the closed-form weight updates.
   std::vector<double> residual_chi2;
+  Vec3 g_w = Vec3::Zero();            ///< problem.g_w, or the optimised one with estimate_gravity
   sparse_opt::Summary summary;        ///< of the last pass
+  double initial_chi2 = 0.0;          ///< of the first pass (robust), before any step
 };
 
 /// Throws LTLO assertion errors on unknown ids; observations of points/keyframes not given are bugs.
 LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOptions& options = LocalBaOptions());
+
+/// Per-axis information of the zero-mean bias priors of the IMU initialisation and its refinement:
+/// the evidence of `samples` IMU readings that the bias is zero, widened by the bias random walk
+/// over the window,
+///   sigma^2 = sigma_sample^2 / samples + sigma_walk^2 window_s,
+///   sigma_sample^2 = density^2 / nominal_dt_s (ImuNoise: one reading's discrete variance),
+/// so the prior only holds what the window cannot tell (e.g. a horizontal b_a against a tilt of
+/// gravity when the body does not turn) and never pins an observable bias. samples = 0: no prior.
+struct BiasPriorInformation {
+  double gyro = 0.0;  ///< 1/(rad/s)^2
+  double acc = 0.0;   ///< 1/(m/s^2)^2
+};
+BiasPriorInformation biasPriorInformation(const imu::ImuNoise& noise, double window_s, double samples);
 
 /// Inertial-only initialisation with known (fixed) keyframe poses: velocities, one bias pair for the
 /// window and the gravity direction R_w_g (g_w = R_w_g (0, 0, -G)); scale is known (RGB-D).
@@ -88,7 +137,7 @@ struct ImuInitProblem {
   std::vector<std::shared_ptr<const imu::Preintegrated>> pims;
   imu::ImuBias bias_init;
   double gravity_m_s2 = imu::kGravity_m_s2;
-  /// Information of zero-mean priors on the biases (keeps them bounded on short windows).
+  /// Per-axis information of zero-mean priors on the biases (biasPriorInformation).
   double gyro_bias_prior_information = 1e2;
   double acc_bias_prior_information = 1e2;
   int iterations = 20;
