@@ -175,6 +175,16 @@ struct ImuInitOptions {
   static ImuInitOptions load(const SettingsFile& file);
 };
 
+/// One "--set Key=Value" of a program's command line: replaces Key of the settings file (or of the
+/// sequence's calib.yaml for calibration keys) before loading, validated exactly like the file.
+struct SettingOverride {
+  std::string key;
+  std::string value;  ///< YAML scalar text ("0", "0.5", "320x240")
+  /// Splits "Key=Value" at the first '='; throws ConfigError "--set <text>: expected Key=Value"
+  /// when either side is empty.
+  static SettingOverride parse(const std::string& text);
+};
+
 /// Everything a run is configured with.
 struct Settings {
   /// the algorithm settings file
@@ -193,12 +203,17 @@ struct Settings {
   SequenceOptions sequence;
   /// "<file>: <key>" for every key no option asked for (also logged as warnings at load).
   std::vector<std::string> unknown_keys;
+  /// The --set overrides applied at load, in command-line order (also in describe()).
+  std::vector<SettingOverride> overrides;
 
   /// Loads `config_path` (config_yaml/*.yaml). The calibration comes from `calib_path` (a
   /// sequence's calib.yaml) when it is not empty, otherwise from the Camera.* / DepthMapFactor /
   /// IMU.* keys of the config file itself (TUM / OpenLORIS style); with a calib.yaml, those keys
-  /// in the config are ignored with one info line. Throws ConfigError.
-  static Settings load(const std::string& config_path, const std::string& calib_path = "");
+  /// in the config are ignored with one info line. `overrides` replace keys of the files first
+  /// (SettingsFile::setOverride; a later one wins); an override no setting reads is a ConfigError
+  /// (a typo on the command line would otherwise change nothing). Throws ConfigError.
+  static Settings load(const std::string& config_path, const std::string& calib_path = "",
+                       const std::vector<SettingOverride>& overrides = {});
 
   /// Checks every range and cross-field rule on the values in memory (settings built in code);
   /// throws ConfigError "settings: <key> = <value>, expected <range>".
