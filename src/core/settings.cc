@@ -61,9 +61,11 @@ template <typename O, typename V>
 void visitLocalMapping(O& o, V& v) {
   v.integer("LocalMapping.WindowSize", o.window_size, 2, 100);
   v.integer("LocalMapping.Iterations", o.ba_iterations, 1, 1000);
+  v.boolean("Mapping.RobustBeta", o.robust_beta);
   v.integer("LocalMapping.Alternations", o.alternations, 1, 100);
+  v.integer("LocalMapping.ScoreSweeps", o.score_sweeps, 1, 100);
+  v.real("LocalMapping.LambdaD", o.lambda_d, 0.0, 1e6);
   v.real("LocalMapping.HuberChi2", o.huber_chi2, 0.01, 1000.0);
-  v.real("LocalMapping.DynamicCost", o.dynamic_cost, 0.01, 1000.0);
   v.real("LocalMapping.LambdaImu", o.lambda_imu, 0.0, 1e6);
   v.real("LocalMapping.MinPointBeta", o.min_point_beta, 0.0, 1.0);
   v.real("LocalMapping.RedundantRatio", o.redundant_ratio, 0.5, 1.0);
