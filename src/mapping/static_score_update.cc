@@ -56,21 +56,25 @@ std::vector<double> betaPriors(const StaticScoreProblem& problem, const StaticSc
   return prior;
 }
 
-std::vector<double> gammaPriors(const StaticScoreProblem& problem, const StaticScoreOptions& options,
-                                const std::vector<double>& beta) {
+GammaPriors gammaPriors(const StaticScoreProblem& problem, const StaticScoreOptions& options,
+                        const std::vector<double>& beta) {
   checkSizes(problem, nullptr, &beta);
-  // Eq. 56: gamma~_ik = 1 - lambda_p sum_{j in M_ik} |beta_j d_j| / n(M_ik), each term capped at 1
-  // (a point cannot say more than "fully dynamic"), so gamma~ stays in [0, 1].
+  // Eq. 56 as a beta-weighted mean (header): gamma~_c = 1 - sum beta_j min(1, lambda_p d_j) / sum beta_j,
+  // in [0, 1] since every term is.
+  constexpr double kMinVotes = 1e-6;
   std::vector<double> sum(problem.clusters.size(), 0.0);
-  std::vector<int> count(problem.clusters.size(), 0);
+  std::vector<double> votes(problem.clusters.size(), 0.0);
   for (const DepthSample& s : problem.depth_samples) {
-    const double term = options.lambda_p * beta[static_cast<std::size_t>(s.point)] * s.disagreement_m;
-    sum[static_cast<std::size_t>(s.cluster)] += std::min(1.0, term);
-    ++count[static_cast<std::size_t>(s.cluster)];
+    const double b = s.point >= 0 ? beta[static_cast<std::size_t>(s.point)] : s.probe_beta;
+    sum[static_cast<std::size_t>(s.cluster)] += b * std::min(1.0, options.lambda_p * s.disagreement_m);
+    votes[static_cast<std::size_t>(s.cluster)] += b;
   }
-  std::vector<double> prior(problem.clusters.size());
-  for (std::size_t c = 0; c < prior.size(); ++c) {
-    prior[c] = count[c] > 0 ? 1.0 - sum[c] / count[c] : problem.clusters[c].prior_without_samples;
+  GammaPriors prior;
+  prior.value.resize(problem.clusters.size());
+  prior.weight.resize(problem.clusters.size());
+  for (std::size_t c = 0; c < problem.clusters.size(); ++c) {
+    prior.value[c] = votes[c] > kMinVotes ? 1.0 - sum[c] / votes[c] : problem.clusters[c].prior_without_samples;
+    prior.weight[c] = std::max(1.0, votes[c]);
   }
   return prior;
 }
@@ -102,22 +106,23 @@ std::vector<double> updateBeta(const StaticScoreProblem& problem, const StaticSc
 }
 
 std::vector<double> updateGamma(const StaticScoreProblem& problem, const StaticScoreOptions& options,
-                                const std::vector<double>& beta, const std::vector<double>& gamma_prior,
+                                const std::vector<double>& beta, const GammaPriors& gamma_prior,
                                 const std::vector<double>& gamma) {
   checkSizes(problem, &gamma, &beta);
-  checkSizes(problem, &gamma_prior, nullptr);
+  checkSizes(problem, &gamma_prior.value, nullptr);
+  checkSizes(problem, &gamma_prior.weight, nullptr);
   // For the free clusters F of one keyframe, with P_c = sum_o beta_j^2 a_o and
   // Q_c = sum_o (1 - beta_j)^2 h over the observations of cluster c (Eq. 51, 53) and R_d (Eq. 54):
-  //   E(gamma) = sum_c [gamma_c^2 P_c + (1 - gamma_c)^2 Q_c + lambda_d (gamma_c - gamma~_c)^2]
+  //   E(gamma) = sum_c [gamma_c^2 P_c + (1 - gamma_c)^2 Q_c + lambda_d v_c (gamma_c - gamma~_c)^2]
   //            + lambda_d sum_{(a, b) in V} (gamma_a - gamma_b)^2.
   // dE/dgamma_c = 0 gives the linear system M gamma = b with
-  //   M_cc = P_c + Q_c + lambda_d (1 + deg_c),  M_cn = -lambda_d for each free neighbour n,
-  //   b_c  = Q_c + lambda_d gamma~_c + lambda_d sum over fixed neighbours n of gamma_n.
+  //   M_cc = P_c + Q_c + lambda_d (v_c + deg_c),  M_cn = -lambda_d for each free neighbour n,
+  //   b_c  = Q_c + lambda_d v_c gamma~_c + lambda_d sum over fixed neighbours n of gamma_n.
   // M is symmetric with a positive diagonal and non-positive off-diagonal entries, diagonally
-  // dominant by P_c + Q_c + lambda_d (+ lambda_d per fixed neighbour): a Stieltjes matrix when that
-  // excess is positive, so positive definite with M^-1 >= 0 entrywise. Hence b >= 0 gives
-  // gamma >= 0, and M 1 - b = P_c + lambda_d (1 - gamma~_c) + lambda_d sum_fixed (1 - gamma_n) >= 0
-  // gives M (1 - gamma) >= 0, i.e. gamma <= 1: the box constraint of Eq. 50 is never active.
+  // dominant by P_c + Q_c + lambda_d v_c (+ lambda_d per fixed neighbour): a Stieltjes matrix when
+  // that excess is positive, so positive definite with M^-1 >= 0 entrywise. Hence b >= 0 gives
+  // gamma >= 0, and M 1 - b = P_c + lambda_d v_c (1 - gamma~_c) + lambda_d sum_fixed (1 - gamma_n)
+  // >= 0 gives M (1 - gamma) >= 0, i.e. gamma <= 1: the box constraint of Eq. 50 is never active.
   const double h = optim::huberLoss(problem.c_hat, options.huber_delta);
   const std::size_t num_clusters = problem.clusters.size();
   std::vector<double> P(num_clusters, 0.0), Q(num_clusters, 0.0);
@@ -155,8 +160,8 @@ std::vector<double> updateGamma(const StaticScoreProblem& problem, const StaticS
     Eigen::VectorXd rhs(n);
     for (int l = 0; l < n; ++l) {
       const auto c = static_cast<std::size_t>(members[static_cast<std::size_t>(l)]);
-      M(l, l) = P[c] + Q[c] + options.lambda_d;
-      rhs[l] = Q[c] + options.lambda_d * gamma_prior[c];
+      M(l, l) = P[c] + Q[c] + options.lambda_d * gamma_prior.weight[c];
+      rhs[l] = Q[c] + options.lambda_d * gamma_prior.weight[c] * gamma_prior.value[c];
     }
     const auto edges = group_edges.find(keyframe);
     if (edges != group_edges.end()) {
@@ -186,7 +191,7 @@ std::vector<double> updateGamma(const StaticScoreProblem& problem, const StaticS
 
 double staticScoreCost(const StaticScoreProblem& problem, const StaticScoreOptions& options,
                        const StaticScores& scores, const std::vector<double>& beta_prior,
-                       const std::vector<double>& gamma_prior) {
+                       const GammaPriors& gamma_prior) {
   checkSizes(problem, &scores.gamma, &scores.beta);
   const double h = optim::huberLoss(problem.c_hat, options.huber_delta);
   double cost = 0.0;
@@ -197,8 +202,8 @@ double staticScoreCost(const StaticScoreProblem& problem, const StaticScoreOptio
   }
   for (std::size_t c = 0; c < problem.clusters.size(); ++c) {
     if (problem.clusters[c].fixed) continue;
-    const double d = scores.gamma[c] - gamma_prior[c];
-    cost += options.lambda_d * d * d;
+    const double d = scores.gamma[c] - gamma_prior.value[c];
+    cost += options.lambda_d * gamma_prior.weight[c] * d * d;
   }
   for (const auto& [a, b] : problem.neighbours) {
     const double d = scores.gamma[static_cast<std::size_t>(a)] - scores.gamma[static_cast<std::size_t>(b)];
@@ -210,6 +215,14 @@ double staticScoreCost(const StaticScoreProblem& problem, const StaticScoreOptio
   }
   return cost;
 }
+
+namespace {
+/// x <- x + kRelaxation (update - x): under-relaxed fixed-point iteration (see solveStaticScores).
+constexpr double kRelaxation = 0.5;
+void relax(const std::vector<double>& update, std::vector<double>* x) {
+  for (std::size_t k = 0; k < x->size(); ++k) (*x)[k] += kRelaxation * (update[k] - (*x)[k]);
+}
+}  // namespace
 
 std::vector<double> observationWeights(const StaticScoreProblem& problem, const StaticScores& scores) {
   checkSizes(problem, &scores.gamma, &scores.beta);
@@ -229,9 +242,9 @@ StaticScores solveStaticScores(const StaticScoreProblem& problem, const StaticSc
   for (int sweep = 0; sweep < options.sweeps; ++sweep) {
     current.c_hat = windowMeanResidual(current.observations, observationWeights(current, scores));
     const std::vector<double> beta_prior = betaPriors(current, options, scores.gamma);
-    scores.beta = updateBeta(current, options, scores.gamma, beta_prior);
-    const std::vector<double> gamma_prior = gammaPriors(current, options, scores.beta);
-    scores.gamma = updateGamma(current, options, scores.beta, gamma_prior, scores.gamma);
+    relax(updateBeta(current, options, scores.gamma, beta_prior), &scores.beta);
+    const GammaPriors gamma_prior = gammaPriors(current, options, scores.beta);
+    relax(updateGamma(current, options, scores.beta, gamma_prior, scores.gamma), &scores.gamma);
   }
   if (c_hat != nullptr) *c_hat = current.c_hat;
   return scores;

@@ -4,7 +4,7 @@
 /// (gamma, one per cluster of each keyframe) and map points (beta) minimise
 ///
 ///   E(Gamma, B) = sum_o [ beta_j^2 gamma_c^2 a_o + (1 - beta_j)^2 (1 - gamma_c)^2 h ]     (Eq. 51, 53)
-///               + lambda_d sum_c (gamma_c - gamma~_c)^2
+///               + lambda_d sum_c v_c (gamma_c - gamma~_c)^2
 ///               + lambda_d sum_{(c1, c2) in V} (gamma_c1 - gamma_c2)^2                    (Eq. 54)
 ///               + lambda_s sum_j (beta_j - beta~_j)^2                                     (Eq. 55)
 ///
@@ -14,10 +14,18 @@
 /// do not depend on Gamma and B. The priors are evaluated from the other block, as the thesis
 /// alternates "by fixing one and analytically solving the other":
 ///   beta~_j  = phi(lambda_phi, mean of gamma_c over the clusters observing j)            (Eq. 57)
-///   gamma~_c = 1 - mean over the map points M_c projecting into cluster c of
-///              min(1, lambda_p beta_j d_j)                                              (Eq. 56)
-/// with d_j the depth disagreement of point j there (depthDisagreement_m()); a cluster without such
-/// points keeps its score from before the BA as its prior.
+///   gamma~_c = 1 - sum_{j in M_c} beta_j min(1, lambda_p d_j) / sum_{j in M_c} beta_j     (Eq. 56)
+/// over the map points M_c projecting into cluster c, d_j the depth disagreement of point j there
+/// (depthDisagreement_m()). The thesis writes the mean of |beta_j d_j| over n(M_c): we normalise by
+/// the sum of beta instead, so only static points vote (a dynamic point does not vote "agrees"),
+/// and cap each term at 1 (one point cannot say more than "fully dynamic"). A cluster without such
+/// points (or only dynamic ones) keeps its score from before the BA as its prior.
+/// The prior's weight v_c = max(1, sum_{j in M_c} beta_j) is the number of static votes: the term
+/// equals, up to a constant, sum_j beta_j (gamma_c - (1 - min(1, lambda_p d_j)))^2, one vote per
+/// point as every observation counts once in Eq. 51. Eq. 54 weighs the prior once per cluster:
+/// a cluster with five neighbours would then follow them whatever its own evidence says (a box
+/// touching the floor and three of its own faces would stay static). With at most one vote v_c = 1
+/// and the thesis' form is recovered.
 ///
 /// Both halves have closed forms (derived in static_score_update.cc): beta_j is the minimiser of a
 /// one-dimensional quadratic; the gammas of one keyframe solve a small symmetric positive-definite
@@ -34,7 +42,7 @@ struct StaticScoreOptions {
   double lambda_p = 2.0;    ///< 1/m, depth disagreement to gamma prior, Eq. 56 (Seg.LambdaP)
   double lambda_phi = 0.5;  ///< Eq. 57 (Seg.LambdaPhi)
   double huber_delta = 2.7955;  ///< rho_H threshold on the whitened |r| (sqrt of LocalMapping.HuberChi2)
-  int sweeps = 3;           ///< B <-> Gamma alternations per call (LocalMapping.ScoreSweeps)
+  int sweeps = 5;           ///< B <-> Gamma sweeps per call (LocalMapping.ScoreSweeps)
 };
 
 /// One observation o = (point, cluster) with its whitened squared reprojection error |r_o|^2.
@@ -54,11 +62,14 @@ struct ScoreCluster {
   double prior_without_samples = 1.0;
 };
 
-/// A map point projecting into a cluster of a free keyframe, with its depth disagreement d >= 0 (m).
+/// A map point projecting into a cluster of a free keyframe, with its depth disagreement d >= 0 (m):
+/// a point of the problem (its beta is estimated), or a probe point (point = -1: a map point
+/// outside the window, seen by the fixed keyframes, with its beta as it is).
 struct DepthSample {
   int cluster = 0;
   int point = 0;
   double disagreement_m = 0.0;
+  double probe_beta = 1.0;  ///< beta of a probe point (point = -1)
 };
 
 struct StaticScoreProblem {
@@ -95,9 +106,13 @@ double windowMeanResidual(const std::vector<ScoreObservation>& observations, con
 /// beta~ of every point from the current gammas (Eq. 57); 1 for a point without observations.
 std::vector<double> betaPriors(const StaticScoreProblem& problem, const StaticScoreOptions& options,
                                const std::vector<double>& gamma);
-/// gamma~ of every cluster from the current betas (Eq. 56); prior_without_samples without samples.
-std::vector<double> gammaPriors(const StaticScoreProblem& problem, const StaticScoreOptions& options,
-                                const std::vector<double>& beta);
+/// gamma~ of every cluster and its weight v from the current betas (Eq. 56).
+struct GammaPriors {
+  std::vector<double> value;   ///< gamma~; prior_without_samples without static votes
+  std::vector<double> weight;  ///< v_c >= 1
+};
+GammaPriors gammaPriors(const StaticScoreProblem& problem, const StaticScoreOptions& options,
+                        const std::vector<double>& beta);
 
 /// B minimising E for fixed Gamma and beta~ (closed form per point).
 std::vector<double> updateBeta(const StaticScoreProblem& problem, const StaticScoreOptions& options,
@@ -105,21 +120,25 @@ std::vector<double> updateBeta(const StaticScoreProblem& problem, const StaticSc
 /// Gamma minimising E for fixed B and gamma~ (one linear system per keyframe); fixed clusters keep
 /// their value from `gamma`.
 std::vector<double> updateGamma(const StaticScoreProblem& problem, const StaticScoreOptions& options,
-                                const std::vector<double>& beta, const std::vector<double>& gamma_prior,
+                                const std::vector<double>& beta, const GammaPriors& gamma_prior,
                                 const std::vector<double>& gamma);
 
 /// E(Gamma, B) above with the given priors (for tests and diagnostics).
 double staticScoreCost(const StaticScoreProblem& problem, const StaticScoreOptions& options,
                        const StaticScores& scores, const std::vector<double>& beta_prior,
-                       const std::vector<double>& gamma_prior);
+                       const GammaPriors& gamma_prior);
 
 /// w_o = beta_j gamma_c of every observation: the static weight of its reprojection edge.
 std::vector<double> observationWeights(const StaticScoreProblem& problem, const StaticScores& scores);
 
 /// options.sweeps rounds of: c^ = windowMeanResidual() under the current weights; beta~ from
-/// Gamma, B = updateBeta; gamma~ from B, Gamma = updateGamma (problem.c_hat is not used).
-/// `initial` holds the scores before (new points beta = 1, clusters from tracking); `c_hat`
-/// (optional) receives the last c^.
+/// Gamma, B moved half-way to updateBeta; gamma~ from B, Gamma moved half-way to updateGamma
+/// (problem.c_hat is not used). Each half-step is the exact minimiser for fixed priors, but the
+/// priors follow the other block, and Eq. 53 lets either a point or its cluster take the blame for
+/// a residual: undamped, a moving point in a cluster without depth evidence flips between
+/// (beta low, gamma high) and (beta high, gamma low) from sweep to sweep. The half steps converge
+/// to the fixed point in between in a few sweeps. `initial` holds the scores before (new points
+/// beta = 1, clusters from tracking); `c_hat` (optional) receives the last c^.
 StaticScores solveStaticScores(const StaticScoreProblem& problem, const StaticScoreOptions& options,
                                StaticScores initial, double* c_hat = nullptr);
 

@@ -83,7 +83,7 @@ StaticScoreProblem randomProblem(std::mt19937& rng, int num_keyframes, int clust
 
 StaticScoreOptions testOptions() {
   StaticScoreOptions options;
-  options.lambda_d = 500.0;
+  options.lambda_d = 10.0;
   options.lambda_s = 100.0;
   options.lambda_p = 2.0;
   options.lambda_phi = 0.5;
@@ -104,7 +104,7 @@ TEST(StaticScoreUpdate, BetaIsTheMinimiserOfTheCostForFixedGamma) {
   const StaticScoreOptions options = testOptions();
   StaticScores scores{randomScores(rng, problem.clusters.size()), randomScores(rng, 40)};
   const std::vector<double> beta_prior = betaPriors(problem, options, scores.gamma);
-  const std::vector<double> gamma_prior = gammaPriors(problem, options, scores.beta);
+  const GammaPriors gamma_prior = gammaPriors(problem, options, scores.beta);
   const std::vector<double> closed = updateBeta(problem, options, scores.gamma, beta_prior);
   for (int j = 0; j < problem.num_points; ++j) {
     StaticScores trial = scores;
@@ -126,7 +126,7 @@ TEST(StaticScoreUpdate, GammaIsTheMinimiserOfTheCostForFixedBeta) {
   const StaticScoreOptions options = testOptions();
   StaticScores scores{randomScores(rng, problem.clusters.size()), randomScores(rng, 25)};
   const std::vector<double> beta_prior = betaPriors(problem, options, scores.gamma);
-  const std::vector<double> gamma_prior = gammaPriors(problem, options, scores.beta);
+  const GammaPriors gamma_prior = gammaPriors(problem, options, scores.beta);
   const std::vector<double> closed = updateGamma(problem, options, scores.beta, gamma_prior, scores.gamma);
   EXPECT_EQ(closed[3], scores.gamma[3]);  // fixed cluster untouched
 
@@ -171,7 +171,7 @@ TEST(StaticScoreUpdate, GammaOfSeveralKeyFramesIsOneMinimiser) {
   const StaticScoreOptions options = testOptions();
   StaticScores scores{randomScores(rng, problem.clusters.size()), randomScores(rng, 60)};
   const std::vector<double> beta_prior = betaPriors(problem, options, scores.gamma);
-  const std::vector<double> gamma_prior = gammaPriors(problem, options, scores.beta);
+  const GammaPriors gamma_prior = gammaPriors(problem, options, scores.beta);
   scores.gamma = updateGamma(problem, options, scores.beta, gamma_prior, scores.gamma);
   const double at_closed = staticScoreCost(problem, options, scores, beta_prior, gamma_prior);
   for (std::size_t c = 0; c < problem.clusters.size(); ++c) {
@@ -204,10 +204,18 @@ TEST(StaticScoreUpdate, PriorsFollowEquations56And57) {
   EXPECT_NEAR(beta_prior[1], (0.9 - 0.5) / 0.5, 1e-12);
   EXPECT_NEAR(beta_prior[2], 1.0, 1e-12);                // no observation: no vote
   EXPECT_NEAR(betaPriors(problem, options, {0.3, 0.5, 1.0})[1], 0.0, 1e-12);  // phi clips at 0
-  const std::vector<double> gamma_prior = gammaPriors(problem, options, {1.0, 0.5, 1.0});
-  EXPECT_NEAR(gamma_prior[0], 1.0 - (0.0 + 2.0 * 0.5 * 0.3) / 2.0, 1e-12);
-  EXPECT_NEAR(gamma_prior[1], 1.0 - 1.0, 1e-12);
-  EXPECT_NEAR(gamma_prior[2], 1.0, 1e-12);  // no sample: its value before the BA
+  const GammaPriors gamma_prior = gammaPriors(problem, options, {1.0, 0.5, 1.0});
+  // beta-weighted: (1.0 * 0 + 0.5 * min(1, 2 * 0.3)) / (1.0 + 0.5).
+  EXPECT_NEAR(gamma_prior.value[0], 1.0 - (0.5 * 0.6) / 1.5, 1e-12);
+  EXPECT_NEAR(gamma_prior.weight[0], 1.5, 1e-12);  // the static votes
+  EXPECT_NEAR(gamma_prior.value[1], 1.0 - 1.0, 1e-12);
+  EXPECT_NEAR(gamma_prior.weight[1], 1.0, 1e-12);  // at least 1
+  EXPECT_NEAR(gamma_prior.value[2], 1.0, 1e-12);   // no sample: its value before the BA
+  // Only dynamic points project into cluster 1: no vote, its value before the BA.
+  EXPECT_NEAR(gammaPriors(problem, options, {0.0, 0.5, 1.0}).value[1], 0.9, 1e-12);
+  // A probe point (outside the window) votes with its own beta.
+  problem.depth_samples.push_back({1, -1, 0.0, 1.0});
+  EXPECT_NEAR(gammaPriors(problem, options, {1.0, 0.5, 1.0}).value[1], 1.0 - 1.0 / 2.0, 1e-12);
   EXPECT_DOUBLE_EQ(depthDisagreement_m(2.5, 1.0), 1.5);  // the surface occludes the point
   EXPECT_DOUBLE_EQ(depthDisagreement_m(1.0, 2.5), 0.0);  // seen through: not the cluster's fault
   // c^ weighted by w^2: an observation with weight 0 does not count.
@@ -263,7 +271,7 @@ BoxWindow boxWindow(bool occluding) {
 
 StaticScores solveFromAllStatic(const StaticScoreProblem& problem) {
   StaticScoreOptions options = testOptions();
-  options.sweeps = 5;
+  options.sweeps = 8;
   return solveStaticScores(problem, options,
                            {std::vector<double>(problem.clusters.size(), 1.0), std::vector<double>(problem.num_points, 1.0)});
 }
@@ -290,11 +298,11 @@ TEST(StaticScoreUpdate, OccludingBoxClustersAndPointsEndDynamic) {
 
 TEST(StaticScoreUpdate, MovingBoxPointsEndDynamicFromResidualsAlone) {
   // No depth evidence: the residuals condemn the box's points. Eq. 53 lets a dynamic point or a
-  // dynamic cluster explain a residual, not both: with its points judged dynamic the box cluster
-  // keeps its score (only depth disagreement, its neighbours or tracking lower it).
+  // dynamic cluster explain a residual, not both at no cost: with its points judged dynamic the box
+  // cluster settles in between (only depth disagreement, its neighbours or tracking lower it).
   const BoxWindow window = boxWindow(false);
   const StaticScores result = solveFromAllStatic(window.problem);
-  for (int c : {0, 1, 2, 4, 5, 6}) EXPECT_GT(result.gamma[static_cast<std::size_t>(c)], 0.75) << "cluster " << c;
+  for (int c : {1, 2, 5, 6}) EXPECT_GT(result.gamma[static_cast<std::size_t>(c)], 0.75) << "cluster " << c;
   expectBoxPointsDynamicOthersStatic(window, result);
 }
 

@@ -115,10 +115,10 @@ struct LocalMappingOptions {
   /// state/point <-> Gamma/B alternations of Eq. 50 (LocalMapping.Alternations, [1, 100])
   int alternations = 3;
   /// B <-> Gamma closed-form sweeps in each Gamma/B step (LocalMapping.ScoreSweeps, [1, 100])
-  int score_sweeps = 3;
+  int score_sweeps = 5;
   /// lambda_d of the robust VIBA: weight of R_d (Eq. 54) against the Huber costs of a cluster's
   /// observations (LocalMapping.LambdaD, [0, 1e6])
-  double lambda_d = 500.0;
+  double lambda_d = 50.0;
   /// rho_H threshold on the whitened squared error (3 dof, 95%); c^ of Eq. 53 is not a setting but
   /// the window's mean squared error (LocalMapping.HuberChi2, [0.01, 1000])
   double huber_chi2 = 7.815;
