@@ -421,17 +421,10 @@ void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowB
   scores.gamma.resize(layout.problem.clusters.size());
   for (std::size_t c = 0; c < scores.gamma.size(); ++c) scores.gamma[c] = layout.problem.clusters[c].prior_without_samples;
 
-  sparse_opt::Summary summary;
+  // Gamma, B for fixed states and points.
   std::vector<double> r_sq;
   std::vector<bool> in_front;
-  for (int round = 0; round < options.alternations; ++round) {
-    // 1. States and points for fixed Gamma, B.
-    graph.setStaticWeights(staticWeights(window, layout, scores));
-    summary = graph.optimize(options.iterations);
-    // A new keyframe waits: stop after this round's score step (it costs a few ms), so B and Gamma
-    // are estimated (and dynamic points found) at every keyframe however busy the mapper is.
-    stats.aborted = options.stop_flag != nullptr && options.stop_flag->load();
-    // 2. Gamma, B for fixed states and points.
+  auto score_step = [&] {
     graph.residuals(&r_sq, &in_front);
     for (std::size_t o = 0; o < r_sq.size(); ++o) {
       const int s = layout.score_observation[o];
@@ -440,12 +433,25 @@ void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowB
     layout.problem.depth_samples = depthSamples(window, layout, graph);
     scores = solveStaticScores(layout.problem, options.scores, std::move(scores), &stats.c_hat);
     ++stats.score_steps;
+  };
+  // The scores first, at the states tracking left: a dynamic object's depth disagreement with the
+  // map (Eq. 56) holds at any nearby pose, so the first state step already leaves it out instead
+  // of settling between it and the static world when it holds most of the features.
+  score_step();
+  sparse_opt::Summary summary;
+  for (int round = 0; round < options.alternations; ++round) {
+    // States and points for fixed Gamma, B.
+    graph.setStaticWeights(staticWeights(window, layout, scores));
+    summary = graph.optimize(options.iterations);
+    // A new keyframe waits: stop after this round's score step (it costs a few ms), so B and Gamma
+    // follow the states however busy the mapper is.
+    stats.aborted = options.stop_flag != nullptr && options.stop_flag->load();
+    score_step();
     if (stats.aborted) break;
   }
   const optim::LocalBaResult result = graph.result(summary);
   stats.final_chi2 = summary.final_chi2;
   writeStates(window, result);
-  if (stats.score_steps == 0) return;
   writeScores(map, window, layout, scores, options, stats);
   stats.outliers_erased = eraseOutlierObservations(map, window, result.inliers);
 }

@@ -222,7 +222,9 @@ TEST_F(KeyFrameDatabaseTest, ReplaceFollowsAChangedBowVector) {
   const Frame query5 = frameOf(perturb(images_[5], 500), 500.0);
   const std::vector<PlaceCandidate> found5 =
       atlas.keyFrameDatabase().detectRelocalisationCandidates(query5, atlas.activeMapId(), {});
-  if (!found5.empty()) EXPECT_NE(found5.front().keyframe, places[5]) << "found by its old vector";
+  if (!found5.empty()) {
+    EXPECT_NE(found5.front().keyframe, places[5]) << "found by its old vector";
+  }
   const Frame query6 = frameOf(perturb(images_[6], 501), 501.0);
   const std::vector<PlaceCandidate> found =
       atlas.keyFrameDatabase().detectRelocalisationCandidates(query6, atlas.activeMapId(), {});
