@@ -26,7 +26,9 @@ GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const Globa
   const std::vector<map::KeyFrameId> origins = map.originKeyFrames();
   const std::unordered_set<map::KeyFrameId> fixed(origins.begin(), origins.end());
   std::unordered_map<map::KeyFrameId, int> kf_index;
+  std::vector<std::vector<double>> gamma_of_kf;  // the keyframes' current static scores (Gamma)
   for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) {
+    gamma_of_kf.push_back(kf->gamma());
     optim::BaKeyFrame v;
     v.id = static_cast<int>(problem.keyframes.size());
     v.T_w_b = kf->T_w_b();
@@ -43,6 +45,7 @@ GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const Globa
   for (const std::shared_ptr<map::MapPoint>& point : map.mapPoints()) {
     if (point->isBad()) continue;
     std::vector<optim::BaObservation> observations;
+    const double beta = point->beta();
     for (const auto& [kf_id, index] : point->observations()) {
       const auto it = kf_index.find(kf_id);
       if (it == kf_index.end()) continue;
@@ -54,6 +57,11 @@ GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const Globa
       obs.uv = Vec2(kp.x_px, kp.y_px);
       obs.depth_m = kf.depth_m(index);
       obs.sigma_px = kf.scaleFactors()[static_cast<std::size_t>(kp.octave)];
+      // beta * gamma weighs the observation as in the local robust VIBA (Eq. 53); weight 0 leaves the system.
+      const std::vector<double>& gamma = gamma_of_kf[static_cast<std::size_t>(it->second)];
+      const int cluster = kf.clusterOf(index);
+      obs.static_weight =
+          beta * (cluster >= 0 && cluster < static_cast<int>(gamma.size()) ? gamma[static_cast<std::size_t>(cluster)] : 1.0);
       observations.push_back(obs);
     }
     if (observations.size() < 2) continue;
