@@ -2,6 +2,7 @@
 //
 //   rgbd_inertial --settings YAML --sequence DIR --out DIR [--vocabulary FILE] [--no-imu]
 //                 [--single-thread] [--max-frames N] [--progress-every N] [--oracle-masks]
+//                 [--set Key=Value]...
 //   rgbd          (the same program without the IMU: TUM RGB-D with config_yaml/tum_rgbd.yaml)
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
@@ -9,6 +10,8 @@
 // trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists
 // (read for the evaluation of the outputs only). --oracle-masks (diagnostic ablation): DIR/masks/
 // replaces the segmentation (metrics.json "oracle_masks": true); without it masks/ is never read.
+// --set Key=Value (repeatable) replaces one key of the settings file (or of calib.yaml for Camera.*,
+// IMU.*, DepthMapFactor), validated like the file and logged; an unknown key is bad input.
 // Ctrl-C (or SIGTERM), a bad frame or an error part-way stop the run, shut the threads down and
 // still write the outputs of the frames processed (Ctrl-C is handled from the start, also while
 // loading). Exit status: 0 done (also when interrupted), 2 bad input (files, settings, the
@@ -74,6 +77,7 @@ struct Arguments {
   bool oracle_masks = false;
   long max_frames = 0;
   long progress_every = 100;
+  std::vector<std::string> overrides;  ///< --set Key=Value, in order
 };
 
 /// The shipped vocabulary: $LTLO_SOURCE_DIR, then next to the executable's build tree
@@ -109,7 +113,9 @@ RunSetup loadSetup(const Arguments& args) {
   RunSetup setup;
   const fs::path calib_path = fs::path(args.sequence_dir) / "calib.yaml";
   const bool has_calib_file = fs::is_regular_file(calib_path);
-  setup.settings = Settings::load(args.settings_path, has_calib_file ? calib_path.string() : "");
+  std::vector<SettingOverride> overrides;
+  for (const std::string& text : args.overrides) overrides.push_back(SettingOverride::parse(text));
+  setup.settings = Settings::load(args.settings_path, has_calib_file ? calib_path.string() : "", overrides);
   setup.reader_options.sequence = setup.settings.sequence;
   if (!has_calib_file) {
     setup.reader_options.calib_override = setup.settings.calib;
@@ -261,6 +267,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-frames", args.max_frames, "stop after N frames (0: all)")->check(CLI::NonNegativeNumber);
   app.add_option("--progress-every", args.progress_every, "progress line every N frames (0: none)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--set", args.overrides,
+                 "Key=Value: replace one settings key, validated like the file (repeatable, e.g. "
+                 "--set Seg.Enable=1 --set Seg.DenseInit=0)")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

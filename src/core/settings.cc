@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 
 #include "ltlo/core/errors.h"
@@ -76,9 +77,11 @@ template <typename O, typename V>
 void visitLocalMapping(O& o, V& v) {
   v.integer("LocalMapping.WindowSize", o.window_size, 2, 100);
   v.integer("LocalMapping.Iterations", o.ba_iterations, 1, 1000);
+  v.boolean("Mapping.RobustBeta", o.robust_beta);
   v.integer("LocalMapping.Alternations", o.alternations, 1, 100);
+  v.integer("LocalMapping.ScoreSweeps", o.score_sweeps, 1, 100);
+  v.real("LocalMapping.LambdaD", o.lambda_d, 0.0, 1e6);
   v.real("LocalMapping.HuberChi2", o.huber_chi2, 0.01, 1000.0);
-  v.real("LocalMapping.DynamicCost", o.dynamic_cost, 0.01, 1000.0);
   v.real("LocalMapping.LambdaImu", o.lambda_imu, 0.0, 1e6);
   v.real("LocalMapping.MinPointBeta", o.min_point_beta, 0.0, 1.0);
   v.boolean("LocalMapping.VisualVarianceEstimation", o.visual_variance_estimation);
@@ -285,18 +288,36 @@ ImuInitOptions ImuInitOptions::load(const SettingsFile& file) {
   return options;
 }
 
-Settings Settings::load(const std::string& config_path, const std::string& calib_path) {
-  const SettingsFile config(config_path);
+SettingOverride SettingOverride::parse(const std::string& text) {
+  const std::size_t equals = text.find('=');
+  if (equals == std::string::npos || equals == 0 || equals + 1 == text.size()) {
+    throw ConfigError("--set " + text + ": expected Key=Value (e.g. Seg.Enable=0)");
+  }
+  return {text.substr(0, equals), text.substr(equals + 1)};
+}
+
+Settings Settings::load(const std::string& config_path, const std::string& calib_path,
+                        const std::vector<SettingOverride>& overrides) {
+  SettingsFile config(config_path);
+  std::optional<SettingsFile> calib;
+  if (!calib_path.empty()) calib.emplace(calib_path);
+  for (const SettingOverride& o : overrides) {
+    const bool in_calib = calib && isCalibrationKey(o.key);
+    const SettingsFile& target = in_calib ? *calib : config;
+    log::info("settings: --set ", o.key, " = ", o.value, " (", target.path(), " has ",
+              target.has(o.key) ? target.valueText(o.key) : std::string("no such key"), ")");
+    (in_calib ? *calib : config).setOverride(o.key, o.value);
+  }
   Settings settings;
   settings.config_path = config_path;
-  if (calib_path.empty()) {
+  settings.overrides = overrides;
+  if (!calib) {
     settings.calib_path = config_path;
     settings.calib = SensorCalib::load(config);
   } else {
     settings.calib_path = calib_path;
-    const SettingsFile calib(calib_path);
-    settings.calib = SensorCalib::load(calib);
-    for (const std::string& key : calib.unreadKeys()) {
+    settings.calib = SensorCalib::load(*calib);
+    for (const std::string& key : calib->unreadKeys()) {
       log::warn(calib_path, ": unknown key ", key, " (ignored; a typo?)");
       settings.unknown_keys.push_back(calib_path + ": " + key);
     }
@@ -314,6 +335,13 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
                           "Camera.width/height of " + settings.calib_path,
                           [&](const std::string& key, const std::string& value,
                               const std::string& expected) { config.fail(key, value, expected); });
+
+  for (const SettingOverride& o : overrides) {
+    if (!config.wasRead(o.key) && !(calib && calib->wasRead(o.key))) {
+      throw ConfigError(config_path + " (--set): unknown key " + o.key + " = " + o.value +
+                        ", expected a key of the settings (config_yaml/*.yaml lists them)");
+    }
+  }
 
   bool ignored_calibration = false;
   for (const std::string& key : config.unreadKeys()) {
@@ -351,6 +379,7 @@ void Settings::validate() const {
 std::string Settings::describe() const {
   Describer d;
   d.os << "settings = " << config_path << "\n";
+  for (const SettingOverride& o : overrides) d.os << "--set " << o.key << " = " << o.value << "\n";
   d.os << "calibration = " << calib_path << "\n";
   const PinholeCamera& cam = calib.camera.camera;
   d.os << "Camera.fx = " << cam.fx() << "\nCamera.fy = " << cam.fy() << "\nCamera.cx = " << cam.cx()

@@ -2,6 +2,8 @@
 
 #include <opencv2/core.hpp>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -45,14 +47,52 @@ SettingsFile::SettingsFile(const std::string& path) : path_(path) {
   }
 }
 
+cv::FileNode SettingsFile::lookup(const std::string& key) const {
+  const auto it = overrides_.find(key);
+  return it != overrides_.end() ? it->second[key] : root_[key];
+}
+
 cv::FileNode SettingsFile::node(const std::string& key) const {
   read_keys_.insert(key);
-  return root_[key];
+  return lookup(key);
 }
 
 bool SettingsFile::has(const std::string& key) const {
-  const cv::FileNode n = root_[key];
+  const cv::FileNode n = lookup(key);
   return !n.empty() && !n.isNone();
+}
+
+void SettingsFile::setOverride(const std::string& key, const std::string& value_text) {
+  const bool key_ok = !key.empty() && std::all_of(key.begin(), key.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_';
+  });
+  if (!key_ok) {
+    throw ConfigError(path_ + " (--set): key \"" + key + "\", expected letters, digits, '.' and '_'");
+  }
+  const std::string expected = "one YAML scalar (a number, 0/1, true/false or a string)";
+  if (value_text.empty() || value_text.find_first_of("\n\r{}[]#") != std::string::npos) {
+    throw ConfigError(path_ + " (--set): " + key + " = \"" + value_text + "\", expected " + expected);
+  }
+  // As the file would read "key: value"; text OpenCV's YAML cannot read unquoted (320x240) is
+  // taken as the string it would be in quotes.
+  auto parse = [&](const std::string& text) {
+    cv::FileStorage storage;
+    try {
+      storage.open("%YAML:1.0\n" + key + ": " + text + "\n", cv::FileStorage::READ | cv::FileStorage::MEMORY);
+    } catch (const cv::Exception&) {
+      storage.release();
+    }
+    return storage;
+  };
+  cv::FileStorage storage = parse(value_text);
+  if (!storage.isOpened() && value_text.find_first_of("\"\\") == std::string::npos) {
+    storage = parse("\"" + value_text + "\"");
+  }
+  const cv::FileNode n = storage.isOpened() ? storage[key] : cv::FileNode();
+  if (n.empty() || n.isNone() || n.isMap() || n.isSeq()) {
+    throw ConfigError(path_ + " (--set): " + key + " = \"" + value_text + "\", expected " + expected);
+  }
+  overrides_[key] = std::move(storage);
 }
 
 std::string SettingsFile::describe(const cv::FileNode& n) {
@@ -70,14 +110,15 @@ std::string SettingsFile::describe(const cv::FileNode& n) {
 
 void SettingsFile::fail(const std::string& key, const std::string& value,
                         const std::string& expected) const {
-  throw ConfigError(path_ + ": " + key + " = " + value + ", expected " + expected);
+  const std::string source = overrides_.count(key) > 0 ? path_ + " (--set)" : path_;
+  throw ConfigError(source + ": " + key + " = " + value + ", expected " + expected);
 }
 
 void SettingsFile::failMissing(const std::string& key, const std::string& expected) const {
   throw ConfigError(path_ + ": missing key " + key + ", expected " + expected);
 }
 
-std::string SettingsFile::valueText(const std::string& key) const { return describe(root_[key]); }
+std::string SettingsFile::valueText(const std::string& key) const { return describe(lookup(key)); }
 
 double SettingsFile::getDouble(const std::string& key, double min, double max) const {
   const cv::FileNode n = node(key);
@@ -179,6 +220,9 @@ std::vector<std::string> SettingsFile::unreadKeys() const {
   for (auto it = root_.begin(); it != root_.end(); ++it) {
     const std::string name = (*it).name();
     if (read_keys_.count(name) == 0) unread.push_back(name);
+  }
+  for (const auto& [key, storage] : overrides_) {
+    if (read_keys_.count(key) == 0 && root_[key].empty()) unread.push_back(key);
   }
   return unread;
 }

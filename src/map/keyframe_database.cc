@@ -54,6 +54,20 @@ bool KeyFrameDatabase::erase(KeyFrameId id) {
   return true;
 }
 
+bool KeyFrameDatabase::replace(const std::shared_ptr<KeyFrame>& kf) {
+  if (!kf || !kf->hasBow()) return false;
+  const bow::BowVector bow_vector = kf->bowVector();  // the keyframe's lock, before ours
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = entry_of_.find(kf->id());
+  if (it == entry_of_.end()) return false;
+  database_.remove(it->second);
+  keyframe_of_.erase(it->second);
+  const bow::EntryId entry = database_.add(bow_vector);
+  it->second = entry;
+  keyframe_of_.emplace(entry, kf);
+  return true;
+}
+
 std::size_t KeyFrameDatabase::size() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return entry_of_.size();

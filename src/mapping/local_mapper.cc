@@ -4,6 +4,7 @@
 #include <exception>
 #include <utility>
 
+#include "bow/vocabulary.h"
 #include "imu_initializer.h"
 #include "local_window_ba.h"
 #include "ltlo/core/assert.h"
@@ -17,6 +18,26 @@ namespace {
 
 double angleDeg(const Vec3& a, const Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+}
+
+/// BoW of the keyframe's current static keypoints (as Frame::computeBow: feature indices are
+/// keypoint indices, direct index at tree depth 2).
+std::pair<bow::BowVector, bow::FeatureVector> staticBow(const map::KeyFrame& kf, const bow::Vocabulary& vocabulary) {
+  constexpr int kFeatureDepth = 2;
+  const std::vector<int> indices = kf.staticKeypoints();
+  std::vector<features::Descriptor> descriptors;
+  descriptors.reserve(indices.size());
+  for (const int i : indices) descriptors.push_back(kf.descriptors()[static_cast<std::size_t>(i)]);
+  bow::BowVector bow_vector;
+  bow::FeatureVector by_position;
+  vocabulary.transform(descriptors, &bow_vector, &by_position, kFeatureDepth);
+  bow::FeatureVector feature_vector;
+  for (auto& [node, positions] : by_position) {
+    std::vector<std::uint32_t>& keypoints = feature_vector[node];
+    keypoints.reserve(positions.size());
+    for (const std::uint32_t position : positions) keypoints.push_back(static_cast<std::uint32_t>(indices[position]));
+  }
+  return {std::move(bow_vector), std::move(feature_vector)};
 }
 
 }  // namespace
@@ -39,7 +60,7 @@ struct LocalMapper::Impl {
 
   void process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded);
   void localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const ImuState& imu,
-                         bool threaded);
+                         bool threaded, LocalMapperCounters& delta);
   /// Initialises or refines the IMU estimate when due; true when it did.
   bool maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf);
   void publishImu(const ImuInitEstimate& estimate, const char* what);
@@ -102,7 +123,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     if (options.use_imu && imu.initialised) predictInertialState(*map, *kf, imu.g_w);
     stop_ba.store(pause_requested.load());
     if (map->numKeyFrames() > 1 && !(threaded && queue.size() > 0) && !stop_ba.load()) {
-      localBundleAdjust(*map, kf, imu, threaded);
+      localBundleAdjust(*map, kf, imu, threaded, delta);
       ++delta.local_ba_runs;
     }
 
@@ -124,6 +145,8 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     ++counters.keyframes_processed;
     counters.culled_keyframes += delta.culled_keyframes;
     counters.culled_points += delta.culled_points;
+    counters.dynamic_points += delta.dynamic_points;
+    counters.bow_updates += delta.bow_updates;
     counters.fused_points += delta.fused_points;
     counters.local_ba_runs += delta.local_ba_runs;
     counters.imu_initialisations += delta.imu_initialisations;
@@ -135,7 +158,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
 }
 
 void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf,
-                                          const ImuState& imu, bool threaded) {
+                                          const ImuState& imu, bool threaded, LocalMapperCounters& delta) {
   std::optional<ScopedTimer> timer;
   if (timing != nullptr) timer.emplace(*timing, "mapping.local_ba");
   WindowBaOptions ba;
@@ -147,12 +170,30 @@ void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<m
   ba.inertial = options.use_imu && imu.initialised && kf->imuFromPrevious().has_value();
   ba.g_w = imu.g_w;
   ba.lambda_imu = options.local_mapping.lambda_imu;
+  ba.huber_chi2 = options.local_mapping.huber_chi2;
+  ba.robust = options.local_mapping.robust_beta;
+  ba.alternations = options.local_mapping.alternations;
+  ba.scores.lambda_d = options.local_mapping.lambda_d;
+  ba.scores.lambda_s = options.segmentation.lambda_s;
+  ba.scores.lambda_p = options.segmentation.lambda_p;
+  ba.scores.lambda_phi = options.segmentation.lambda_phi;
+  ba.scores.huber_delta = std::sqrt(options.local_mapping.huber_chi2);
+  ba.scores.sweeps = options.local_mapping.score_sweeps;
   ba.stop_flag = threaded ? &stop_ba : nullptr;
   const WindowBaStats stats = localWindowBundleAdjust(map, kf, ba, level_sigma2);
-  log::debug("local BA at kf ", kf->id(), (ba.inertial ? " (inertial)" : ""), ": ", stats.optimised_keyframes,
-             " optimised + ", stats.fixed_keyframes, " fixed keyframes, ", stats.points, " points, ",
-             stats.observations, " observations, ", stats.outliers_erased, " outliers erased",
-             (stats.aborted ? ", aborted" : ""));
+  delta.dynamic_points += stats.dynamic_points_erased;
+  for (const std::shared_ptr<map::KeyFrame>& changed : stats.static_set_changed) {
+    if (options.vocabulary == nullptr || changed->isBad()) continue;
+    auto [bow_vector, feature_vector] = staticBow(*changed, *options.vocabulary);
+    changed->setBow(std::move(bow_vector), std::move(feature_vector));
+    atlas.keyFrameDatabase().replace(changed);
+    ++delta.bow_updates;
+  }
+  log::debug("local BA at kf ", kf->id(), (ba.inertial ? " (inertial)" : ""), (ba.robust ? " (robust)" : ""), ": ",
+             stats.optimised_keyframes, " optimised + ", stats.fixed_keyframes, " fixed keyframes, ", stats.points,
+             " points, ", stats.observations, " observations, ", stats.dynamic_points_erased, " dynamic points and ",
+             stats.outliers_erased, " outliers erased, c^ = ", stats.c_hat, ", ", stats.static_set_changed.size(),
+             " keyframes' static features changed", (stats.aborted ? ", aborted" : ""));
 }
 
 bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf) {

@@ -7,16 +7,77 @@
 
 #include "ltlo/core/log.h"
 #include "ltlo/optim/bundle_adjust.h"
+#include "ltlo/optim/local_ba_graph.h"
 
 namespace ltlo::mapping {
 
 namespace {
+
+/// Points closer than this to a camera are not projected for Eq. 56 (m).
+constexpr double kMinProjectionDepth_m = 0.1;
+/// |r|^2 given to an observation whose point lies behind its camera (no meaningful residual): far
+/// beyond any chi2 gate, so the scores treat it as the gross outlier it is.
+constexpr double kBehindCameraRsq = 1e4;
 
 struct WindowKeyFrame {
   std::shared_ptr<map::KeyFrame> kf;
   bool fixed = false;
   std::vector<double> gamma;  ///< the keyframe's cluster scores (copied once)
 };
+
+struct ObservationRef {
+  std::size_t keyframe;
+  std::size_t point;
+  int index;
+};
+
+/// What Eq. 56 needs of a map point to project it into a keyframe: the viewing cone and distance
+/// range in which it is expected to be visible (as ORB-SLAM's and the fusion's visibility test).
+struct Visibility {
+  Vec3 normal_w = Vec3::Zero();
+  double min_distance_m = 0.0;
+  double max_distance_m = 0.0;
+};
+
+/// A map point outside the problem (seen by the fixed keyframes only) projected for Eq. 56.
+struct ProbePoint {
+  Vec3 p_w;
+  double beta = 1.0;
+  Visibility visibility;
+};
+
+/// The keyframes, points and observations of one window and the BA problem built from them.
+struct Window {
+  std::vector<WindowKeyFrame> keyframes;
+  std::vector<std::shared_ptr<map::MapPoint>> points;  ///< problem order
+  std::vector<Visibility> visibility;                  ///< problem order
+  /// Per point: the window keyframe of its only observation in the map, -1 when it has several
+  /// (a point made from one keyframe's depth says nothing about that keyframe's depth, Eq. 56).
+  std::vector<int> sole_observer;
+  std::vector<ObservationRef> refs;                    ///< problem order
+  std::vector<ProbePoint> probes;
+  optim::LocalBaProblem problem;
+};
+
+/// A point seen from outside [0.8, 1.2] x its distance range or more than 60 degrees off its mean
+/// viewing direction is not expected in the image (its descriptor would not be found there either).
+constexpr double kMinDistanceFactor = 0.8;
+constexpr double kMaxDistanceFactor = 1.2;
+constexpr double kMinViewingCos = 0.5;
+
+Visibility visibilityOf(const map::MapPoint& point) {
+  return {point.normal_w(), point.minDistance_m(), point.maxDistance_m()};
+}
+
+bool expectedVisible(const Visibility& v, const Vec3& p_w, const Vec3& centre_w) {
+  const Vec3 ray_w = p_w - centre_w;
+  const double distance_m = ray_w.norm();
+  if (v.max_distance_m > 0.0 &&
+      (distance_m < kMinDistanceFactor * v.min_distance_m || distance_m > kMaxDistanceFactor * v.max_distance_m)) {
+    return false;
+  }
+  return v.normal_w.isZero() || ray_w.dot(v.normal_w) >= kMinViewingCos * distance_m;
+}
 
 int baId(map::KeyFrameId id) { return static_cast<int>(id.value); }
 int baId(map::MapPointId id) { return static_cast<int>(id.value); }
@@ -29,22 +90,18 @@ double gammaOfKeypoint(const WindowKeyFrame& entry, int i) {
 
 bool usable(const std::shared_ptr<map::KeyFrame>& kf) { return kf != nullptr && !kf->isBad(); }
 
-}  // namespace
-
-WindowBaStats localWindowBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf,
-                                      const WindowBaOptions& options, const std::vector<float>& level_sigma2) {
-  WindowBaStats stats;
-  if (!usable(kf)) return stats;
+Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const WindowBaOptions& options,
+                     const std::vector<float>& level_sigma2) {
+  Window window;
+  std::vector<WindowKeyFrame>& keyframes = window.keyframes;
+  optim::LocalBaProblem& problem = window.problem;
 
   // ---- the optimised window (and, inertial, the fixed keyframe before it) ----
-  std::vector<WindowKeyFrame> keyframes;
   std::unordered_map<map::KeyFrameId, std::size_t> index_of;
   auto add_keyframe = [&](const std::shared_ptr<map::KeyFrame>& k, bool fixed) {
     if (!index_of.emplace(k->id(), keyframes.size()).second) return;
     keyframes.push_back({k, fixed, k->gamma()});
   };
-  optim::LocalBaProblem problem;
-  std::vector<std::pair<map::KeyFrameId, map::KeyFrameId>> links;  // i -> j, pim of j
   const std::size_t window_size = static_cast<std::size_t>(std::max(1, options.window_size));
   add_keyframe(kf, false);
   if (options.inertial) {
@@ -117,15 +174,8 @@ WindowBaStats localWindowBundleAdjust(map::Map& map, const std::shared_ptr<map::
     ba.fixed = entry.fixed;
     problem.keyframes.push_back(ba);
   }
-  struct ObservationRef {
-    std::size_t keyframe;
-    std::size_t point;
-    int index;
-  };
-  std::vector<ObservationRef> refs;
-  std::vector<std::shared_ptr<map::MapPoint>> problem_points;
   for (const std::shared_ptr<map::MapPoint>& point : points) {
-    const std::size_t point_index = problem_points.size();
+    const std::size_t point_index = window.points.size();
     const double beta = point->beta();
     std::vector<optim::BaObservation> observations;
     std::vector<ObservationRef> point_refs;
@@ -151,55 +201,288 @@ WindowBaStats localWindowBundleAdjust(map::Map& map, const std::shared_ptr<map::
     // A point needs depth or two views to be constrained.
     if (observations.empty() || (!has_depth && observations.size() < 2)) continue;
     problem.points.push_back({baId(point->id()), point->p_w()});
-    problem_points.push_back(point);
+    window.points.push_back(point);
+    window.visibility.push_back(visibilityOf(*point));
+    window.sole_observer.push_back(point->numObservations() == 1 && point_refs.size() == 1
+                                       ? static_cast<int>(point_refs.front().keyframe)
+                                       : -1);
     problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
-    refs.insert(refs.end(), point_refs.begin(), point_refs.end());
+    window.refs.insert(window.refs.end(), point_refs.begin(), point_refs.end());
   }
-  stats.points = static_cast<int>(problem.points.size());
-  stats.observations = static_cast<int>(problem.observations.size());
-  stats.inertial_links = static_cast<int>(problem.inertial.size());
-  for (const WindowKeyFrame& entry : keyframes) (entry.fixed ? stats.fixed_keyframes : stats.optimised_keyframes)++;
-  if (stats.optimised_keyframes == 0 || problem.observations.empty()) return stats;
+  // Probe points for Eq. 56: the static points of the fixed keyframes the window does not see
+  // (a dynamic object may hide them from the window's keyframes).
+  if (options.robust) {
+    for (std::size_t k = window_end; k < keyframes.size(); ++k) {
+      for (const map::MapPointId id : keyframes[k].kf->mapPoints()) {
+        if (!id.valid() || !point_seen.insert(id).second) continue;
+        const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+        if (!point || point->isBad()) continue;
+        const double beta = point->beta();
+        if (beta < options.min_point_beta) continue;
+        window.probes.push_back({point->p_w(), beta, visibilityOf(*point)});
+      }
+    }
+  }
+  return window;
+}
 
+/// Poses (and, with an inertial link, velocities and biases) and point positions back to the map.
+void writeStates(const Window& window, const optim::LocalBaResult& result) {
+  std::unordered_set<int> with_inertial;
+  for (const optim::BaInertialLink& link : window.problem.inertial) {
+    with_inertial.insert(link.keyframe_i);
+    with_inertial.insert(link.keyframe_j);
+  }
+  for (std::size_t k = 0; k < window.keyframes.size(); ++k) {
+    const WindowKeyFrame& entry = window.keyframes[k];
+    if (entry.fixed || entry.kf->isBad()) continue;
+    const optim::BaKeyFrame& out = result.keyframes[k];
+    if (!out.T_w_b.translation().allFinite()) continue;
+    entry.kf->setPose_T_w_b(out.T_w_b);
+    if (with_inertial.count(out.id) > 0) {
+      entry.kf->setVelocity(out.v_w_b);
+      entry.kf->setBias(out.bias);
+    }
+  }
+  for (std::size_t m = 0; m < window.points.size(); ++m) {
+    if (!window.points[m]->isBad() && result.points[m].p_w.allFinite()) window.points[m]->setPosition(result.points[m].p_w);
+  }
+}
+
+/// Erases the observations failing the chi2 gate (or behind the camera) of points still in the map;
+/// a point left without observations goes too. Returns the number erased.
+int eraseOutlierObservations(map::Map& map, const Window& window, const std::vector<bool>& inliers) {
+  int erased = 0;
+  for (std::size_t o = 0; o < window.refs.size(); ++o) {
+    if (inliers[o]) continue;
+    const ObservationRef& ref = window.refs[o];
+    map::KeyFrame& observer = *window.keyframes[ref.keyframe].kf;
+    const std::shared_ptr<map::MapPoint>& point = window.points[ref.point];
+    if (point->isBad() || observer.isBad() || observer.mapPoint(ref.index) != point->id()) continue;
+    map.eraseObservation(observer, ref.index);
+    ++erased;
+    if (point->numObservations() == 0) map.eraseMapPoint(point->id());
+  }
+  return erased;
+}
+
+// ---- robust VIBA: the Gamma/B problem of the window ----------------------------------------------
+
+/// The static-score problem of a window: clusters of its optimised keyframes, and for every BA
+/// observation either its score observation (optimised keyframe) or the fixed gamma it is
+/// weighted with (fixed keyframe).
+struct ScoreLayout {
+  StaticScoreProblem problem;                ///< observations' r_sq and depth samples filled per round
+  std::vector<int> cluster_offset;           ///< per window keyframe; -1 for fixed keyframes
+  std::vector<int> score_observation;        ///< per BA observation; -1 from a fixed keyframe
+  std::vector<double> fixed_gamma;           ///< per BA observation from a fixed keyframe
+  std::vector<bool> point_scored;            ///< per point: has a score observation
+};
+
+ScoreLayout scoreLayout(const Window& window) {
+  ScoreLayout layout;
+  StaticScoreProblem& problem = layout.problem;
+  problem.num_points = static_cast<int>(window.points.size());
+  layout.cluster_offset.assign(window.keyframes.size(), -1);
+  for (std::size_t k = 0; k < window.keyframes.size(); ++k) {
+    const WindowKeyFrame& entry = window.keyframes[k];
+    if (entry.fixed) continue;
+    const map::ClusterSegmentation& layout_k = entry.kf->segmentationLayout();
+    const int offset = static_cast<int>(problem.clusters.size());
+    layout.cluster_offset[k] = offset;
+    const int no_depth = layout_k.noDepthCluster();
+    for (std::size_t c = 0; c < entry.gamma.size(); ++c) {
+      ScoreCluster cluster;
+      cluster.keyframe = static_cast<int>(k);
+      // The no-depth cluster keeps gamma = 1; a label-free segmentation has no clusters to refine.
+      cluster.fixed = layout_k.labels.empty() || static_cast<int>(c) == no_depth;
+      cluster.prior_without_samples = entry.gamma[c];
+      problem.clusters.push_back(cluster);
+    }
+    for (const auto& [a, b] : layout_k.neighbours) {
+      if (a < static_cast<int>(entry.gamma.size()) && b < static_cast<int>(entry.gamma.size())) {
+        problem.neighbours.emplace_back(offset + a, offset + b);
+      }
+    }
+  }
+  layout.score_observation.assign(window.refs.size(), -1);
+  layout.fixed_gamma.assign(window.refs.size(), 1.0);
+  layout.point_scored.assign(window.points.size(), false);
+  for (std::size_t o = 0; o < window.refs.size(); ++o) {
+    const ObservationRef& ref = window.refs[o];
+    const WindowKeyFrame& entry = window.keyframes[ref.keyframe];
+    const int offset = layout.cluster_offset[ref.keyframe];
+    if (offset < 0) {
+      layout.fixed_gamma[o] = gammaOfKeypoint(entry, ref.index);
+      continue;
+    }
+    const int cluster = entry.kf->clusterOf(ref.index);
+    if (cluster < 0 || cluster >= static_cast<int>(entry.gamma.size())) continue;  // weight beta alone
+    layout.score_observation[o] = static_cast<int>(problem.observations.size());
+    problem.observations.push_back({static_cast<int>(ref.point), offset + cluster, 0.0});
+    layout.point_scored[ref.point] = true;
+  }
+  return layout;
+}
+
+/// Eq. 56's depth samples: every window point projected into every optimised keyframe with a depth
+/// image, at the current estimates.
+std::vector<DepthSample> depthSamples(const Window& window, const ScoreLayout& layout, const optim::LocalBaGraph& graph) {
+  std::vector<DepthSample> samples;
+  std::vector<Vec3> points_w(window.points.size());
+  for (std::size_t m = 0; m < window.points.size(); ++m) points_w[m] = graph.p_w(m);
+  for (std::size_t k = 0; k < window.keyframes.size(); ++k) {
+    const int offset = layout.cluster_offset[k];
+    const map::KeyFrame& kf = *window.keyframes[k].kf;
+    const map::ClusterSegmentation& segmentation = kf.segmentationLayout();
+    if (offset < 0 || segmentation.labels.empty() || segmentation.depth_mm.empty()) continue;
+    const SE3 T_w_c = graph.T_w_b(k) * kf.T_b_c();
+    const SE3 T_c_w = T_w_c.inverse();
+    const Vec3 centre_w = T_w_c.translation();
+    const PinholeCamera& camera = kf.camera();
+    const int no_depth = segmentation.noDepthCluster();
+    // Cluster and depth disagreement where p_w projects; false when it does not land on depth.
+    auto sample = [&](const Vec3& p_w, const Visibility& visibility, DepthSample* out) {
+      const Vec3 p_c = T_c_w * p_w;
+      if (p_c.z() < kMinProjectionDepth_m) return false;
+      const Vec2 uv = camera.project(p_c);
+      if (!camera.isInImage(uv) || !expectedVisible(visibility, p_w, centre_w)) return false;
+      const double image_depth_m = segmentation.depthAt_m(uv.x(), uv.y());
+      if (image_depth_m <= 0.0) return false;
+      const int cluster = segmentation.clusterAt(static_cast<float>(uv.x()), static_cast<float>(uv.y()));
+      if (cluster == no_depth) return false;
+      out->cluster = offset + cluster;
+      out->disagreement_m = depthDisagreement_m(p_c.z(), image_depth_m);
+      return true;
+    };
+    DepthSample s;
+    for (std::size_t m = 0; m < points_w.size(); ++m) {
+      if (window.sole_observer[m] == static_cast<int>(k)) continue;
+      s.point = static_cast<int>(m);
+      if (sample(points_w[m], window.visibility[m], &s)) samples.push_back(s);
+    }
+    for (const ProbePoint& probe : window.probes) {
+      s.point = -1;
+      s.probe_beta = probe.beta;
+      if (sample(probe.p_w, probe.visibility, &s)) samples.push_back(s);
+    }
+  }
+  return samples;
+}
+
+/// w = beta * gamma of every BA observation from the current scores.
+std::vector<double> staticWeights(const Window& window, const ScoreLayout& layout, const StaticScores& scores) {
+  std::vector<double> weights(window.refs.size());
+  for (std::size_t o = 0; o < window.refs.size(); ++o) {
+    const double beta = scores.beta[window.refs[o].point];
+    const int s = layout.score_observation[o];
+    const double gamma = s >= 0 ? scores.gamma[static_cast<std::size_t>(layout.problem.observations[static_cast<std::size_t>(s)].cluster)]
+                                : layout.fixed_gamma[o];
+    weights[o] = beta * gamma;
+  }
+  return weights;
+}
+
+/// Writes beta to the scored points, Gamma to the optimised keyframes with clusters, deletes the
+/// points that ended dynamic. Fills the stats' static_set_changed and dynamic_points_erased.
+void writeScores(map::Map& map, const Window& window, const ScoreLayout& layout, const StaticScores& scores,
+                 const WindowBaOptions& options, WindowBaStats& stats) {
+  for (std::size_t k = 0; k < window.keyframes.size(); ++k) {
+    const int offset = layout.cluster_offset[k];
+    const WindowKeyFrame& entry = window.keyframes[k];
+    if (offset < 0 || entry.kf->isBad() || entry.kf->segmentationLayout().labels.empty()) continue;
+    std::vector<double> gamma(scores.gamma.begin() + offset, scores.gamma.begin() + offset + static_cast<long>(entry.gamma.size()));
+    if (gamma == entry.gamma) continue;
+    const std::vector<int> static_before = entry.kf->staticKeypoints();
+    entry.kf->setGamma(std::move(gamma));
+    if (entry.kf->staticKeypoints() != static_before) stats.static_set_changed.push_back(entry.kf);
+  }
+  for (std::size_t m = 0; m < window.points.size(); ++m) {
+    const std::shared_ptr<map::MapPoint>& point = window.points[m];
+    if (!layout.point_scored[m] || point->isBad()) continue;
+    point->setBeta(scores.beta[m]);
+    if (scores.beta[m] < options.min_point_beta && map.eraseMapPoint(point->id())) ++stats.dynamic_points_erased;
+  }
+}
+
+/// The robust VIBA on a collected window (header comment).
+void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowBaOptions& options,
+                              WindowBaStats& stats) {
+  optim::LocalBaOptions ba_options;
+  ba_options.num_threads = options.num_threads;
+  ba_options.stop_flag = options.stop_flag;
+  ba_options.chi2_3d = options.huber_chi2;
+  optim::LocalBaGraph graph(window.problem, ba_options);
+  ScoreLayout layout = scoreLayout(window);
+
+  StaticScores scores;
+  scores.beta.reserve(window.points.size());
+  for (const std::shared_ptr<map::MapPoint>& point : window.points) scores.beta.push_back(point->beta());
+  scores.gamma.resize(layout.problem.clusters.size());
+  for (std::size_t c = 0; c < scores.gamma.size(); ++c) scores.gamma[c] = layout.problem.clusters[c].prior_without_samples;
+
+  // Gamma, B for fixed states and points.
+  std::vector<double> r_sq;
+  std::vector<bool> in_front;
+  auto score_step = [&] {
+    graph.residuals(&r_sq, &in_front);
+    for (std::size_t o = 0; o < r_sq.size(); ++o) {
+      const int s = layout.score_observation[o];
+      if (s >= 0) layout.problem.observations[static_cast<std::size_t>(s)].r_sq = in_front[o] ? r_sq[o] : kBehindCameraRsq;
+    }
+    layout.problem.depth_samples = depthSamples(window, layout, graph);
+    scores = solveStaticScores(layout.problem, options.scores, std::move(scores), &stats.c_hat);
+    ++stats.score_steps;
+  };
+  // The scores first, at the states tracking left: a dynamic object's depth disagreement with the
+  // map (Eq. 56) holds at any nearby pose, so the first state step already leaves it out instead
+  // of settling between it and the static world when it holds most of the features.
+  score_step();
+  sparse_opt::Summary summary;
+  for (int round = 0; round < options.alternations; ++round) {
+    // States and points for fixed Gamma, B.
+    graph.setStaticWeights(staticWeights(window, layout, scores));
+    summary = graph.optimize(options.iterations);
+    // A new keyframe waits: stop after this round's score step (it costs a few ms), so B and Gamma
+    // follow the states however busy the mapper is.
+    stats.aborted = options.stop_flag != nullptr && options.stop_flag->load();
+    score_step();
+    if (stats.aborted) break;
+  }
+  const optim::LocalBaResult result = graph.result(summary);
+  stats.final_chi2 = summary.final_chi2;
+  writeStates(window, result);
+  writeScores(map, window, layout, scores, options, stats);
+  stats.outliers_erased = eraseOutlierObservations(map, window, result.inliers);
+}
+
+}  // namespace
+
+WindowBaStats localWindowBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf,
+                                      const WindowBaOptions& options, const std::vector<float>& level_sigma2) {
+  WindowBaStats stats;
+  if (!usable(kf)) return stats;
+  const Window window = collectWindow(map, kf, options, level_sigma2);
+  stats.points = static_cast<int>(window.problem.points.size());
+  stats.observations = static_cast<int>(window.problem.observations.size());
+  stats.inertial_links = static_cast<int>(window.problem.inertial.size());
+  for (const WindowKeyFrame& entry : window.keyframes) (entry.fixed ? stats.fixed_keyframes : stats.optimised_keyframes)++;
+  if (stats.optimised_keyframes == 0 || window.problem.observations.empty()) return stats;
+
+  if (options.robust) {
+    robustWindowBundleAdjust(map, window, options, stats);
+    return stats;
+  }
   optim::LocalBaOptions ba_options;
   ba_options.iterations = options.iterations;
   ba_options.num_threads = options.num_threads;
   ba_options.stop_flag = options.stop_flag;
-  const optim::LocalBaResult result = optim::localBundleAdjust(problem, ba_options);
+  ba_options.chi2_3d = options.huber_chi2;
+  const optim::LocalBaResult result = optim::localBundleAdjust(window.problem, ba_options);
   stats.aborted = options.stop_flag != nullptr && options.stop_flag->load();
   stats.final_chi2 = result.summary.final_chi2;
-
-  // ---- write back (skipping what went bad meanwhile) ----
-  std::unordered_set<int> with_inertial;
-  for (const optim::BaInertialLink& link : problem.inertial) {
-    with_inertial.insert(link.keyframe_i);
-    with_inertial.insert(link.keyframe_j);
-  }
-  for (std::size_t k = 0; k < keyframes.size(); ++k) {
-    if (keyframes[k].fixed || keyframes[k].kf->isBad()) continue;
-    const optim::BaKeyFrame& out = result.keyframes[k];
-    if (!out.T_w_b.translation().allFinite()) continue;
-    keyframes[k].kf->setPose_T_w_b(out.T_w_b);
-    if (with_inertial.count(out.id) > 0) {
-      keyframes[k].kf->setVelocity(out.v_w_b);
-      keyframes[k].kf->setBias(out.bias);
-    }
-  }
-  for (std::size_t m = 0; m < problem_points.size(); ++m) {
-    if (!problem_points[m]->isBad() && result.points[m].p_w.allFinite()) {
-      problem_points[m]->setPosition(result.points[m].p_w);
-    }
-  }
-  for (std::size_t o = 0; o < refs.size(); ++o) {
-    if (result.inliers[o]) continue;
-    const ObservationRef& ref = refs[o];
-    map::KeyFrame& observer = *keyframes[ref.keyframe].kf;
-    const std::shared_ptr<map::MapPoint>& point = problem_points[ref.point];
-    if (observer.isBad() || observer.mapPoint(ref.index) != point->id()) continue;
-    map.eraseObservation(observer, ref.index);
-    ++stats.outliers_erased;
-    if (point->numObservations() == 0) map.eraseMapPoint(point->id());
-  }
+  writeStates(window, result);
+  stats.outliers_erased = eraseOutlierObservations(map, window, result.inliers);
   return stats;
 }
 

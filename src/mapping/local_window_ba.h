@@ -1,12 +1,24 @@
 #pragma once
 /// Local bundle adjustment of local mapping (private to ltlo_mapping): collects the window around
-/// a new keyframe from the map, runs optim::localBundleAdjust and writes the result back.
+/// a new keyframe from the map, optimises it and writes the result back.
 ///   visual:   the keyframe and its best covisibles (window_size in all) optimised;
 ///   inertial: the last window_size keyframes in time optimised with their velocities and biases,
 ///             linked by their preintegrations, the keyframe before them fixed (ORB-SLAM3's
 ///             temporal window for VI-BA);
 /// in both, the other keyframes observing the window's points are fixed, and so is the map's
-/// origin keyframe (gauge). Observations are weighted by beta * gamma (thesis Eq. 53).
+/// origin keyframe (gauge). Observations are weighted by w = beta * gamma (thesis Eq. 53).
+///
+/// Robust VIBA (thesis Eq. 50-58, WindowBaOptions::robust): `alternations` rounds of
+///   1. states and points for fixed Gamma, B (optim::LocalBaGraph: IMU, bias walk and
+///      w^2 rho_H(|r|^2) per observation, Eq. 50, 53, 58);
+///   2. Gamma, B for fixed states and points in closed form (static_score_update.h, Eq. 51-57),
+///      from the whitened residuals of the optimised keyframes' observations and the depth
+///      disagreement of the window's points with the optimised keyframes' depth images (Eq. 56);
+/// then beta goes back to the points, Gamma to the optimised keyframes, points whose beta ended
+/// below min_point_beta are deleted, and observations of the remaining points failing the chi2
+/// gate are erased. No observation is erased before beta is estimated.
+/// Plain VIBA (robust = false): weights from the points' beta and the keyframes' Gamma as they
+/// are, ORB-SLAM's two passes (robust, then without the observations failing the gate).
 #include <atomic>
 #include <memory>
 #include <vector>
@@ -14,19 +26,25 @@
 #include "ltlo/core/eigen_types.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/map.h"
+#include "static_score_update.h"
 
 namespace ltlo::mapping {
 
 struct WindowBaOptions {
   int window_size = 10;          ///< keyframes optimised
-  int iterations = 10;           ///< per pass (two passes: robust, then without outliers)
+  int iterations = 10;           ///< solver iterations per state step (plain: per pass)
   std::size_t max_fixed_keyframes = 50;  ///< fixed observers kept, those sharing most points first
   double bf_px_m = 40.0;
-  double min_point_beta = 0.5;   ///< points with a lower static score are left out
+  double min_point_beta = 0.5;   ///< points with a lower static score are left out (robust: deleted)
   int num_threads = 1;
   bool inertial = false;         ///< visual-inertial window (IMU initialised)
   Vec3 g_w = Vec3(0.0, 0.0, -9.81);
   double lambda_imu = 1.0;
+  double huber_chi2 = 7.815;     ///< rho_H threshold on the whitened |r|^2 (3-D edges; 2-D: 5.991)
+  /// The robust VIBA above (Mapping.RobustBeta); false: the plain VIBA.
+  bool robust = true;
+  int alternations = 3;          ///< robust: state <-> score rounds
+  StaticScoreOptions scores;     ///< robust: the closed forms' weights
   const std::atomic<bool>* stop_flag = nullptr;
 };
 
@@ -37,8 +55,14 @@ struct WindowBaStats {
   int observations = 0;
   int inertial_links = 0;
   int outliers_erased = 0;
+  int dynamic_points_erased = 0;  ///< robust: beta ended below min_point_beta
+  int score_steps = 0;            ///< robust: Gamma/B steps completed
+  double c_hat = 0.0;             ///< robust: the last c^ of Eq. 53
   bool aborted = false;          ///< the stop flag was raised during the optimisation
   double final_chi2 = 0.0;
+  /// Robust: optimised keyframes whose set of static keypoints changed with their new Gamma (their
+  /// BoW must follow).
+  std::vector<std::shared_ptr<map::KeyFrame>> static_set_changed;
 };
 
 /// Runs the window BA around `kf` on `map` (kf must belong to it). `level_sigma2` is

@@ -3,219 +3,23 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <unordered_map>
-#include <sparse_opt/robust_kernel.h>
 
 #include "ltlo/core/assert.h"
 #include "ltlo/optim/inertial_edges.h"
+#include "ltlo/optim/local_ba_graph.h"
 #include "ltlo/optim/vertices.h"
-#include "observation_edge.h"
 
 namespace ltlo::optim {
 
-namespace {
-
-using RgbdEdge = EdgeRgbdReprojection<VertexPose>;
-using MonoEdge = EdgeMonoReprojection<VertexPose>;
-
-// Vertices of one keyframe (velocity and biases only with an inertial link).
-struct KeyFrameVertices {
-  VertexPose* pose = nullptr;
-  VertexVelocity* velocity = nullptr;
-  VertexGyroBias* gyro_bias = nullptr;
-  VertexAccBias* acc_bias = nullptr;
-};
-
-using ObservationEdge = ReprojectionObservation<RgbdEdge, MonoEdge>;
-
-}  // namespace
-
 LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOptions& options) {
-  sparse_opt::Graph graph;
-  // Ids: keyframe k (input order) uses 4k .. 4k+3, point m uses 4 K + m.
-  const int num_keyframes = static_cast<int>(problem.keyframes.size());
-  std::unordered_map<int, int> keyframe_index;
-  std::vector<KeyFrameVertices> kf_vertices(problem.keyframes.size());
-  for (int k = 0; k < num_keyframes; ++k) {
-    const BaKeyFrame& kf = problem.keyframes[static_cast<size_t>(k)];
-    LTLO_ASSERT(keyframe_index.emplace(kf.id, k).second, "localBundleAdjust: duplicate keyframe id " << kf.id);
-    auto pose = std::make_unique<VertexPose>(4 * k, kf.T_w_b);
-    pose->setFixed(kf.fixed);
-    kf_vertices[static_cast<size_t>(k)].pose = graph.addVertex(std::move(pose));
-  }
-  auto index_of = [&](int keyframe_id) {
-    const auto it = keyframe_index.find(keyframe_id);
-    LTLO_ASSERT(it != keyframe_index.end(), "localBundleAdjust: unknown keyframe id " << keyframe_id);
-    return it->second;
-  };
-  auto ensure_inertial_vertices = [&](int k) {
-    KeyFrameVertices& v = kf_vertices[static_cast<size_t>(k)];
-    if (v.velocity != nullptr) return;
-    const BaKeyFrame& kf = problem.keyframes[static_cast<size_t>(k)];
-    auto velocity = std::make_unique<VertexVelocity>(4 * k + 1, kf.v_w_b);
-    auto gyro_bias = std::make_unique<VertexGyroBias>(4 * k + 2, kf.bias.b_g);
-    auto acc_bias = std::make_unique<VertexAccBias>(4 * k + 3, kf.bias.b_a);
-    const bool state_fixed = kf.fixed && !kf.fixed_pose_only;
-    velocity->setFixed(state_fixed);
-    gyro_bias->setFixed(state_fixed);
-    acc_bias->setFixed(state_fixed);
-    v.velocity = graph.addVertex(std::move(velocity));
-    v.gyro_bias = graph.addVertex(std::move(gyro_bias));
-    v.acc_bias = graph.addVertex(std::move(acc_bias));
-  };
-
-  // Gravity direction (refinement of the IMU initialisation): one vertex after the points' ids.
-  LTLO_ASSERT(!problem.estimate_gravity || !problem.inertial.empty(),
-              "localBundleAdjust: the gravity direction needs inertial links");
-  const double gravity_m_s2 = problem.g_w.norm();
-  VertexGravityDir* gravity = nullptr;
-  if (problem.estimate_gravity) {
-    const int gravity_id = 4 * num_keyframes + static_cast<int>(problem.points.size());
-    gravity = graph.addVertex(
-        std::make_unique<VertexGravityDir>(gravity_id, imu::gravityRotationFromDirection(problem.g_w)));
-  }
-  for (const BaInertialLink& link : problem.inertial) {
-    LTLO_ASSERT(link.pim != nullptr, "localBundleAdjust: inertial link without preintegration");
-    const int i = index_of(link.keyframe_i);
-    const int j = index_of(link.keyframe_j);
-    ensure_inertial_vertices(i);
-    ensure_inertial_vertices(j);
-    const KeyFrameVertices& vi = kf_vertices[static_cast<size_t>(i)];
-    const KeyFrameVertices& vj = kf_vertices[static_cast<size_t>(j)];
-    if (gravity != nullptr) {
-      auto inertial = std::make_unique<EdgeInertialGravity>(link.pim, gravity_m_s2);
-      inertial->setVertex(0, vi.pose);
-      inertial->setVertex(1, vi.velocity);
-      inertial->setVertex(2, vi.gyro_bias);
-      inertial->setVertex(3, vi.acc_bias);
-      inertial->setVertex(4, vj.pose);
-      inertial->setVertex(5, vj.velocity);
-      inertial->setVertex(6, gravity);
-      inertial->setInformation(problem.inertial_information_scale * inertial->information());
-      graph.addEdge(std::move(inertial));
-    } else {
-      auto inertial = std::make_unique<EdgeInertial>(link.pim, problem.g_w);
-      inertial->setVertex(0, vi.pose);
-      inertial->setVertex(1, vi.velocity);
-      inertial->setVertex(2, vi.gyro_bias);
-      inertial->setVertex(3, vi.acc_bias);
-      inertial->setVertex(4, vj.pose);
-      inertial->setVertex(5, vj.velocity);
-      inertial->setInformation(problem.inertial_information_scale * inertial->information());
-      graph.addEdge(std::move(inertial));
-    }
-    auto walk = std::make_unique<EdgeBiasWalk>();
-    walk->setVertex(0, vi.gyro_bias);
-    walk->setVertex(1, vi.acc_bias);
-    walk->setVertex(2, vj.gyro_bias);
-    walk->setVertex(3, vj.acc_bias);
-    walk->setInformation(problem.inertial_information_scale *
-                         biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), 1e-3), problem.lambda_imu));
-    graph.addEdge(std::move(walk));
-  }
-
-  for (const BaBiasPrior& prior : problem.bias_priors) {
-    const KeyFrameVertices& v = kf_vertices[static_cast<size_t>(index_of(prior.keyframe_id))];
-    LTLO_ASSERT(v.gyro_bias != nullptr, "localBundleAdjust: bias prior on keyframe " << prior.keyframe_id
-                                                                                   << " without an inertial link");
-    if (prior.gyro_information > 0.0) {
-      auto edge = std::make_unique<EdgeGyroBiasPrior>();
-      edge->setVertex(0, v.gyro_bias);
-      edge->setMeasurement(prior.mean.b_g);
-      edge->setInformation(problem.inertial_information_scale * prior.gyro_information * Mat3::Identity());
-      graph.addEdge(std::move(edge));
-    }
-    if (prior.acc_information > 0.0) {
-      auto edge = std::make_unique<EdgeAccBiasPrior>();
-      edge->setVertex(0, v.acc_bias);
-      edge->setMeasurement(prior.mean.b_a);
-      edge->setInformation(problem.inertial_information_scale * prior.acc_information * Mat3::Identity());
-      graph.addEdge(std::move(edge));
-    }
-  }
-
-  std::unordered_map<int, VertexPoint*> point_vertices;
-  for (size_t m = 0; m < problem.points.size(); ++m) {
-    auto point = std::make_unique<VertexPoint>(4 * num_keyframes + static_cast<int>(m), problem.points[m].p_w);
-    point->setMarginalized(true);
-    LTLO_ASSERT(point_vertices.emplace(problem.points[m].id, graph.addVertex(std::move(point))).second,
-                "localBundleAdjust: duplicate point id " << problem.points[m].id);
-  }
-
-  std::vector<ObservationEdge> edges;
-  edges.reserve(problem.observations.size());
-  for (const BaObservation& obs : problem.observations) {
-    const auto point_it = point_vertices.find(obs.point_id);
-    LTLO_ASSERT(point_it != point_vertices.end(), "localBundleAdjust: unknown point id " << obs.point_id);
-    LTLO_ASSERT(obs.sigma_px > 0.0, "localBundleAdjust: sigma_px = " << obs.sigma_px << ", expected > 0");
-    VertexPose* pose = kf_vertices[static_cast<size_t>(index_of(obs.keyframe_id))].pose;
-    const double inv_sigma2 = 1.0 / (obs.sigma_px * obs.sigma_px);
-    ObservationEdge entry;
-    if (obs.depth_m > 0.0) {
-      auto edge = std::make_unique<RgbdEdge>(problem.model);
-      edge->setVertex(0, pose);
-      edge->setVertex(1, point_it->second);
-      edge->setMeasurement(problem.model.rgbdObservation(obs.uv, obs.depth_m));
-      edge->setObservationInformation(inv_sigma2 * Mat3::Identity());
-      edge->setStaticWeight(obs.static_weight);
-      edge->setRobustKernel(std::make_unique<sparse_opt::HuberKernel>(std::sqrt(options.chi2_3d)));
-      entry.rgbd = graph.addEdge(std::move(edge));
-      entry.edge = entry.rgbd;
-      entry.threshold = options.chi2_3d;
-    } else {
-      auto edge = std::make_unique<MonoEdge>(problem.model);
-      edge->setVertex(0, pose);
-      edge->setVertex(1, point_it->second);
-      edge->setMeasurement(obs.uv);
-      edge->setObservationInformation(inv_sigma2 * Mat2::Identity());
-      edge->setStaticWeight(obs.static_weight);
-      edge->setRobustKernel(std::make_unique<sparse_opt::HuberKernel>(std::sqrt(options.chi2_2d)));
-      entry.mono = graph.addEdge(std::move(edge));
-      entry.edge = entry.mono;
-      entry.threshold = options.chi2_2d;
-    }
-    edges.push_back(entry);
-  }
-
-  sparse_opt::Options solver_options;
-  solver_options.max_iterations = options.iterations;
-  solver_options.num_threads = options.num_threads;
-  solver_options.stop_flag = options.stop_flag;
-
-  LocalBaResult result;
-  result.summary = graph.optimize(solver_options);
-  result.initial_chi2 = result.summary.initial_chi2;
+  LocalBaGraph graph(problem, options);
+  sparse_opt::Summary summary = graph.optimize(options.iterations);
   const bool stopped = options.stop_flag != nullptr && options.stop_flag->load();
   if (options.reject_outliers && !stopped) {
-    for (ObservationEdge& entry : edges) {
-      if (!entry.passes()) entry.edge->setLevel(1);
-      entry.edge->setRobustKernel(nullptr);
-    }
-    result.summary = graph.optimize(solver_options);
+    graph.rejectOutliers();
+    summary = graph.optimize(options.iterations);
   }
-  result.inliers.reserve(edges.size());
-  result.residual_chi2.reserve(edges.size());
-  for (const ObservationEdge& entry : edges) {
-    bool depth_positive = false;
-    const double chi2 = entry.unweightedChi2(&depth_positive);
-    result.inliers.push_back(depth_positive && chi2 <= entry.threshold);
-    result.residual_chi2.push_back(chi2);
-  }
-
-  result.keyframes = problem.keyframes;
-  for (size_t k = 0; k < result.keyframes.size(); ++k) {
-    const KeyFrameVertices& v = kf_vertices[k];
-    result.keyframes[k].T_w_b = v.pose->estimate();
-    if (v.velocity != nullptr) {
-      result.keyframes[k].v_w_b = v.velocity->estimate();
-      result.keyframes[k].bias.b_g = v.gyro_bias->estimate();
-      result.keyframes[k].bias.b_a = v.acc_bias->estimate();
-    }
-  }
-  result.points = problem.points;
-  for (BaPoint& point : result.points) point.p_w = point_vertices.at(point.id)->estimate();
-  result.g_w = gravity != nullptr ? imu::gravityFromRotation(gravity->estimate(), gravity_m_s2) : problem.g_w;
-  return result;
+  return graph.result(summary);
 }
 
 double visualVarianceFactor(const LocalBaProblem& problem) {

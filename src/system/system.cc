@@ -70,6 +70,8 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
   mapping::LocalMapperOptions mapper_options;
   mapper_options.local_mapping = settings_.local_mapping;
+  mapper_options.segmentation = settings_.segmentation;
+  mapper_options.vocabulary = vocabulary_;
   mapper_options.imu_init = settings_.imu_init;
   mapper_options.use_imu = use_imu_;
   // Every RGB-D edge (tracking, local BA, fusion, loop and global BA): bf = fx * virtual baseline.

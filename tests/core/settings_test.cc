@@ -450,5 +450,70 @@ TEST(SettingsFile, TypedGettersAndDefaults) {
       path + ": A.int = 7, expected an integer in [1, 5]");  // optional but present: validated
 }
 
+// ---- --set Key=Value overrides --------------------------------------------------------------
+
+std::string loadErrorWith(const std::string& config, const std::vector<std::string>& texts,
+                          const std::string& calib = "") {
+  try {
+    std::vector<SettingOverride> overrides;
+    for (const std::string& text : texts) overrides.push_back(SettingOverride::parse(text));
+    Settings::load(config, calib, overrides);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(SettingOverrides, ReplaceValuesTypedLikeTheFileAndAreLogged) {
+  const std::string config = (configDir() / "synthetic.yaml").string();
+  test::LogCapture capture;
+  const Settings settings = Settings::load(
+      config, "",
+      {SettingOverride::parse("Seg.Enable=1"), SettingOverride::parse("LocalMapping.Alternations=5"),
+       SettingOverride::parse("Loop.MinStaticRatio=0.6"), SettingOverride::parse("Dense.Resolution=160x120"),
+       SettingOverride::parse("Loop.MinStaticRatio=0.7")});
+  EXPECT_TRUE(settings.segmentation.enable);
+  EXPECT_EQ(settings.local_mapping.alternations, 5);
+  EXPECT_DOUBLE_EQ(settings.loop.min_static_ratio, 0.7);  // the later one wins
+  EXPECT_EQ(settings.dense.width, 160);
+  EXPECT_EQ(settings.dense.height, 120);
+  EXPECT_TRUE(settings.unknown_keys.empty());
+  ASSERT_GE(capture.lines().size(), 2u);
+  EXPECT_EQ(capture.lines()[0], "[main] info settings: --set Seg.Enable = 1 (" + config + " has 0)");
+  const std::string text = settings.describe();
+  EXPECT_NE(text.find("\n--set LocalMapping.Alternations = 5\n"), std::string::npos);
+  EXPECT_NE(text.find("\nLocalMapping.Alternations = 5\n"), std::string::npos);
+}
+
+TEST(SettingOverrides, ValidatedLikeTheFile) {
+  const std::string config = (configDir() / "synthetic.yaml").string();
+  EXPECT_EQ(loadErrorWith(config, {"Seg.Clusters=1"}),
+            config + " (--set): Seg.Clusters = 1, expected an integer in [2, 256]");
+  EXPECT_EQ(loadErrorWith(config, {"Seg.Clusters=24.5"}),
+            config + " (--set): Seg.Clusters = 24.5, expected an integer in [2, 256]");
+  EXPECT_EQ(loadErrorWith(config, {"Loop.Enabled=yes"}),
+            config + " (--set): Loop.Enabled = \"yes\", expected a boolean (0/1 or true/false)");
+  EXPECT_EQ(loadErrorWith(config, {"Seg.Clustres=24"}),
+            config + " (--set): unknown key Seg.Clustres = 24, expected a key of the settings "
+                     "(config_yaml/*.yaml lists them)");
+  EXPECT_EQ(loadErrorWith(config, {"Seg.Enable"}), "--set Seg.Enable: expected Key=Value (e.g. Seg.Enable=0)");
+  EXPECT_EQ(loadErrorWith(config, {"=1"}), "--set =1: expected Key=Value (e.g. Seg.Enable=0)");
+  EXPECT_EQ(loadErrorWith(config, {"Seg Enable=1"}),
+            config + " (--set): key \"Seg Enable\", expected letters, digits, '.' and '_'");
+  EXPECT_EQ(loadErrorWith(config, {"Seg.Enable=[1, 2]"}),
+            config + " (--set): Seg.Enable = \"[1, 2]\", expected one YAML scalar (a number, 0/1, "
+                     "true/false or a string)");
+}
+
+TEST(SettingOverrides, CalibrationKeysGoToCalibYaml) {
+  const fs::path dir = scratchDir();
+  exampleCalib().write((dir / "calib.yaml").string());
+  const std::string config = (configDir() / "tum_rgbd.yaml").string();
+  const Settings settings =
+      Settings::load(config, (dir / "calib.yaml").string(), {SettingOverride::parse("IMU.Frequency=400")});
+  EXPECT_DOUBLE_EQ(settings.calib.imu.rate_hz, 400.0);
+  EXPECT_DOUBLE_EQ(settings.calib.camera.camera.fx(), 520.125);
+}
+
 }  // namespace
 }  // namespace ltlo

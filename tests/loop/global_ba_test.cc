@@ -80,6 +80,59 @@ TEST(GlobalBundleAdjustment, RecoversPerturbedPosesAndPoints) {
   EXPECT_LT(1e-3, pose_before);
 }
 
+/// Mean keyframe translation error (m) after a full BA of a map whose first kNumPoints / 2 points
+/// ride on a box carried with the camera (seen where they were in keyframe 0 in every keyframe),
+/// those points with static score `box_beta`; the keyframes start at their true poses.
+double poseErrorWithCarriedBox(double box_beta) {
+  std::mt19937 rng(33);
+  std::uniform_real_distribution<double> lateral(-1.5, 1.5), depth(3.0, 5.0);
+  const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);
+  std::vector<Vec3> p_w_true;
+  for (int i = 0; i < kNumPoints; ++i) p_w_true.emplace_back(lateral(rng), lateral(rng), depth(rng));
+  std::vector<SE3> T_w_b_true;
+  for (int k = 0; k < kNumKeyFrames; ++k) T_w_b_true.emplace_back(so3Exp(Vec3(0.0, 0.02 * k, 0.0)), Vec3(0.1 * k, 0.0, 0.0));
+  auto isBox = [](int i) { return i < kNumPoints / 2; };
+  map::Map map;
+  std::vector<std::shared_ptr<map::KeyFrame>> kfs;
+  for (int k = 0; k < kNumKeyFrames; ++k) {
+    features::OrbFeatures features;
+    std::vector<float> depths;
+    for (int i = 0; i < kNumPoints; ++i) {
+      // A box point keeps its keyframe-0 camera coordinates: it moves with the camera.
+      const SE3& T_w_b_seen = isBox(i) ? T_w_b_true[0] : T_w_b_true[static_cast<std::size_t>(k)];
+      const Vec3 p_c = T_w_b_seen.inverse() * p_w_true[static_cast<std::size_t>(i)];
+      const Vec2 uv = camera.project(p_c);
+      features.keypoints.push_back(features::Keypoint{static_cast<float>(uv.x()), static_cast<float>(uv.y()), 0.0f, 0.0f, 0});
+      features.descriptors.push_back({});
+      depths.push_back(static_cast<float>(p_c.z()));
+    }
+    map::Frame frame(0.1 * k, camera, SE3(), std::move(features), std::move(depths), {1.0f, 1.2f});
+    frame.setPose_T_w_b(T_w_b_true[static_cast<std::size_t>(k)]);
+    kfs.push_back(map.createKeyFrame(frame));
+  }
+  for (int i = 0; i < kNumPoints; ++i) {
+    const std::shared_ptr<map::MapPoint> point = map.createMapPoint(p_w_true[static_cast<std::size_t>(i)], kfs[0]->id());
+    for (const std::shared_ptr<map::KeyFrame>& kf : kfs) EXPECT_TRUE(map.addObservation(*kf, i, *point));
+    if (isBox(i)) point->setBeta(box_beta);
+  }
+  runGlobalBundleAdjustment(map);
+  double error_m = 0.0;
+  for (int k = 0; k < kNumKeyFrames; ++k) {
+    error_m += (kfs[static_cast<std::size_t>(k)]->T_w_b().translation() - T_w_b_true[static_cast<std::size_t>(k)].translation()).norm();
+  }
+  return error_m / kNumKeyFrames;
+}
+
+TEST(GlobalBundleAdjustment, DynamicPointsCarryNoWeight) {
+  // beta * gamma weighs each observation (Eq. 53): dynamic points (beta 0) leave the poses alone.
+  const double error_dynamic_m = poseErrorWithCarriedBox(0.0);
+  const double error_static_m = poseErrorWithCarriedBox(1.0);
+  std::printf("[ GBA      ] carried box: mean keyframe error %.2e m with beta 0 on its points, %.2e m with beta 1\n",
+              error_dynamic_m, error_static_m);
+  EXPECT_LT(error_dynamic_m, 1e-4);
+  EXPECT_GT(error_static_m, 1e-2);
+}
+
 TEST(GlobalBundleAdjustment, AStopRequestDiscardsTheResult) {
   map::Map map;
   const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);

@@ -242,6 +242,31 @@ TEST(LoopCloser, NoLoopWithoutARevisit) {
   EXPECT_TRUE(closer.events().empty());
 }
 
+/// Loops closed on the revisit lap when the keyframes of steps in [dynamic_begin, dynamic_end) are
+/// all dynamic (gamma 0: static area 0 < Loop.MinStaticRatio, as when a box covers the view).
+int loopsWithDynamicSteps(int dynamic_begin, int dynamic_end) {
+  map::Atlas atlas(world().vocabulary->numWords());
+  LoopCloser closer(atlas, closerOptions(), MappingControl{});
+  SceneBuilder scene(atlas, driftStep());
+  for (int step = 0; step < kLoopSteps; ++step) {
+    const std::shared_ptr<map::KeyFrame> kf = scene.add(step);
+    if (step >= dynamic_begin && step < dynamic_end) {
+      kf->setGamma({0.0});
+      EXPECT_LT(kf->staticAreaRatio(), closerOptions().loop.min_static_ratio);
+    }
+    closer.processKeyFrame(kf);
+  }
+  return closer.numLoops() + closer.numMerges();
+}
+
+TEST(LoopCloser, KeyFramesBelowTheStaticAreaRatioTakeNoPartInPlaceRecognition) {
+  EXPECT_EQ(loopsWithDynamicSteps(0, 0), 1);  // the reference: the revisit closes the loop
+  // The revisiting keyframes are dynamic: they do not query.
+  EXPECT_EQ(loopsWithDynamicSteps(kStepsPerLap, kLoopSteps), 0);
+  // The first lap's keyframes around the start are dynamic: they are no candidates.
+  EXPECT_EQ(loopsWithDynamicSteps(0, kLoopSteps - kStepsPerLap + 4), 0);
+}
+
 TEST(LoopCloser, SkipsBadKeyFramesAndKeyFramesWithoutBow) {
   map::Atlas atlas(world().vocabulary->numWords());
   LoopCloser closer(atlas, closerOptions(), MappingControl{});

@@ -209,5 +209,31 @@ TEST_F(KeyFrameDatabaseTest, MergeCandidatesComeFromOtherMaps) {
   EXPECT_TRUE(atlas.keyFrameDatabase().detectLoopCandidates(*query, 0.8, {}).empty());
 }
 
+
+TEST_F(KeyFrameDatabaseTest, ReplaceFollowsAChangedBowVector) {
+  Atlas atlas(vocabulary_->numWords());
+  std::vector<std::shared_ptr<KeyFrame>> places;
+  for (int i = 0; i < kNumPlaces; ++i) places.push_back(addPlace(atlas, images_[static_cast<std::size_t>(i)], i));
+  // Keyframe 5's static features change (as after a Gamma refinement): here they become place 6's.
+  const Frame other = frameOf(images_[6], 50.0);
+  places[5]->setBow(other.bowVector(), other.featureVector());
+  ASSERT_TRUE(atlas.keyFrameDatabase().replace(places[5]));
+  EXPECT_EQ(atlas.keyFrameDatabase().size(), static_cast<std::size_t>(kNumPlaces));
+  const Frame query5 = frameOf(perturb(images_[5], 500), 500.0);
+  const std::vector<PlaceCandidate> found5 =
+      atlas.keyFrameDatabase().detectRelocalisationCandidates(query5, atlas.activeMapId(), {});
+  if (!found5.empty()) {
+    EXPECT_NE(found5.front().keyframe, places[5]) << "found by its old vector";
+  }
+  const Frame query6 = frameOf(perturb(images_[6], 501), 501.0);
+  const std::vector<PlaceCandidate> found =
+      atlas.keyFrameDatabase().detectRelocalisationCandidates(query6, atlas.activeMapId(), {});
+  EXPECT_TRUE(std::any_of(found.begin(), found.end(), [&](const PlaceCandidate& c) { return c.keyframe == places[5]; }));
+  // A keyframe the database does not hold is left to whoever adds it.
+  const std::shared_ptr<KeyFrame> outside = atlas.activeMap().createKeyFrame(frameOf(images_[7], 60.0));
+  EXPECT_FALSE(atlas.keyFrameDatabase().replace(outside));
+  EXPECT_EQ(atlas.keyFrameDatabase().size(), static_cast<std::size_t>(kNumPlaces));
+}
+
 }  // namespace
 }  // namespace ltlo::map

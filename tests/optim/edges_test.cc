@@ -12,6 +12,7 @@
 #include "ltlo/optim/inertial_edges.h"
 #include "ltlo/optim/pose_edges.h"
 #include "ltlo/optim/reprojection_edges.h"
+#include <sparse_opt/robust_kernel.h>
 #include "ltlo/optim/vertices.h"
 
 namespace ltlo::optim {
@@ -153,7 +154,7 @@ TEST(OptimEdges, RgbdObservationMatchesProjectionOfBackProjectedPoint) {
   EXPECT_NEAR(observation.z(), 101.0 - 41.6 / 2.7, 1e-9);
 }
 
-TEST(OptimEdges, StaticWeightScalesChi2BySquare) {
+TEST(OptimEdges, StaticWeightScalesTheRobustCostBySquare) {
   std::mt19937 rng(6);
   const ProjectionModel model = bodyModel(rng);
   VertexPose pose(0, randomPose(rng, 1.0, 1.0));
@@ -163,12 +164,16 @@ TEST(OptimEdges, StaticWeightScalesChi2BySquare) {
   edge.setMeasurement(model.projectRgbd(edge.cameraPoint()) + Vec3(1.0, -2.0, 0.5));
   edge.setObservationInformation(0.25 * Mat3::Identity());  // sigma 2 px
   edge.setStaticWeight(0.6);
-  edge.computeError();
   const double unweighted = 0.25 * (1.0 + 4.0 + 0.25);
+  edge.evaluateChi2();
   EXPECT_NEAR(edge.unweightedChi2(), unweighted, 1e-9);
-  EXPECT_NEAR(edge.error().dot(edge.information() * edge.error()), 0.36 * unweighted, 1e-9);
+  EXPECT_NEAR(edge.chi2(), unweighted, 1e-9);  // the kernel argument is the unweighted |r|^2
+  EXPECT_NEAR(edge.robustChi2(), 0.36 * unweighted, 1e-9);
+  // With Huber (delta^2 = 1, below |r|^2 = 1.3125): w^2 rho_H(|r|^2), the kink not moved by w.
+  edge.setRobustKernel(std::make_unique<sparse_opt::HuberKernel>(1.0));
+  EXPECT_NEAR(edge.robustChi2(), 0.36 * huberLoss(unweighted, 1.0), 1e-9);
   edge.setStaticWeight(1.0);
-  EXPECT_NEAR(edge.error().dot(edge.information() * edge.error()), unweighted, 1e-9);
+  EXPECT_NEAR(edge.robustChi2(), huberLoss(unweighted, 1.0), 1e-9);
 }
 
 TEST(OptimEdges, StaticWeightedCostFollowsEquation53) {

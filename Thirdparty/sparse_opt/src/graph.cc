@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <typeinfo>
 
@@ -38,7 +39,15 @@ void EdgeBase::setVertex(int i, VertexBase* v) {
   vertices_[static_cast<size_t>(i)] = v;
 }
 
-double EdgeBase::robustChi2() const { return kernel_ ? kernel_->evaluate(chi2_)[0] : chi2_; }
+double EdgeBase::robustChi2() const { return cost_scale_ * (kernel_ ? kernel_->evaluate(chi2_)[0] : chi2_); }
+
+void EdgeBase::setCostScale(double scale) {
+  if (!(scale >= 0.0) || !std::isfinite(scale)) {
+    throw Error("sparse_opt: " + typeName() + "::setCostScale: scale " + std::to_string(scale) +
+                ", expected a finite value >= 0");
+  }
+  cost_scale_ = scale;
+}
 
 double EdgeBase::evaluateChi2() {
   computeError();

@@ -151,5 +151,50 @@ TEST(Graph, So3VertexAveragesRotations) {
   EXPECT_LT(so3Log(base.conjugate() * q->estimate()).norm(), 1e-5);
 }
 
+
+// x measured as a value: residual x - m (one dimension).
+class EdgeValue final : public BaseEdge<1, double, VertexVector<1>> {
+ public:
+  void computeError() override { error_[0] = estimate<0>()[0] - measurement_; }
+  void linearizeOplus() override { jacobian<0>()(0, 0) = 1.0; }
+};
+
+TEST(Graph, CostScaleWeighsTheEdgeNotTheKernelArgument) {
+  // Without kernels: w1 (x - 1)^2 + w2 (x - 4)^2 is minimal at the weighted mean.
+  Graph graph;
+  auto* x = graph.addVertex(std::make_unique<VertexVector<1>>(0, Eigen::Matrix<double, 1, 1>(0.0)));
+  EdgeValue* edges[2];
+  const double measurements[2] = {1.0, 4.0};
+  for (int k = 0; k < 2; ++k) {
+    auto edge = std::make_unique<EdgeValue>();
+    edge->setVertex(0, x);
+    edge->setMeasurement(measurements[k]);
+    edges[k] = graph.addEdge(std::move(edge));
+  }
+  edges[0]->setCostScale(3.0);
+  edges[1]->setCostScale(1.0);
+  Options options;
+  options.algorithm = Algorithm::kGaussNewton;
+  graph.optimize(options);
+  EXPECT_NEAR(x->estimate()[0], (3.0 * 1.0 + 1.0 * 4.0) / 4.0, 1e-9);
+  EXPECT_NEAR(edges[0]->robustChi2(), 3.0 * edges[0]->chi2(), 1e-12);  // chi2() stays unweighted
+
+  // With Huber (delta 1) on both: the kink stays at |e| = 1 whatever the scale, so at the optimum
+  // the scaled gradients balance: w1 rho'(s1) e1 = -w2 rho'(s2) e2. With w1 = 3, w2 = 1 and both
+  // residuals beyond the kink: 3 sign(e1) = -sign(e2) cannot hold, so x sits where edge 0 is
+  // inside its kink: 3 e1 = 1 (edge 1's Huber gradient magnitude is delta = 1), e1 = 1/3.
+  for (EdgeValue* e : edges) e->setRobustKernel(std::make_unique<HuberKernel>(1.0));
+  x->setEstimate(Eigen::Matrix<double, 1, 1>(2.5));
+  options.max_iterations = 200;  // IRLS on Huber converges linearly: run to the tolerance floor
+  options.function_tolerance = 1e-15;
+  options.parameter_tolerance = 1e-15;
+  graph.optimize(options);
+  EXPECT_NEAR(x->estimate()[0], 1.0 + 1.0 / 3.0, 1e-6);
+  EXPECT_NEAR(edges[0]->robustChi2(), 3.0 * (1.0 / 9.0), 1e-6);
+  EXPECT_NEAR(edges[1]->robustChi2(), 1.0 * (2.0 * std::sqrt(edges[1]->chi2()) - 1.0), 1e-9);
+
+  EXPECT_NE(errorText([&] { edges[0]->setCostScale(-1.0); }).find("setCostScale: scale -1"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace sparse_opt

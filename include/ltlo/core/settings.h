@@ -66,12 +66,16 @@ struct SegmentationOptions {
   /// c, inflection point of the Cauchy penalty F, in weighted residual units
   /// (Seg.CauchyC, [1e-6, 1000])
   double cauchy_c = 0.5;
-  /// lambda_d, weight of R_d (gamma prior and smoothness over V_i), Eq. 54-55 (Seg.LambdaD, [0,
-  /// 1e6])
+  /// lambda_d, weight of R_d (gamma prior and smoothness over V_i), Eq. 54, in tracking's dense
+  /// initial segmentation (Eq. 59); local mapping has LocalMappingOptions::lambda_d (Seg.LambdaD,
+  /// [0, 1e6])
   double lambda_d = 1.0;
-  /// lambda_s, weight of R_s (beta prior), Eq. 54 (Seg.LambdaS, [0, 1e6])
-  double lambda_s = 1.0;
-  /// lambda_p, 1/m: gamma~ = 1 - lambda_p * mean depth difference, Eq. 56 (Seg.LambdaP, [0, 1000])
+  /// lambda_s, weight of R_s (beta prior), Eq. 55, in units of the Huber cost of whitened
+  /// reprojection errors: with its clusters voting static, a point is half dynamic when its window
+  /// observations cost lambda_s (Seg.LambdaS, [0, 1e6])
+  double lambda_s = 100.0;
+  /// lambda_p, 1/m: gamma~ = 1 - mean over the map points projecting into the cluster of
+  /// min(1, lambda_p beta (point depth - image depth)^+), Eq. 56 (Seg.LambdaP, [0, 1000])
   double lambda_p = 2.0;
   /// lambda_phi in beta~ = phi(lambda_phi, mean gamma), Eq. 57 (Seg.LambdaPhi, [0, 0.99])
   double lambda_phi = 0.5;
@@ -148,14 +152,20 @@ struct LocalMappingOptions {
   int window_size = 10;
   /// solver iterations per state step (LocalMapping.Iterations, [1, 1000])
   int ba_iterations = 10;
+  /// Robust VIBA (Mapping.RobustBeta, 0/1): 1 alternates the state/point step with the closed-form
+  /// Gamma/B updates of Eq. 53-57, deletes the points that end dynamic and writes Gamma back to the
+  /// keyframes; 0 runs the plain VIBA on tracking's Gamma and the points' beta (an ablation).
+  bool robust_beta = true;
   /// state/point <-> Gamma/B alternations of Eq. 50 (LocalMapping.Alternations, [1, 100])
   int alternations = 3;
-  /// rho_H threshold on the whitened squared error (3 dof, 95%) (LocalMapping.HuberChi2, [0.01,
-  /// 1000])
+  /// B <-> Gamma closed-form sweeps in each Gamma/B step (LocalMapping.ScoreSweeps, [1, 100])
+  int score_sweeps = 5;
+  /// lambda_d of the robust VIBA: weight of R_d (Eq. 54) against the Huber costs of a cluster's
+  /// observations (LocalMapping.LambdaD, [0, 1e6])
+  double lambda_d = 50.0;
+  /// rho_H threshold on the whitened squared error (3 dof, 95%); c^ of Eq. 53 is not a setting but
+  /// the window's mean squared error (LocalMapping.HuberChi2, [0.01, 1000])
   double huber_chi2 = 7.815;
-  /// c^ in (1-beta)^2 (1-gamma)^2 rho_H(c^), the price of calling an observation dynamic, Eq. 53
-  /// (LocalMapping.DynamicCost, [0.01, 1000])
-  double dynamic_cost = 7.815;
   /// lambda_imu, weight of the bias random-walk regulariser, Eq. 58 (LocalMapping.LambdaImu, [0,
   /// 1e6])
   double lambda_imu = 1.0;
@@ -236,6 +246,16 @@ struct ImuInitOptions {
   static ImuInitOptions load(const SettingsFile& file);
 };
 
+/// One "--set Key=Value" of a program's command line: replaces Key of the settings file (or of the
+/// sequence's calib.yaml for calibration keys) before loading, validated exactly like the file.
+struct SettingOverride {
+  std::string key;
+  std::string value;  ///< YAML scalar text ("0", "0.5", "320x240")
+  /// Splits "Key=Value" at the first '='; throws ConfigError "--set <text>: expected Key=Value"
+  /// when either side is empty.
+  static SettingOverride parse(const std::string& text);
+};
+
 /// Everything a run is configured with.
 struct Settings {
   /// the algorithm settings file
@@ -255,12 +275,17 @@ struct Settings {
   SequenceOptions sequence;
   /// "<file>: <key>" for every key no option asked for (also logged as warnings at load).
   std::vector<std::string> unknown_keys;
+  /// The --set overrides applied at load, in command-line order (also in describe()).
+  std::vector<SettingOverride> overrides;
 
   /// Loads `config_path` (config_yaml/*.yaml). The calibration comes from `calib_path` (a
   /// sequence's calib.yaml) when it is not empty, otherwise from the Camera.* / DepthMapFactor /
   /// IMU.* keys of the config file itself (TUM / OpenLORIS style); with a calib.yaml, those keys
-  /// in the config are ignored with one info line. Throws ConfigError.
-  static Settings load(const std::string& config_path, const std::string& calib_path = "");
+  /// in the config are ignored with one info line. `overrides` replace keys of the files first
+  /// (SettingsFile::setOverride; a later one wins); an override no setting reads is a ConfigError
+  /// (a typo on the command line would otherwise change nothing). Throws ConfigError.
+  static Settings load(const std::string& config_path, const std::string& calib_path = "",
+                       const std::vector<SettingOverride>& overrides = {});
 
   /// Checks every range and cross-field rule on the values in memory (settings built in code);
   /// throws ConfigError "settings: <key> = <value>, expected <range>".

@@ -6,6 +6,7 @@
 /// Keys that were never read can be listed afterwards to warn about typos.
 /// Not thread-safe: load settings once, before the threads start.
 #include <limits>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -42,7 +43,15 @@ class SettingsFile {
   bool getBool(const std::string& key, bool default_value) const;
   std::string getString(const std::string& key, const std::string& default_value) const;
 
-  /// Top-level keys present in the file that no getter has asked for (usually typos).
+  /// Replaces (or adds) `key` with `value_text` read as a YAML scalar, exactly as if the file said
+  /// "key: value_text" ("3" is an integer, "0.5" a number, "abc" or "320x240" a string), so the
+  /// getters validate it like a value of the file; their errors then name the file and "--set".
+  /// Throws ConfigError on a malformed key or a value that is not one YAML scalar.
+  void setOverride(const std::string& key, const std::string& value_text);
+  /// Whether a getter has asked for `key` (read keys are known settings).
+  bool wasRead(const std::string& key) const { return read_keys_.count(key) > 0; }
+
+  /// Top-level keys present in the file (or overridden) that no getter has asked for (usually typos).
   std::vector<std::string> unreadKeys() const;
   /// Logs a warning per unread key.
   void warnUnreadKeys() const;
@@ -57,12 +66,15 @@ class SettingsFile {
   [[noreturn]] void failMissing(const std::string& key, const std::string& expected) const;
 
  private:
-  cv::FileNode node(const std::string& key) const;  // marks the key read
+  cv::FileNode node(const std::string& key) const;  // marks the key read; an override first
+  cv::FileNode lookup(const std::string& key) const;  // an override first, no marking
   static std::string describe(const cv::FileNode& n);
 
   std::string path_;
   cv::FileStorage storage_;
   cv::FileNode root_;  // the top-level map every key is looked up in
+  /// One in-memory YAML document "key: value" per overridden key.
+  std::map<std::string, cv::FileStorage> overrides_;
   mutable std::set<std::string> read_keys_;
 };
 

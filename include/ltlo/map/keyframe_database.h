@@ -45,6 +45,11 @@ class KeyFrameDatabase {
   void add(const std::shared_ptr<KeyFrame>& kf);
   /// Returns false if the keyframe was not in the database.
   bool erase(KeyFrameId id);
+  /// A keyframe's BoW changed (local mapping refined its Gamma, so its static features changed):
+  /// its entry is removed and re-added with the current BoW vector in one step under the lock
+  /// (queries never miss it). No-op returning false when it is not in the database (loop closing
+  /// adds it later with the new vector) or has no BoW.
+  bool replace(const std::shared_ptr<KeyFrame>& kf);
   std::size_t size() const;
 
   using Filter = std::function<bool(const KeyFrame&)>;

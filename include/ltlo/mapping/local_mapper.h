@@ -1,8 +1,11 @@
 #pragma once
 /// LocalMapper (namespace ltlo::mapping): the local-mapping thread. For every keyframe tracking
 /// inserted into the map (with its matched and new close RGB-D points already linked): recent
-/// map-point culling, duplicate fusion with the covisible neighbours, local (visual-inertial) bundle
-/// adjustment over a sliding window of covisible keyframes, keyframe culling, and the IMU
+/// map-point culling, duplicate fusion with the covisible neighbours, the robust visual-inertial
+/// bundle adjustment of thesis Eq. 50-58 over a sliding window (static scores Gamma of the
+/// keyframes' clusters and beta of the points re-estimated with the states; points that end
+/// dynamic deleted; a keyframe whose static features changed gets a new BoW and keyframe-database
+/// entry), keyframe culling, and the IMU
 /// initialisation (inertial-only optimisation of gravity direction, velocities and biases; scale is
 /// known from depth) followed by VI-BA refinements. Processed keyframes go on to loop closing.
 ///
@@ -27,11 +30,20 @@
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
 
+namespace bow {
+class Vocabulary;
+}
+
 namespace ltlo::mapping {
 
 struct LocalMapperOptions {
   LocalMappingOptions local_mapping;  ///< window size, BA iterations, redundancy for culling
+  /// lambda_s, lambda_p, lambda_phi of the robust VIBA's priors (Eq. 55-57)
+  SegmentationOptions segmentation;
   ImuInitOptions imu_init;            ///< when and how the IMU is initialised
+  /// Recomputes the BoW of keyframes whose static features change with a refined Gamma (and
+  /// their keyframe-database entry); nullptr: their BoW stays as tracking computed it.
+  std::shared_ptr<const bow::Vocabulary> vocabulary;
   bool use_imu = true;                ///< false: visual-only BA, no IMU initialisation
   /// bf = fx * virtual baseline (px m) of the RGB-D reprojection edges (as tracking's).
   double bf_px_m = 40.0;
@@ -60,6 +72,8 @@ struct LocalMapperCounters {
   int keyframes_processed = 0;
   int culled_keyframes = 0;
   int culled_points = 0;
+  int dynamic_points = 0;       ///< deleted by the robust VIBA (beta below LocalMapping.MinPointBeta)
+  int bow_updates = 0;          ///< keyframes whose BoW followed a refined Gamma
   int fused_points = 0;
   int local_ba_runs = 0;
   int imu_initialisations = 0;  ///< including refinements

@@ -13,9 +13,10 @@
 ///
 /// Static weight (thesis Eq. 53): for fixed static weights beta (map point) and gamma (cluster), the
 /// state optimisation sees (beta gamma)^2 rho_H(|r|^2); the second term of Eq. 53 is constant in the
-/// state. setStaticWeight(w = beta * gamma) scales the information by w^2 (the robust kernel then
-/// acts on the weighted chi2; with the Huber kernel and w <= 1 that only moves the kink, which the
-/// closed-form weight updates account for through staticWeightedCost()).
+/// state. setStaticWeight(w = beta * gamma) makes w^2 the edge's cost scale
+/// (sparse_opt::EdgeBase::setCostScale), so the robust kernel acts on the unweighted |r|^2 = r^T
+/// Omega r (its threshold stays where the noise puts it) and the edge contributes w^2 rho_H(|r|^2),
+/// exactly the first term of Eq. 53.
 #include <sparse_opt/edge.h>
 
 #include "ltlo/core/camera.h"
@@ -60,29 +61,25 @@ struct ProjectionModel {
   }
 };
 
-/// Information scaled by the square of a static weight w = beta * gamma (file comment). Use
-/// setObservationInformation() (not setInformation()) so the weight is kept.
+/// An edge whose cost is w^2 rho(r^T Omega r) for a static weight w = beta * gamma (file comment).
 template <typename Base>
 class StaticWeighted : public Base {
  public:
   using typename Base::InformationMatrix;
-  /// Information of the observation before weighting (e.g. I / sigma_px^2).
-  void setObservationInformation(const InformationMatrix& info) {
-    observation_information_ = info;
-    this->setInformation(weight_ * weight_ * info);
-  }
+  /// Information of the observation (e.g. I / sigma_px^2); the static weight does not change it.
+  void setObservationInformation(const InformationMatrix& info) { this->setInformation(info); }
+  /// w in [0, 1]: the edge's cost (kernel included) is scaled by w^2.
   void setStaticWeight(double weight) {
     weight_ = weight;
-    this->setInformation(weight_ * weight_ * observation_information_);
+    this->setCostScale(weight * weight);
   }
   double staticWeight() const { return weight_; }
-  const InformationMatrix& observationInformation() const { return observation_information_; }
-  /// r^T Omega_obs r without the static weight at the last evaluation (the r_sq of Eq. 53).
-  double unweightedChi2() const { return this->error().dot(observation_information_ * this->error()); }
+  const InformationMatrix& observationInformation() const { return this->information(); }
+  /// r^T Omega r without the static weight at the last evaluation (the |r|^2 of Eq. 53).
+  double unweightedChi2() const { return this->error().dot(this->information() * this->error()); }
 
  private:
   double weight_ = 1.0;
-  InformationMatrix observation_information_ = InformationMatrix::Identity();
 };
 
 /// RGB-D reprojection between a pose vertex and a map point. Measurement [u, v, u_r] (px).

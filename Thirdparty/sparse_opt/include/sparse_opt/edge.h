@@ -46,10 +46,18 @@ class EdgeBase {
   const RobustKernel* robustKernel() const { return kernel_.get(); }
   RobustKernel* robustKernel() { return kernel_.get(); }
 
-  /// e^T Omega e (without robust kernel) at the last evaluation; after Graph::optimize it is the
-  /// value at the final estimate, also for edges of other levels.
+  /// Per-edge weight w >= 0 on the cost: the edge contributes w rho(e^T Omega e) (w e^T Omega e
+  /// without kernel), so gradient and Hessian are scaled by w while the kernel still acts on the
+  /// unweighted s = e^T Omega e (Ceres' ScaledLoss). w = 0 leaves the edge in the system with no
+  /// weight: move it to another level instead when it must not count (a vertex seen only by such
+  /// edges would be singular). Default 1.
+  void setCostScale(double scale);
+  double costScale() const { return cost_scale_; }
+
+  /// e^T Omega e (without robust kernel or cost scale) at the last evaluation; after
+  /// Graph::optimize it is the value at the final estimate, also for edges of other levels.
   double chi2() const { return chi2_; }
-  /// rho(chi2) with the robust kernel (chi2 if none).
+  /// costScale() * rho(chi2) with the robust kernel (costScale() * chi2 if none).
   double robustChi2() const;
 
   /// Fills the residual from the current vertex estimates (read them through estimate<I>()).
@@ -79,7 +87,8 @@ class EdgeBase {
   virtual double squaredError() const = 0;
 
   std::vector<VertexBase*> vertices_;
-  double robust_weight_ = 1.0;  // rho'(chi2) at the last linearisation
+  double robust_weight_ = 1.0;  // cost_scale_ * rho'(chi2) at the last linearisation
+  double cost_scale_ = 1.0;
 
  private:
   friend class Graph;
@@ -166,8 +175,8 @@ class BaseEdge : public EdgeBase {
   bool linearize() final {
     computeError();
     const double s = squaredError();
-    robust_weight_ = 1.0;
-    if (robustKernel() != nullptr) robust_weight_ = robustKernel()->evaluate(s)[1];
+    robust_weight_ = cost_scale_;
+    if (robustKernel() != nullptr) robust_weight_ *= robustKernel()->evaluate(s)[1];
     if (!error_.allFinite()) return false;
     linearizeOplus();
     bool finite = true;

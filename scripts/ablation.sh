@@ -1,0 +1,96 @@
+#!/usr/bin/env bash
+# Ablation of the method's components on one sequence: five runs of rgbd_inertial, one table.
+#
+#   scripts/ablation.sh SEQ OUT [extra rgbd_inertial arguments...]
+#
+# Variants (each the full settings with one component off, via --set; "full" turns the
+# segmentation on, Seg.Enable = 1, whatever the settings file says):
+#   full             Seg.Enable = 1, Seg.DenseInit = 1, Mapping.RobustBeta = 1, IMU
+#   seg_off          Seg.Enable = 0: every frame one static cluster (the static core)
+#   dense_init_off   Seg.DenseInit = 0: depth clusters with gamma = 1, only local mapping refines them
+#   robust_beta_off  Mapping.RobustBeta = 0: plain VIBA on tracking's Gamma, no beta, no dynamic points deleted
+#   no_imu           --no-imu: RGB-D only
+# Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
+# loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
+# against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
+# table: ATE RMSE (m), RPE (m/s, deg/s), static IoU (when the run wrote masks), maps, loops, merges,
+# false loops/merges, share of map points on moving objects, FPS. Also written to OUT/table.md.
+# Environment: SETTINGS (default config_yaml/synthetic.yaml), BUILD_DIR (default build),
+# VARIANTS (default "full seg_off dense_init_off robust_beta_off no_imu").
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if [ $# -lt 2 ]; then
+  echo "usage: scripts/ablation.sh SEQ OUT [extra rgbd_inertial arguments...]" >&2
+  exit 2
+fi
+SEQ=$1
+OUT=$2
+shift 2
+SETTINGS=${SETTINGS:-config_yaml/synthetic.yaml}
+BUILD_DIR=${BUILD_DIR:-build}
+VARIANTS=${VARIANTS:-"full seg_off dense_init_off robust_beta_off no_imu"}
+BIN="$BUILD_DIR/bin/rgbd_inertial"
+[ -x "$BIN" ] || { echo "ablation.sh: $BIN not built (scripts/build.sh)" >&2; exit 2; }
+[ -d "$SEQ" ] || { echo "ablation.sh: no sequence folder $SEQ" >&2; exit 2; }
+mkdir -p "$OUT"
+
+variant_args() {
+  local full=(--set Seg.Enable=1 --set Seg.DenseInit=1 --set Mapping.RobustBeta=1)
+  case "$1" in
+    full) echo "${full[@]}" ;;
+    seg_off) echo "${full[@]}" --set Seg.Enable=0 ;;
+    dense_init_off) echo "${full[@]}" --set Seg.DenseInit=0 ;;
+    robust_beta_off) echo "${full[@]}" --set Mapping.RobustBeta=0 ;;
+    no_imu) echo "${full[@]}" --no-imu ;;
+    *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
+  esac
+}
+
+for variant in $VARIANTS; do
+  # shellcheck disable=SC2046
+  args=($(variant_args "$variant"))
+  echo "ablation.sh: $variant: $BIN ${args[*]} $*" >&2
+  status=0
+  "$BIN" --settings "$SETTINGS" --sequence "$SEQ" --out "$OUT/$variant" "${args[@]}" "$@" \
+    >"$OUT/$variant.txt" 2>"$OUT/$variant.log" || status=$?
+  echo "$status" >"$OUT/$variant.status"
+  if [ -f "$SEQ/groundtruth.txt" ] && [ -f "$OUT/$variant/keyframes.txt" ]; then
+    python3 scripts/check_loops.py "$OUT/$variant" "$SEQ" "$OUT/$variant.log" >"$OUT/$variant.loops" 2>&1 || true
+  fi
+  if [ -f "$SEQ/scene.ply" ] && [ -f "$OUT/$variant/static_map.ply" ]; then
+    "$BUILD_DIR/bin/check_map" --run "$OUT/$variant" --sequence "$SEQ" >"$OUT/$variant.map" 2>/dev/null || true
+  fi
+done
+
+python3 - "$OUT" $VARIANTS <<'EOF'
+import json, os, sys
+out, variants = sys.argv[1], sys.argv[2:]
+def number(d, key, fmt):
+    return fmt.format(d[key]) if key in d and d[key] is not None else "n/a"
+rows = ["| variant | ATE (m) | RPE (m/s) | RPE (deg/s) | static IoU | maps | loops | merges | false | moving pts | FPS | exit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+for v in variants:
+    metrics = {}
+    path = os.path.join(out, v, "metrics.json")
+    if os.path.exists(path):
+        metrics = json.load(open(path))
+    false = "n/a"
+    loops_path = os.path.join(out, v + ".loops")
+    if os.path.exists(loops_path):
+        false = str(sum(1 for line in open(loops_path) if line.startswith("FALSE")))
+    moving = "n/a"
+    map_path = os.path.join(out, v + ".map")
+    if os.path.exists(map_path):
+        for line in open(map_path):
+            if line.startswith("moving_share"):
+                moving = "{:.2%}".format(float(line.split()[1]))
+    status = open(os.path.join(out, v + ".status")).read().strip() if os.path.exists(os.path.join(out, v + ".status")) else "?"
+    rows.append("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |".format(
+        v, number(metrics, "ate_rmse_m", "{:.4f}"), number(metrics, "rpe_trans_rmse_m_s", "{:.4f}"),
+        number(metrics, "rpe_rot_rmse_deg_s", "{:.3f}"), number(metrics, "static_iou", "{:.3f}"),
+        number(metrics, "maps", "{}"), number(metrics, "loops", "{}"), number(metrics, "merges", "{}"), false,
+        moving, number(metrics, "fps", "{:.1f}"), status))
+table = "\n".join(rows)
+print(table)
+open(os.path.join(out, "table.md"), "w").write(table + "\n")
+EOF
