@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 #include "ltlo/io/associate.h"
@@ -248,8 +249,15 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
     throw InputError(sequence_dir, 0, "sequence has no RGB-D frames");
   }
 
-  const std::string masks_dir = joinPath(sequence_dir, "masks");
-  if (isDirectory(masks_dir)) attachMasks(masks_dir, options.max_mask_dt_s, &reader.entries_);
+  if (!options.masks_dir) {
+    const std::string masks_dir = joinPath(sequence_dir, "masks");
+    if (isDirectory(masks_dir)) attachMasks(masks_dir, options.max_mask_dt_s, &reader.entries_);
+  } else if (!options.masks_dir->empty()) {
+    if (!isDirectory(*options.masks_dir)) {
+      throw InputError(*options.masks_dir, 0, "mask folder does not exist");
+    }
+    attachMasks(*options.masks_dir, options.max_mask_dt_s, &reader.entries_);
+  }
 
   // IMU: imu.txt, else EuRoC imu0/data.csv, else OpenLORIS accel.txt + gyro.txt, else none.
   const std::string imu_txt = joinPath(sequence_dir, "imu.txt");
@@ -279,7 +287,11 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
 
 std::optional<RgbdImuFrame> SequenceReader::next() {
   if (next_index_ >= frameCount()) return std::nullopt;
-  const int index = next_index_++;
+  return load(next_index_++);
+}
+
+RgbdImuFrame SequenceReader::load(int index) const {
+  LTLO_ASSERT(index >= 0 && index < frameCount(), "frame index " << index << " of " << frameCount());
   const FrameFiles& files = entries_[index];
   const int width = calib_.camera.camera.width();
   const int height = calib_.camera.camera.height();

@@ -61,6 +61,10 @@ struct SequenceReaderOptions {
   std::optional<SensorCalib> calib_override;
   double max_rgb_depth_dt_s = 0.02;  ///< association tolerance without associations.txt
   double max_mask_dt_s = 1e-4;       ///< mask file name vs frame timestamp tolerance
+  /// Where the per-frame masks come from: unset = SEQ/masks/ when it exists; an empty string = no
+  /// masks (nothing under SEQ/masks/ is read); a folder = its <timestamp>.png files (e.g. a run's
+  /// segmentation/), which must exist.
+  std::optional<std::string> masks_dir;
 };
 
 /// Not thread-safe: one consumer calls next().
@@ -73,6 +77,9 @@ class SequenceReader {
 
   /// Next frame (images loaded now), or nullopt after the last one.
   std::optional<RgbdImuFrame> next();
+  /// Frame `index` in [0, frameCount()) with its images loaded now; does not move next().
+  /// Thread-safe: several threads may load different frames at once (the reader is not changed).
+  RgbdImuFrame load(int index) const;
   /// Back to the first frame.
   void rewind() { next_index_ = 0; }
 
