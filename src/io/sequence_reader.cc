@@ -291,7 +291,8 @@ std::optional<RgbdImuFrame> SequenceReader::next() {
 }
 
 RgbdImuFrame SequenceReader::load(int index) const {
-  LTLO_ASSERT(index >= 0 && index < frameCount(), "frame index " << index << " of " << frameCount());
+  LTLO_ASSERT(index >= 0 && index < frameCount(),
+              "frame index " << index << " of " << frameCount());
   const FrameFiles& files = entries_[index];
   const int width = calib_.camera.camera.width();
   const int height = calib_.camera.camera.height();
