@@ -3,14 +3,15 @@
 //
 //   reconstruct --run DIR --sequence DIR --out DIR [--every N] [--all-pixels]
 //               [--trajectory FILE] [--settings YAML] [--size WxH] [--view EX,EY,EZ,TX,TY,TZ]
-//               [--fov DEG] [--no-snapshots] [--threads N] [--progress-every N]
+//               [--fov DEG] [--no-snapshots | --snapshots-only] [--threads N] [--progress-every N]
 //
 // Poses: RUN/trajectory.txt (TUM, T_w_c); --trajectory FILE replaces it for diagnostics (e.g. the
 // sequence's groundtruth.txt; the output then says so). Static pixels: RUN/segmentation/ masks
 // (255 = dynamic); with --all-pixels, or when the run has no segmentation/, every pixel with depth.
 // The sequence's masks/ (ground truth) are never read; its groundtruth.txt only draws the ground-
 // truth path in the snapshots. Settings: the Recon.* keys of --settings (defaults without).
-// Writes OUT/surfels.ply, OUT/snapshots/*.png, OUT/reconstruct.json and prints "name value" lines.
+// Writes OUT/surfels.ply, OUT/snapshots/*.png, OUT/reconstruct.json and prints "name value" lines;
+// --snapshots-only renders the pictures of an existing OUT/surfels.ply again (no fusion).
 // Exit status: 0 done, 2 bad input (naming the file), 1 any other error.
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -54,6 +55,7 @@ struct Arguments {
   long progress_every = 100;
   bool all_pixels = false;
   bool no_snapshots = false;
+  bool snapshots_only = false;
 };
 
 recon::SnapshotOptions snapshotOptions(const Arguments& args) {
@@ -130,6 +132,7 @@ int run(const Arguments& args) {
   request.sequence_dir = args.sequence_dir;
   request.every = args.every;
   request.loader_threads = args.threads;
+  request.fusion_threads = args.threads;
   request.progress_every = args.progress_every;
   request.calib_override = settings_calib;
   const bool diagnostic_trajectory = !args.trajectory_path.empty();
@@ -153,10 +156,16 @@ int run(const Arguments& args) {
               "objects enter the model until seen through");
   }
 
-  recon::ReconstructionResult result = recon::reconstruct(request, options);
-  fs::create_directories(args.out_dir);
   const std::string ply_path = (fs::path(args.out_dir) / "surfels.ply").string();
-  recon::writeSurfelPly(ply_path, result.surfels);
+  recon::ReconstructionResult result;
+  if (args.snapshots_only) {  // pictures of an earlier fusion, e.g. from another viewpoint
+    result.surfels = recon::readSurfelPly(ply_path);
+    result.trajectory = io::readTumTrajectory(request.trajectory_path);
+  } else {
+    result = recon::reconstruct(request, options);
+    fs::create_directories(args.out_dir);
+    recon::writeSurfelPly(ply_path, result.surfels);
+  }
 
   double snapshot_wall_s = 0.0;
   std::vector<std::string> pictures;
@@ -172,7 +181,11 @@ int run(const Arguments& args) {
     scene.estimate_label = diagnostic_trajectory ? "DIAGNOSTIC trajectory " + args.trajectory_path
                                                  : "estimated trajectory";
     scene.ground_truth = alignedGroundTruth(reader, result.trajectory);
-    scene.overlays = overlayFrames(reader, result.fused_frames);
+    std::vector<int> overlay_candidates = result.fused_frames;
+    if (overlay_candidates.empty()) {  // --snapshots-only: any frame
+      for (int i = 0; i < reader.frameCount(); ++i) overlay_candidates.push_back(i);
+    }
+    scene.overlays = overlayFrames(reader, overlay_candidates);
     scene.camera = reader.calib().camera.camera;
     scene.title = fs::path(args.run_dir).filename().string() + " | " + pixels +
                   (diagnostic_trajectory ? " | DIAGNOSTIC poses: " + args.trajectory_path : "");
@@ -184,6 +197,12 @@ int run(const Arguments& args) {
 
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (args.snapshots_only) {
+    std::cout << "surfels " << result.surfels.size() << "\nsnapshots_wall_s " << snapshot_wall_s
+              << "\n";
+    for (const std::string& picture : pictures) std::cout << "snapshot " << picture << "\n";
+    return 0;
+  }
   io::Metrics metrics;
   metrics.set("surfels", static_cast<int64_t>(result.surfels.size()));
   metrics.set("model_surfels", static_cast<int64_t>(result.model_surfels));
@@ -240,7 +259,11 @@ int main(int argc, char** argv) {
   app.add_option("--fov", args.fov_deg, "horizontal field of view of the snapshot cameras (deg)")
       ->check(CLI::Range(10.0, 150.0));
   app.add_flag("--no-snapshots", args.no_snapshots, "write surfels.ply only");
-  app.add_option("--threads", args.threads, "frame decoding threads")->check(CLI::Range(1, 16));
+  app.add_flag("--snapshots-only", args.snapshots_only,
+               "no fusion: render the snapshots of OUT/surfels.ply written earlier (e.g. with "
+               "another --view or --size)");
+  app.add_option("--threads", args.threads, "frame decoding threads, and fusion threads")
+      ->check(CLI::Range(1, 16));
   app.add_option("--progress-every", args.progress_every,
                  "progress line every N frames when not on a terminal (0 = none)");
   try {

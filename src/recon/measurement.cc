@@ -34,6 +34,8 @@ void resize(int width, int height, Measurement* m) {
   m->radius_m.resize(n);
   m->alpha.resize(n);
   m->dynamic.assign(n, 0);
+  m->num_geometry = 0;
+  m->num_fusable = 0;
 }
 
 // Blocks touched by the dynamic mask grown by options.mask_dilation_px input pixels.
@@ -56,10 +58,11 @@ void markDynamicBlocks(const cv::Mat& mask, const ReconOptions& options, Measure
 
 // Mean of the depths within +-2 pixels along one axis that lie on the same surface as the centre
 // (within the jump tolerance); 0 stays 0.
-// Element (i, j) is in[j * stride_j + i * stride_i]; smoothing runs along i.
-void smoothAxis(const std::vector<float>& in, int stride_i, int stride_j, int length_i,
-                int length_j, const ReconOptions& options, std::vector<float>* out) {
-  for (int j = 0; j < length_j; ++j) {
+// Element (i, j) is in[j * stride_j + i * stride_i]; smoothing runs along i, for j in
+// [j_begin, j_end).
+void smoothAxis(const std::vector<float>& in, int stride_i, int stride_j, int length_i, int j_begin,
+                int j_end, const ReconOptions& options, std::vector<float>* out) {
+  for (int j = j_begin; j < j_end; ++j) {
     for (int i = 0; i < length_i; ++i) {
       const std::size_t k =
           static_cast<std::size_t>(j) * stride_j + static_cast<std::size_t>(i) * stride_i;
@@ -85,19 +88,23 @@ void smoothAxis(const std::vector<float>& in, int stride_i, int stride_j, int le
 }
 
 void smoothDepth(const std::vector<float>& depth, int width, int height,
-                 const ReconOptions& options, std::vector<float>* smoothed,
+                 const ReconOptions& options, WorkerPool* pool, std::vector<float>* smoothed,
                  std::vector<float>* scratch) {
   scratch->resize(depth.size());
   smoothed->resize(depth.size());
-  smoothAxis(depth, 1, width, width, height, options, scratch);      // along rows
-  smoothAxis(*scratch, width, 1, height, width, options, smoothed);  // along columns
+  pool->parallelFor(height, [&](int begin, int end, int) {  // along rows
+    smoothAxis(depth, 1, width, width, begin, end, options, scratch);
+  });
+  pool->parallelFor(width, [&](int begin, int end, int) {  // along columns
+    smoothAxis(*scratch, width, 1, height, begin, end, options, smoothed);
+  });
 }
 
 }  // namespace
 
 void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
                         const PinholeCamera& fusion_camera, const ReconOptions& options,
-                        Measurement* m) {
+                        WorkerPool* pool, Measurement* m) {
   LTLO_ASSERT(frame.depth_m.type() == CV_32F && frame.depth_m.cols == camera.width() &&
                   frame.depth_m.rows == camera.height(),
               "depth image " << frame.depth_m.cols << "x" << frame.depth_m.rows << " vs camera "
@@ -123,39 +130,41 @@ void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
 
   // Block averages -> vertices (kGeometry marks "has a vertex" until the normals are known).
   std::vector<float>& depth = m->depth_m;
-  for (int j = 0; j < height; ++j) {
-    for (int i = 0; i < width; ++i) {
-      float z_sum = 0.0f, z_min = max_depth, z_max = 0.0f;
-      Eigen::Vector3f bgr_sum = Eigen::Vector3f::Zero();
-      bool valid = true;
-      for (int dv = 0; dv < s && valid; ++dv) {
-        const float* z_row = frame.depth_m.ptr<float>(j * s + dv) + i * s;
-        const cv::Vec3b* c_row = frame.colour_bgr.ptr<cv::Vec3b>(j * s + dv) + i * s;
-        for (int du = 0; du < s; ++du) {
-          const float z = z_row[du];
-          if (!(z >= min_depth && z <= max_depth)) {
-            valid = false;
-            break;
+  pool->parallelFor(height, [&](int j_begin, int j_end, int) {
+    for (int j = j_begin; j < j_end; ++j) {
+      for (int i = 0; i < width; ++i) {
+        float z_sum = 0.0f, z_min = max_depth, z_max = 0.0f;
+        Eigen::Vector3f bgr_sum = Eigen::Vector3f::Zero();
+        bool valid = true;
+        for (int dv = 0; dv < s && valid; ++dv) {
+          const float* z_row = frame.depth_m.ptr<float>(j * s + dv) + i * s;
+          const cv::Vec3b* c_row = frame.colour_bgr.ptr<cv::Vec3b>(j * s + dv) + i * s;
+          for (int du = 0; du < s; ++du) {
+            const float z = z_row[du];
+            if (!(z >= min_depth && z <= max_depth)) {
+              valid = false;
+              break;
+            }
+            z_sum += z;
+            z_min = std::min(z_min, z);
+            z_max = std::max(z_max, z);
+            bgr_sum += Eigen::Vector3f(c_row[du][0], c_row[du][1], c_row[du][2]);
           }
-          z_sum += z;
-          z_min = std::min(z_min, z);
-          z_max = std::max(z_max, z);
-          bgr_sum += Eigen::Vector3f(c_row[du][0], c_row[du][1], c_row[du][2]);
         }
+        if (!valid || z_max - z_min > jumpToleranceM(options, z_min)) continue;
+        const std::size_t k = static_cast<std::size_t>(j) * width + i;
+        const float z = z_sum * inv_count;
+        depth[k] = z;
+        m->point_c[k] = Eigen::Vector3f((i - cx) / fx * z, (j - cy) / fy * z, z);
+        m->colour_rgb[k] = Eigen::Vector3f(bgr_sum.z(), bgr_sum.y(), bgr_sum.x()) * inv_count;
       }
-      if (!valid || z_max - z_min > jumpToleranceM(options, z_min)) continue;
-      const std::size_t k = static_cast<std::size_t>(j) * width + i;
-      const float z = z_sum * inv_count;
-      depth[k] = z;
-      m->point_c[k] = Eigen::Vector3f((i - cx) / fx * z, (j - cy) / fy * z, z);
-      m->colour_rgb[k] = Eigen::Vector3f(bgr_sum.z(), bgr_sum.y(), bgr_sum.x()) * inv_count;
     }
-  }
+  });
 
   // Normals from an edge-aware 5 x 5 box smoothing of the depth (neighbours on the same surface
   // only), by central differences two pixels apart: raw differences of neighbouring fusion pixels
   // are dominated by depth noise beyond 2 m (about 20 deg at 3 m on a VGA structured-light sensor).
-  smoothDepth(depth, width, height, options, &m->smoothed_depth_m, &m->scratch_m);
+  smoothDepth(depth, width, height, options, pool, &m->smoothed_depth_m, &m->scratch_m);
   const std::vector<float>& smooth = m->smoothed_depth_m;
   auto smoothPoint = [&](std::size_t k, int i, int j) {
     const float z = smooth[k];
@@ -170,50 +179,57 @@ void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
     return smooth[a] != 0.0f && smooth[b] != 0.0f && std::abs(smooth[a] - z) <= tol &&
            std::abs(smooth[b] - z) <= tol;
   };
-  for (int j = 1; j + 1 < height; ++j) {
-    for (int i = 1; i + 1 < width; ++i) {
-      const std::size_t k = static_cast<std::size_t>(j) * width + i;
-      const float z = depth[k];
-      if (z == 0.0f) continue;
-      int step_u = 0, step_v = 0;
-      for (int step : {2, 1}) {
-        const float tol = step * jumpToleranceM(options, z);
-        if (step_u == 0 && i - step >= 0 && i + step < width &&
-            sameSurface(k - step, k + step, z, tol)) {
-          step_u = step;
+  std::vector<int> num_geometry(pool->parts(), 0), num_fusable(pool->parts(), 0);
+  pool->parallelFor(height - 2, [&](int row_begin, int row_end, int part) {
+    for (int j = row_begin + 1; j < row_end + 1; ++j) {
+      for (int i = 1; i + 1 < width; ++i) {
+        const std::size_t k = static_cast<std::size_t>(j) * width + i;
+        const float z = depth[k];
+        if (z == 0.0f) continue;
+        int step_u = 0, step_v = 0;
+        for (int step : {2, 1}) {
+          const float tol = step * jumpToleranceM(options, z);
+          if (step_u == 0 && i - step >= 0 && i + step < width &&
+              sameSurface(k - step, k + step, z, tol)) {
+            step_u = step;
+          }
+          const std::size_t dk = static_cast<std::size_t>(step) * width;
+          if (step_v == 0 && j - step >= 0 && j + step < height &&
+              sameSurface(k - dk, k + dk, z, tol)) {
+            step_v = step;
+          }
         }
-        const std::size_t dk = static_cast<std::size_t>(step) * width;
-        if (step_v == 0 && j - step >= 0 && j + step < height &&
-            sameSurface(k - dk, k + dk, z, tol)) {
-          step_v = step;
+        if (step_u == 0 || step_v == 0) continue;
+        const std::size_t dk = static_cast<std::size_t>(step_v) * width;
+        Eigen::Vector3f n =
+            (smoothPoint(k + step_u, i + step_u, j) - smoothPoint(k - step_u, i - step_u, j))
+                .cross(smoothPoint(k + dk, i, j + step_v) - smoothPoint(k - dk, i, j - step_v));
+        const float norm = n.norm();
+        if (!(norm > 0.0f)) continue;
+        n /= norm;
+        const Eigen::Vector3f& p = m->point_c[k];
+        const float range = p.norm();
+        float cos_view = -n.dot(p) / range;
+        if (cos_view < 0.0f) {
+          n = -n;
+          cos_view = -cos_view;
         }
+        m->normal_c[k] = n;
+        m->state[k] = PixelState::kGeometry;
+        ++num_geometry[part];
+        if (cos_view < min_cos_view || m->dynamic[k] != 0) continue;
+        m->state[k] = PixelState::kFusable;
+        ++num_fusable[part];
+        // Disc through the corners of the pixel's footprint, stretched by the viewing angle.
+        m->radius_m[k] = 0.70710678f * (z / fx) / cos_view;
+        const float du = i - cx, dv = j - cy;
+        m->alpha[k] = std::exp(-(du * du + dv * dv) * inv_corner2 * inv_two_sigma2);
       }
-      if (step_u == 0 || step_v == 0) continue;
-      const std::size_t dk = static_cast<std::size_t>(step_v) * width;
-      Eigen::Vector3f n =
-          (smoothPoint(k + step_u, i + step_u, j) - smoothPoint(k - step_u, i - step_u, j))
-              .cross(smoothPoint(k + dk, i, j + step_v) - smoothPoint(k - dk, i, j - step_v));
-      const float norm = n.norm();
-      if (!(norm > 0.0f)) continue;
-      n /= norm;
-      const Eigen::Vector3f& p = m->point_c[k];
-      const float range = p.norm();
-      float cos_view = -n.dot(p) / range;
-      if (cos_view < 0.0f) {
-        n = -n;
-        cos_view = -cos_view;
-      }
-      m->normal_c[k] = n;
-      m->state[k] = PixelState::kGeometry;
-      ++m->num_geometry;
-      if (cos_view < min_cos_view || m->dynamic[k] != 0) continue;
-      m->state[k] = PixelState::kFusable;
-      ++m->num_fusable;
-      // Disc through the corners of the pixel's footprint, stretched by the viewing angle.
-      m->radius_m[k] = 0.70710678f * (z / fx) / cos_view;
-      const float du = i - cx, dv = j - cy;
-      m->alpha[k] = std::exp(-(du * du + dv * dv) * inv_corner2 * inv_two_sigma2);
     }
+  });
+  for (int part = 0; part < pool->parts(); ++part) {
+    m->num_geometry += num_geometry[part];
+    m->num_fusable += num_fusable[part];
   }
 }
 

@@ -8,6 +8,7 @@
 #include "ltlo/core/camera.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/recon/surfel_fusion.h"
+#include "worker_pool.h"
 
 namespace ltlo::recon {
 
@@ -50,8 +51,9 @@ PinholeCamera fusionCamera(const PinholeCamera& camera, int downsample);
 
 /// Fills `out` from `frame` (sizes asserted against `camera`, the input camera). `fusion_camera`
 /// is fusionCamera(camera, options.downsample).
+/// Rows are split over `pool`'s threads.
 void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
                         const PinholeCamera& fusion_camera, const ReconOptions& options,
-                        Measurement* out);
+                        WorkerPool* pool, Measurement* out);
 
 }  // namespace ltlo::recon

@@ -102,7 +102,7 @@ ReconstructionResult reconstruct(const ReconstructionRequest& request,
                 ? " (every pixel with depth)"
                 : " (static pixels of " + request.segmentation_dir + ")");
 
-  SurfelFusion fusion(reader.calib().camera.camera, options);
+  SurfelFusion fusion(reader.calib().camera.camera, options, request.fusion_threads);
   ProgressReporter::Options progress_options;
   progress_options.total_frames = static_cast<long>(frames.size());
   progress_options.log_every_n_frames = request.progress_every > 0 ? request.progress_every : 1;

@@ -19,6 +19,9 @@ namespace {
 constexpr double kBirdEyeFovDeg = 40.0;  // narrow: close to a map's orthographic look
 constexpr double kOrbitElevationDeg = 35.0;
 constexpr float kAmbient = 0.35f;  // headlight shading: colour * (0.35 + 0.65 |cos|)
+// Discs are drawn 25 % larger than fused: a disc spans its pixel's footprint at the distance it
+// was made from, so views from elsewhere show pinholes between neighbours without it.
+constexpr float kDisplayRadiusScale = 1.25f;
 const Eigen::Vector3f kBackground(0.10f, 0.10f, 0.12f);
 const cv::Scalar kEstimateBgr(40, 60, 235);     // red
 const cv::Scalar kGroundTruthBgr(80, 210, 80);  // green
@@ -37,6 +40,37 @@ double percentileOf(std::vector<double> values, double fraction) {
       std::min(values.size() - 1, static_cast<std::size_t>(fraction * values.size()));
   std::nth_element(values.begin(), values.begin() + k, values.end());
   return values[k];
+}
+
+// The horizontal direction (orthogonal to `up`) that most wall surfels face, modulo 90 deg: a
+// histogram of the angles of their horizontal normals in 1 deg bins (smoothed over +-2 bins),
+// weighted by area. Empty when fewer than 1000 surfels stand upright.
+std::optional<Vec3> dominantWallAxis(const std::vector<Surfel>& surfels, const Vec3& up,
+                                     const Vec3& x0) {
+  const Vec3 y0 = up.cross(x0);
+  std::vector<double> histogram(90, 0.0);
+  int upright = 0;
+  for (const Surfel& s : surfels) {
+    const Vec3 n = s.normal_w.cast<double>();
+    if (std::abs(n.dot(up)) > 0.3) continue;
+    double angle_deg = std::atan2(n.dot(y0), n.dot(x0)) * 180.0 / M_PI;
+    angle_deg = std::fmod(angle_deg + 360.0, 90.0);
+    histogram[static_cast<int>(angle_deg) % 90] += s.radius_m * s.radius_m;
+    ++upright;
+  }
+  if (upright < 1000) return std::nullopt;
+  int best = 0;
+  double best_score = -1.0;
+  for (int b = 0; b < 90; ++b) {
+    double score = 0.0;
+    for (int d = -2; d <= 2; ++d) score += histogram[(b + d + 90) % 90];
+    if (score > best_score) {
+      best_score = score;
+      best = b;
+    }
+  }
+  const double a = (best + 0.5) * M_PI / 180.0;
+  return Vec3(std::cos(a) * x0 + std::sin(a) * y0);
 }
 
 DisplayFrame displayFrame(const std::vector<Surfel>& surfels, const io::Trajectory& trajectory) {
@@ -63,6 +97,8 @@ DisplayFrame displayFrame(const std::vector<Surfel>& surfels, const io::Trajecto
   x = (x - up * up.dot(x));
   if (x.norm() < 1e-9) x = up.unitOrthogonal();
   x.normalize();
+  // Rooms are mostly rectangular: turn x onto the dominant wall direction when walls exist.
+  if (const std::optional<Vec3> wall_axis = dominantWallAxis(surfels, up, x)) x = *wall_axis;
   DisplayFrame frame;
   frame.R_w_d.col(0) = x;
   frame.R_w_d.col(1) = up.cross(x);
@@ -75,6 +111,17 @@ DisplayFrame displayFrame(const std::vector<Surfel>& surfels, const io::Trajecto
   for (const io::StampedPose& pose : trajectory) {  // the path is always in the picture
     const Vec3 d = frame.R_w_d.transpose() * pose.T_w_x.translation();
     for (int k = 0; k < 3; ++k) coords[k].push_back(d[k]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    frame.lo_d[k] = percentileOf(coords[k], 0.005);
+    frame.hi_d[k] = percentileOf(coords[k], 0.995);
+  }
+  if (frame.hi_d.y() - frame.lo_d.y() > frame.hi_d.x() - frame.lo_d.x()) {
+    // The longer side along x (landscape pictures): turn the display frame by 90 deg about up.
+    frame.R_w_d.col(0) = frame.R_w_d.col(1);
+    frame.R_w_d.col(1) = up.cross(Vec3(frame.R_w_d.col(0)));
+    std::swap(coords[0], coords[1]);
+    for (double& y : coords[1]) y = -y;
   }
   for (int k = 0; k < 3; ++k) {
     frame.lo_d[k] = percentileOf(coords[k], 0.005);
@@ -106,20 +153,21 @@ cv::Point projectToImage(const PinholeCamera& camera, const SE3& T_c_w, const Ve
 }
 
 // Polyline of the trajectory's positions (shift 2: quarter-pixel precision, anti-aliased).
+// The ground truth is drawn wider, underneath: it shows as a border around a close estimate.
 void drawPath(cv::Mat* image, const PinholeCamera& camera, const SE3& T_c_w,
-              const io::Trajectory& path, const cv::Scalar& colour) {
+              const io::Trajectory& path, const cv::Scalar& colour, int width_px) {
   std::vector<cv::Point> points;
   for (const io::StampedPose& pose : path) {
     bool in_front = false;
     const cv::Point p = projectToImage(camera, T_c_w, pose.T_w_x.translation(), &in_front);
     if (!in_front) {
-      if (points.size() > 1) cv::polylines(*image, points, false, colour, 2, cv::LINE_AA, 2);
+      if (points.size() > 1) cv::polylines(*image, points, false, colour, width_px, cv::LINE_AA, 2);
       points.clear();
       continue;
     }
     points.push_back(p);
   }
-  if (points.size() > 1) cv::polylines(*image, points, false, colour, 2, cv::LINE_AA, 2);
+  if (points.size() > 1) cv::polylines(*image, points, false, colour, width_px, cv::LINE_AA, 2);
   if (!path.empty()) {
     bool in_front = false;
     const cv::Point start =
@@ -133,6 +181,31 @@ std::vector<std::size_t> pathViewIndices(const io::Trajectory& trajectory) {
   if (trajectory.empty()) return indices;
   for (int k = 1; k <= 3; ++k) indices.push_back((trajectory.size() - 1) * k / 4);
   return indices;
+}
+
+// Distance along `direction` from `centre` at which the model's bounding box fills 92 % of the
+// picture (a few fixed-point steps: the projected size is not linear in the distance).
+double fittingDistance(const DisplayFrame& frame, const PinholeCamera& camera, const Vec3& centre,
+                       const Vec3& direction, const Vec3& up) {
+  double distance = (frame.hi_d - frame.lo_d).norm();
+  for (int iteration = 0; iteration < 6; ++iteration) {
+    const SE3 T_c_w = lookAt(centre + distance * direction, centre, up);
+    double fill = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const Vec3 p_d((corner & 1) ? frame.hi_d.x() : frame.lo_d.x(),
+                     (corner & 2) ? frame.hi_d.y() : frame.lo_d.y(),
+                     (corner & 4) ? frame.hi_d.z() : frame.lo_d.z());
+      const Vec3 p_c = T_c_w * frame.toWorld(p_d);
+      if (p_c.z() < 0.1) {
+        fill = 2.0;  // a corner behind the camera: step back
+        break;
+      }
+      fill = std::max(fill, std::abs(p_c.x() / p_c.z()) * camera.fx() / (0.5 * camera.width()));
+      fill = std::max(fill, std::abs(p_c.y() / p_c.z()) * camera.fy() / (0.5 * camera.height()));
+    }
+    distance *= 0.5 + 0.5 * fill / 0.92;
+  }
+  return distance;
 }
 
 std::vector<View> makeViews(const DisplayFrame& frame, const io::Trajectory& trajectory,
@@ -172,21 +245,17 @@ std::vector<View> makeViews(const DisplayFrame& frame, const io::Trajectory& tra
     v.far_m = 2.0 * extent.norm() + 1.0;
     views.push_back(v);
   }
-  {  // Orbit around the model's centre, low in the room.
+  {  // Orbit around the model's centre, each view as close as the bounding box allows.
     const PinholeCamera camera = viewCamera(options.width, options.height, options.fov_deg);
-    const double half_fov =
-        std::atan(0.5 * std::min(options.width / camera.fx(), options.height / camera.fy()));
     const double radius = 0.5 * extent.norm();
-    const double distance = 1.05 * radius / std::sin(half_fov);
-    const Vec3 centre = frame.toWorld(Vec3(0.5 * (frame.lo_d.x() + frame.hi_d.x()),
-                                           0.5 * (frame.lo_d.y() + frame.hi_d.y()),
-                                           frame.lo_d.z() + 0.25 * extent.z()));
+    const Vec3 centre = frame.toWorld(0.5 * (frame.lo_d + frame.hi_d));
     const double elevation = kOrbitElevationDeg * M_PI / 180.0;
     for (int k = 0; k < 8; ++k) {
       const double azimuth = k * M_PI / 4.0;
       const Vec3 direction = std::cos(elevation) * (std::cos(azimuth) * frame.axis(0) +
                                                     std::sin(azimuth) * frame.axis(1)) +
                              std::sin(elevation) * up;
+      const double distance = fittingDistance(frame, camera, centre, direction, up);
       View v;
       v.name = "orbit_" + std::to_string(k);
       v.label = "orbit " + std::to_string(k * 45) + " deg";
@@ -285,7 +354,7 @@ std::vector<std::string> writeSnapshots(const SnapshotScene& scene, const Snapsh
   for (const Surfel& s : surfels) {
     splats.positions_o.push_back(s.position_w);
     splats.normals_o.push_back(s.normal_w);
-    splats.radii_m.push_back(s.radius_m);
+    splats.radii_m.push_back(kDisplayRadiusScale * s.radius_m);
     splats.colours_rgb.push_back(s.colour_rgb / 255.0f);
   }
   splats.ambient = kAmbient;
@@ -304,9 +373,9 @@ std::vector<std::string> writeSnapshots(const SnapshotScene& scene, const Snapsh
     cv::Mat image = renderer.render(rv, {render::DrawItem{model, SE3()}}).bgr;
     if (view.name == "bird_eye") {
       if (!scene.ground_truth.empty()) {
-        drawPath(&image, view.camera, view.T_c_w, scene.ground_truth, kGroundTruthBgr);
+        drawPath(&image, view.camera, view.T_c_w, scene.ground_truth, kGroundTruthBgr, 5);
       }
-      drawPath(&image, view.camera, view.T_c_w, scene.estimate, kEstimateBgr);
+      drawPath(&image, view.camera, view.T_c_w, scene.estimate, kEstimateBgr, 2);
       const std::vector<std::size_t> marks = pathViewIndices(scene.estimate);
       for (std::size_t k = 0; k < marks.size(); ++k) {
         bool in_front = false;

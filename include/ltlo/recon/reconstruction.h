@@ -29,6 +29,7 @@ struct ReconstructionRequest {
   std::string segmentation_dir;  ///< run's segmentation/; empty = every pixel with depth
   int every = 1;                 ///< fuse every n-th frame (>= 1)
   int loader_threads = 2;        ///< decoding threads
+  int fusion_threads = 2;        ///< threads splitting each frame's fusion (the caller's included)
   double max_pose_dt_s = 0.005;  ///< frame to trajectory timestamp tolerance
   /// Calibration for sequences without calib.yaml (TUM RGB-D, OpenLORIS), from a settings file.
   std::optional<SensorCalib> calib_override;

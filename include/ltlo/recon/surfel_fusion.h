@@ -25,7 +25,8 @@
 /// Only pixels whose dynamic mask is 0 (after growing it by Recon.MaskDilation) are fused; every
 /// pixel with depth counts as evidence of free space.
 ///
-/// Not thread-safe: one thread calls integrate(). Offline: no SLAM threads, no map locks.
+/// Not thread-safe: one thread calls integrate() (which splits its loops over `threads` - 1 worker
+/// threads of its own and the caller). Offline: no SLAM threads, no map locks.
 #include <memory>
 #include <opencv2/core/mat.hpp>
 #include <vector>
@@ -71,7 +72,8 @@ struct FusionTotals {
 class SurfelFusion {
  public:
   /// `camera`: the input images' intrinsics and size. Options are validated (ConfigError).
-  SurfelFusion(const PinholeCamera& camera, const ReconOptions& options);
+  /// `threads` (1-16) split each frame's stages; the result does not depend on it.
+  SurfelFusion(const PinholeCamera& camera, const ReconOptions& options, int threads = 1);
   ~SurfelFusion();
   SurfelFusion(const SurfelFusion&) = delete;
   SurfelFusion& operator=(const SurfelFusion&) = delete;
