@@ -33,7 +33,7 @@ if [ "${BUILD:-1}" = 1 ]; then scripts/build.sh; fi
 mkdir -p "$OUT/runs" "$OUT/sequences" "$OUT/settings"
 
 # Seg.Enable = 0: through --set when rgbd_inertial has it, else a copy of the settings file.
-if "$BIN/rgbd_inertial" --help 2>/dev/null | grep -q -- '--set'; then
+if "$BIN/rgbd_inertial" --help 2>/dev/null | grep -qE -- '--set[[:space:]]'; then
   SEG_OFF_ARGS=(--settings "$SETTINGS" --set Seg.Enable=0)
 else
   sed 's/^Seg\.Enable:.*/Seg.Enable: 0/' "$SETTINGS" >"$OUT/settings/seg_off.yaml"

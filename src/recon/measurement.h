@@ -31,8 +31,9 @@ struct Measurement {
   std::vector<Eigen::Vector3f> normal_c;  ///< unit, towards the camera
   std::vector<Eigen::Vector3f> colour_rgb;
   std::vector<float> radius_m;
-  std::vector<float> alpha;      ///< radial confidence weight in (0.25, 1]
-  std::vector<uint8_t> dynamic;  ///< 1 where the grown dynamic mask touches the block
+  std::vector<float> alpha;  ///< radial confidence weight in (0.25, 1] (constant per pixel)
+  std::vector<Eigen::Vector3f> ray_c;  ///< the pixel centre's ray at z = 1 (constant per pixel)
+  std::vector<uint8_t> dynamic;        ///< 1 where the grown dynamic mask touches the block
 
   /// Counts of kGeometry-or-better and kFusable pixels.
   int num_geometry = 0;
