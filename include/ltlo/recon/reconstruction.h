@@ -1,10 +1,14 @@
 #pragma once
 /// Offline reconstruction of a finished run: fuses the static pixels of a sequence's frames, posed
 /// by the run's trajectory, into surfels (SurfelFusion). Frames are decoded ahead in loader
-/// threads (PNG decoding costs about as much as fusing), fused in the calling thread.
+/// threads (PNG decoding costs about as much as fusing); the fusion splits each frame over
+/// `fusion_threads` (the calling thread and workers of its own). Threads: the request's reader
+/// and buffers are private to the call; nothing is shared with a running SLAM system.
 ///
-///   ReconstructionRequest request{.sequence_dir = "seq", .trajectory_path = "run/trajectory.txt",
-///                                 .segmentation_dir = "run/segmentation"};
+///   ReconstructionRequest request;
+///   request.sequence_dir = "seq";
+///   request.trajectory_path = "run/trajectory.txt";
+///   request.segmentation_dir = "run/segmentation";
 ///   ReconstructionResult result = reconstruct(request, settings.recon);   // progress with FPS
 ///
 /// Which pixels are static comes from `segmentation_dir` (<timestamp>.png, 255 = dynamic, the

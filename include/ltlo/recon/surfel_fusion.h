@@ -5,7 +5,9 @@
 ///
 /// Per frame (integrate()):
 ///   1. measurement: depth and colour averaged over Recon.Downsample blocks (the fusion grid),
-///      vertex map, normal map (central differences), radius r = (sqrt 2 / 2) (z / f) / cos(theta)
+///      vertex map, normal map (central differences of an edge-aware 5 x 5 smoothing of the depth,
+///      two pixels apart, one where a structure is thinner), radius r = (sqrt 2 / 2) (z / f) /
+///      cos(theta)
 ///      from depth and viewing angle, radial weight alpha = exp(-gamma^2 / (2 * 0.6^2)) with gamma
 ///      the pixel's distance from the principal point over the centre-to-corner distance;
 ///   2. the model is rendered at the frame's pose into an index map twice as fine as the fusion
@@ -14,9 +16,9 @@
 ///      and takes the most confident surfel within AssocDistance + 3 sigma(z) of its tangent plane
 ///      and AssocMaxAngle of its normal; an index-map pixel belongs to one fusion pixel, so a
 ///      surfel takes at most one measurement per frame;
-///   4. update (Keller et al. Eq. 4): confidence-weighted averages of position, normal, colour and
-///      radius, unless the measurement is much coarser (r > 1.5 r_surfel), which only adds
-///      confidence; confidence += alpha. Unassociated static pixels become new surfels;
+///   4. update (Keller et al. 2013, section 4.2): confidence-weighted averages of position, normal,
+///      colour and radius, unless the measurement is much coarser (r > 1.5 r_surfel), which only
+///      adds confidence; confidence += alpha. Unassociated static pixels become new surfels;
 ///   5. free space: a rendered surfel lying in front of the measured surface at its pixel (beyond
 ///      the association window, along the measured normal and the ray) is a violation; unstable
 ///      surfels go at once, stable ones after Recon.FreeSpaceVotes net violations;
