@@ -124,6 +124,7 @@ void visitRecon(O& o, V& v) {
   v.real("Recon.UnstableTime", o.unstable_time_s, 0.0, 1000.0);
   v.integer("Recon.FreeSpaceVotes", o.free_space_votes, 0, 1000);
   v.integer("Recon.MaskDilation", o.mask_dilation_px, 0, 100);
+  v.integer("Recon.ColourEvery", o.colour_every, 1, 100);
   if (!(o.max_depth_m > o.min_depth_m)) {
     v.fail("Recon.MaxDepth", numberText(o.max_depth_m),
            "a number in [0.1, 50] above Recon.MinDepth = " + numberText(o.min_depth_m));

@@ -290,7 +290,7 @@ std::optional<RgbdImuFrame> SequenceReader::next() {
   return load(next_index_++);
 }
 
-RgbdImuFrame SequenceReader::load(int index) const {
+RgbdImuFrame SequenceReader::load(int index, bool with_colour) const {
   LTLO_ASSERT(index >= 0 && index < frameCount(),
               "frame index " << index << " of " << frameCount());
   const FrameFiles& files = entries_[index];
@@ -305,22 +305,27 @@ RgbdImuFrame SequenceReader::load(int index) const {
   frame.depth_path = files.depth_path;
   frame.mask_path = files.mask_path;
 
-  frame.color_bgr = loadImage(files.color_path, CV_8UC3, "8-bit 3-channel colour",
-                              files.color_list_path, files.color_list_line);
-  checkSize(frame.color_bgr, width, height, "calibrated image size", files.color_path,
-            files.color_list_path, files.color_list_line);
+  // Depth and mask are checked against the colour image when it is loaded (the messages name it),
+  // else against the calibrated size.
+  const char* reference = with_colour ? "colour image" : "calibrated image size";
+  if (with_colour) {
+    frame.color_bgr = loadImage(files.color_path, CV_8UC3, "8-bit 3-channel colour",
+                                files.color_list_path, files.color_list_line);
+    checkSize(frame.color_bgr, width, height, "calibrated image size", files.color_path,
+              files.color_list_path, files.color_list_line);
+  }
   const cv::Mat depth_raw = loadImage(files.depth_path, CV_16UC1, "16-bit 1-channel depth",
                                       files.depth_list_path, files.depth_list_line);
-  checkSize(depth_raw, frame.color_bgr.cols, frame.color_bgr.rows, "colour image", files.depth_path,
-            files.depth_list_path, files.depth_list_line);
+  checkSize(depth_raw, width, height, reference, files.depth_path, files.depth_list_path,
+            files.depth_list_line);
   depth_raw.convertTo(frame.depth_m, CV_32F, 1.0 / calib_.camera.depth_map_factor);
 
   if (!files.mask_path.empty()) {
     // Messages name the frame's colour index line: the mask belongs to that frame.
     frame.mask = loadImage(files.mask_path, CV_8UC1, "8-bit 1-channel mask", files.color_list_path,
                            files.color_list_line);
-    checkSize(frame.mask, frame.color_bgr.cols, frame.color_bgr.rows, "colour image",
-              files.mask_path, files.color_list_path, files.color_list_line);
+    checkSize(frame.mask, width, height, reference, files.mask_path, files.color_list_path,
+              files.color_list_line);
   }
 
   const double previous_t_s = index > 0 ? entries_[index - 1].t_s : files.t_s;

@@ -94,6 +94,7 @@ void blockMeans(const FusionFrame& frame, const ReconOptions& options, int j_beg
   const float max_depth = static_cast<float>(options.max_depth_m);
   const float noise = static_cast<float>(options.depth_noise_m);
   const float inv_count = 1.0f / static_cast<float>(s * s);
+  const bool with_colour = !frame.colour_bgr.empty();
   for (int j = j_begin; j < j_end; ++j) {
     for (int i = 0; i < m->width; ++i) {
       float z_sum = 0.0f, z_min = max_depth, z_max = 0.0f;
@@ -101,13 +102,16 @@ void blockMeans(const FusionFrame& frame, const ReconOptions& options, int j_beg
       bool valid = true;
       for (int dv = 0; dv < s; ++dv) {
         const float* z_row = frame.depth_m.ptr<float>(j * s + dv) + i * s;
-        const uint8_t* c_row = frame.colour_bgr.ptr<uint8_t>(j * s + dv) + 3 * i * s;
         for (int du = 0; du < s; ++du) {
           const float z = z_row[du];
           valid &= z >= min_depth && z <= max_depth;
           z_sum += z;
           z_min = std::min(z_min, z);
           z_max = std::max(z_max, z);
+        }
+        if (!with_colour) continue;
+        const uint8_t* c_row = frame.colour_bgr.ptr<uint8_t>(j * s + dv) + 3 * i * s;
+        for (int du = 0; du < s; ++du) {
           b += c_row[3 * du];
           g += c_row[3 * du + 1];
           r += c_row[3 * du + 2];
@@ -180,7 +184,8 @@ void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
                   frame.depth_m.rows == camera.height(),
               "depth image " << frame.depth_m.cols << "x" << frame.depth_m.rows << " vs camera "
                              << camera.width() << "x" << camera.height());
-  LTLO_ASSERT(frame.colour_bgr.type() == CV_8UC3 && frame.colour_bgr.size() == frame.depth_m.size(),
+  LTLO_ASSERT(frame.colour_bgr.empty() || (frame.colour_bgr.type() == CV_8UC3 &&
+                                            frame.colour_bgr.size() == frame.depth_m.size()),
               "colour image type or size");
   LTLO_ASSERT(frame.dynamic_mask.empty() || (frame.dynamic_mask.type() == CV_8UC1 &&
                                              frame.dynamic_mask.size() == frame.depth_m.size()),

@@ -9,9 +9,11 @@
 namespace ltlo::recon {
 
 ParallelFrameLoader::ParallelFrameLoader(const io::SequenceReader& reader, std::vector<int> indices,
-                                         int num_threads, int lookahead)
+                                         std::vector<uint8_t> with_colour, int num_threads,
+                                         int lookahead)
     : reader_(reader),
       indices_(std::move(indices)),
+      with_colour_(std::move(with_colour)),
       lookahead_(static_cast<std::size_t>(lookahead)) {
   LTLO_ASSERT(num_threads >= 1 && lookahead >= 1,
               "loader threads " << num_threads << ", lookahead " << lookahead);
@@ -45,7 +47,7 @@ void ParallelFrameLoader::work() {
     }
     Result result;
     try {
-      result = reader_.load(indices_[job]);
+      result = reader_.load(indices_[job], with_colour_.empty() || with_colour_[job] != 0);
     } catch (...) {
       result = std::current_exception();
     }

@@ -2,12 +2,13 @@
 // Loads chosen frames of a sequence (PNG decoding is most of an offline fusion's time) in several
 // threads and hands them out in order, at most `lookahead` frames ahead of the consumer.
 //
-//   ParallelFrameLoader frames(reader, indices, /*num_threads=*/2, /*lookahead=*/6);
+//   ParallelFrameLoader frames(reader, indices, {}, /*num_threads=*/2, /*lookahead=*/6);
 //   while (std::optional<io::RgbdImuFrame> f = frames.next()) fuse(*f);  // rethrows read errors
 //
 // Threads: the workers only call the reader's const, thread-safe load(); the reader must outlive
 // the loader. next() is for one consumer. The destructor stops and joins the workers.
 #include <condition_variable>
+#include <cstdint>
 #include <cstddef>
 #include <exception>
 #include <map>
@@ -23,8 +24,10 @@ namespace ltlo::recon {
 
 class ParallelFrameLoader {
  public:
-  ParallelFrameLoader(const io::SequenceReader& reader, std::vector<int> indices, int num_threads,
-                      int lookahead);
+  /// `with_colour[k]` (same length as indices, or empty = all) says whether frame indices[k] is
+  /// loaded with its colour image.
+  ParallelFrameLoader(const io::SequenceReader& reader, std::vector<int> indices,
+                      std::vector<uint8_t> with_colour, int num_threads, int lookahead);
   ~ParallelFrameLoader();
   ParallelFrameLoader(const ParallelFrameLoader&) = delete;
   ParallelFrameLoader& operator=(const ParallelFrameLoader&) = delete;
@@ -39,6 +42,7 @@ class ParallelFrameLoader {
 
   const io::SequenceReader& reader_;
   const std::vector<int> indices_;
+  const std::vector<uint8_t> with_colour_;
   const std::size_t lookahead_;
   std::mutex mutex_;                  // guards everything below
   std::condition_variable may_load_;  // a slot in the lookahead window freed, or stopping

@@ -110,7 +110,9 @@ ReconstructionResult reconstruct(const ReconstructionRequest& request,
   ProgressReporter progress(progress_options);
   const auto start = std::chrono::steady_clock::now();
   {
-    ParallelFrameLoader loader(reader, frames, request.loader_threads,
+    std::vector<uint8_t> with_colour(frames.size());
+    for (std::size_t k = 0; k < frames.size(); ++k) with_colour[k] = k % options.colour_every == 0;
+    ParallelFrameLoader loader(reader, frames, with_colour, request.loader_threads,
                                kLookaheadPerThread * request.loader_threads);
     TimingStats wait_timing;
     for (std::size_t k = 0; k < frames.size(); ++k) {

@@ -101,6 +101,7 @@ struct SurfelFusion::Impl {
     const Eigen::Matrix3f& R_w_c;
     const Eigen::Vector3f& t_w_c;
     float t_rel_s;
+    bool with_colour;  // false: a geometry-only frame (no colour fused, no surfel made)
   };
   std::vector<uint8_t> ring_pending;  // per fusion pixel: no surfel in its own block
   /// One fusion row of associateAndFuse(): phase 1 (own block) or phase 2 (ring).
@@ -108,7 +109,7 @@ struct SurfelFusion::Impl {
 
   void renderIndexMap(const Eigen::Matrix3f& R_c_w, const Eigen::Vector3f& t_c_w);
   void associateAndFuse(const Eigen::Matrix3f& R_w_c, const Eigen::Vector3f& t_w_c, float t_rel_s,
-                        FusionFrameStats* stats);
+                        bool with_colour, FusionFrameStats* stats);
   void removeFreeSpaceViolations(const Eigen::Matrix3f& R_c_w, const Eigen::Vector3f& t_c_w,
                                  FusionFrameStats* stats);
   void cleanVisibleCells(float t_rel_s, FusionFrameStats* stats);
@@ -229,7 +230,7 @@ void SurfelFusion::Impl::renderIndexMap(const Eigen::Matrix3f& R_c_w,
 //      split over the threads.
 void SurfelFusion::Impl::associateAndFuse(const Eigen::Matrix3f& R_w_c,
                                           const Eigen::Vector3f& t_w_c, float t_rel_s,
-                                          FusionFrameStats* stats) {
+                                          bool with_colour, FusionFrameStats* stats) {
   const int height = measurement.height;
   const int parts = pool->parts();
   for (int part = 0; part < parts; ++part) {
@@ -237,7 +238,7 @@ void SurfelFusion::Impl::associateAndFuse(const Eigen::Matrix3f& R_w_c,
     stats_by_part[part] = FusionFrameStats();
   }
   ring_pending.assign(measurement.state.size(), 0);
-  const Pose pose{R_w_c, t_w_c, t_rel_s};
+  const Pose pose{R_w_c, t_w_c, t_rel_s, with_colour};
   pool->parallelFor(height, [&](int begin, int end, int part) {
     for (int j = begin; j < end; ++j) fuseRow(j, pose, /*ring=*/false, part);
   });
@@ -319,14 +320,14 @@ void SurfelFusion::Impl::fuseRow(int j, const Pose& pose, bool ring, int part) {
         const float w_new = 1.0f - w_old;
         s.position_w = w_old * s.position_w + w_new * p_w;
         s.normal_w = (w_old * s.normal_w + w_new * n_w).normalized();
-        s.colour_rgb = w_old * s.colour_rgb + w_new * m.colour_rgb[k];
+        if (pose.with_colour) s.colour_rgb = w_old * s.colour_rgb + w_new * m.colour_rgb[k];
         s.radius_m = w_old * s.radius_m + w_new * radius;
       }
       s.confidence += alpha;
       s.last_seen_s = pose.t_rel_s;
       if (s.violations > 0) --s.violations;
       ++stats.merged;
-    } else {
+    } else if (pose.with_colour) {
       Surfel s;
       s.position_w = p_w;
       s.normal_w = n_w;
@@ -421,7 +422,7 @@ FusionFrameStats SurfelFusion::integrate(const FusionFrame& frame) {
   stats.rendered = static_cast<int>(im.rendered.size());
   {
     ScopedTimer timer(im.timing, "recon.associate_fuse");
-    im.associateAndFuse(R_w_c, t_w_c, t_rel_s, &stats);
+    im.associateAndFuse(R_w_c, t_w_c, t_rel_s, !frame.colour_bgr.empty(), &stats);
   }
   {
     ScopedTimer timer(im.timing, "recon.free_space");

@@ -150,6 +150,9 @@ TEST(SequenceReader, MasksFromAnotherFolderOrNone) {
   SequenceReader without = SequenceReader::open(sequenceDir(tmp), options);
   EXPECT_TRUE(without.frameFiles(0).mask_path.empty());
   EXPECT_TRUE(without.load(2).mask.empty());
+  const RgbdImuFrame depth_only = without.load(2, /*with_colour=*/false);
+  EXPECT_TRUE(depth_only.color_bgr.empty());
+  EXPECT_FLOAT_EQ(depth_only.depth_m.at<float>(5, 7), test::testDepthRaw(7, 5, 2) / 1000.0f);
 
   options.masks_dir = tmp.file("missing_segmentation");
   LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp), options); }),

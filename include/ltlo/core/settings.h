@@ -210,6 +210,10 @@ struct ReconOptions {
   /// dynamic pixels of the segmentation are grown by this many input pixels before fusing
   /// (Recon.MaskDilation, [0, 100])
   int mask_dilation_px = 4;
+  /// colour is read and fused on every n-th fused frame only; new surfels are made on those
+  /// frames, the others update geometry and confidence (decoding a colour PNG costs more than
+  /// fusing a frame; colour changes slowly) (Recon.ColourEvery, [1, 100]; 1 = every frame)
+  int colour_every = 2;
 
   static ReconOptions load(const SettingsFile& file);  ///< reads and validates; throws ConfigError
   /// Range and cross-field checks of values built in code; throws ConfigError.

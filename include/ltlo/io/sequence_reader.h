@@ -78,8 +78,9 @@ class SequenceReader {
   /// Next frame (images loaded now), or nullopt after the last one.
   std::optional<RgbdImuFrame> next();
   /// Frame `index` in [0, frameCount()) with its images loaded now; does not move next().
-  /// Thread-safe: several threads may load different frames at once (the reader is not changed).
-  RgbdImuFrame load(int index) const;
+  /// Without colour, color_bgr stays empty (decoding it is most of a frame's cost). Thread-safe:
+  /// several threads may load different frames at once (the reader is not changed).
+  RgbdImuFrame load(int index, bool with_colour = true) const;
   /// Back to the first frame.
   void rewind() { next_index_ = 0; }
 

@@ -56,8 +56,9 @@ Mesh makeSplatMesh(const std::vector<Eigen::Vector3f>& positions_o,
 
 /// Surfel splats kept compactly (about 40 bytes each) and expanded at draw time into oriented
 /// discs: one hexagon of the disc's area per splat (radius scaled by sqrt(2 pi / (3 sqrt 3)) =
-/// 1.0996), in the plane normal to normals_o[i]. Cheaper in memory than makeSplatMesh for millions
-/// of splats, and shaded per view.
+/// 1.0996), in the plane normal to normals_o[i]; a splat projected smaller than 2 px in radius
+/// becomes a square of the disc's area (a third of the cost; the shape is not visible). Cheaper
+/// in memory than makeSplatMesh for millions of splats, and shaded per view.
 struct SplatSet {
   std::vector<Eigen::Vector3f> positions_o;
   std::vector<Eigen::Vector3f> normals_o;  ///< unit normals
