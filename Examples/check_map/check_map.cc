@@ -163,7 +163,9 @@ struct Arguments {
 int run(const Arguments& args) {
   const std::vector<system::MapPointRecord> all_points = system::readStaticMapPly(args.run_dir + "/static_map.ply");
   const std::vector<system::KeyFrameRecord> keyframes = system::readKeyFrames(args.run_dir + "/keyframes.txt");
-  const io::SequenceReader sequence = io::SequenceReader::open(args.sequence_dir);
+  io::SequenceReaderOptions reader_options;
+  reader_options.read_masks = true;  // evaluation: the ground-truth masks say which surfaces move
+  const io::SequenceReader sequence = io::SequenceReader::open(args.sequence_dir, reader_options);
   const io::Trajectory& ground_truth = sequence.groundTruth();
   if (keyframes.empty() || ground_truth.empty()) {
     throw InputError(args.run_dir + "/keyframes.txt", 0, "no keyframes, or the sequence has no ground truth");

@@ -12,6 +12,12 @@
 namespace ltlo {
 namespace {
 
+std::string numberText(double value) {
+  std::ostringstream os;
+  os << value;
+  return os.str();
+}
+
 // ---- One table per option struct ------------------------------------------------------------
 // Each visit*() lists key, field and range once; the same table drives loading from a file,
 // validating values built in code and describing the settings (so they cannot drift apart).
@@ -127,10 +133,24 @@ void visitImuInit(O& o, V& v) {
   v.integer("ImuInit.RefineMaxKeyFrames", o.refine_max_keyframes, 3, 10000);
 }
 
-std::string numberText(double value) {
-  std::ostringstream os;
-  os << value;
-  return os.str();
+template <typename O, typename V>
+void visitRecon(O& o, V& v) {
+  v.integer("Recon.Downsample", o.downsample, 1, 8);
+  v.real("Recon.MinDepth", o.min_depth_m, 0.01, 10.0);
+  v.real("Recon.MaxDepth", o.max_depth_m, 0.1, 50.0);
+  v.real("Recon.DepthNoise", o.depth_noise_m, 0.0, 0.1);
+  v.real("Recon.AssocDistance", o.assoc_distance_m, 0.0, 1.0);
+  v.real("Recon.AssocMaxAngle", o.assoc_max_angle_deg, 1.0, 90.0);
+  v.real("Recon.MaxViewAngle", o.max_view_angle_deg, 1.0, 89.0);
+  v.real("Recon.ConfidenceStable", o.confidence_stable, 0.0, 1000.0);
+  v.real("Recon.UnstableTime", o.unstable_time_s, 0.0, 1000.0);
+  v.integer("Recon.FreeSpaceVotes", o.free_space_votes, 0, 1000);
+  v.integer("Recon.MaskDilation", o.mask_dilation_px, 0, 100);
+  v.integer("Recon.ColourEvery", o.colour_every, 1, 100);
+  if (!(o.max_depth_m > o.min_depth_m)) {
+    v.fail("Recon.MaxDepth", numberText(o.max_depth_m),
+           "a number in [0.1, 50] above Recon.MinDepth = " + numberText(o.min_depth_m));
+  }
 }
 
 std::string rangeText(double min, double max) {
@@ -288,6 +308,18 @@ ImuInitOptions ImuInitOptions::load(const SettingsFile& file) {
   return options;
 }
 
+ReconOptions ReconOptions::load(const SettingsFile& file) {
+  ReconOptions options;
+  Loader loader{file};
+  visitRecon(options, loader);
+  return options;
+}
+
+void ReconOptions::validate() const {
+  Validator validator;
+  visitRecon(*this, validator);
+}
+
 SettingOverride SettingOverride::parse(const std::string& text) {
   const std::size_t equals = text.find('=');
   if (equals == std::string::npos || equals == 0 || equals + 1 == text.size()) {
@@ -330,6 +362,7 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
   settings.loop = LoopOptions::load(config);
   settings.dense = DenseOptions::load(config);
   settings.imu_init = ImuInitOptions::load(config);
+  settings.recon = ReconOptions::load(config);
   settings.sequence = SequenceOptions::load(config);
   checkDenseAgainstCamera(settings.dense, settings.calib.camera.camera,
                           "Camera.width/height of " + settings.calib_path,
@@ -369,6 +402,7 @@ void Settings::validate() const {
   visitLoop(loop, validator);
   visitDense(dense, validator);
   visitImuInit(imu_init, validator);
+  visitRecon(recon, validator);
   checkDenseAgainstCamera(
       dense, calib.camera.camera, "camera calibration",
       [&](const std::string& key, const std::string& value, const std::string& expected) {
@@ -405,6 +439,7 @@ std::string Settings::describe() const {
   visitLoop(loop, d);
   visitDense(dense, d);
   visitImuInit(imu_init, d);
+  visitRecon(recon, d);
   d.os << "Sequence.MaxImuGap = " << sequence.max_imu_gap_s << "\n";
   d.os << "Sequence.ImuGapPolicy = "
        << (sequence.imu_gap_policy == ImuGapPolicy::kFail ? "fail" : "warn") << "\n";

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 #include "ltlo/io/associate.h"
@@ -244,8 +245,16 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
     }
   }
 
-  const std::string masks_dir = joinPath(sequence_dir, "masks");
-  if (options.read_masks && isDirectory(masks_dir)) attachMasks(masks_dir, options.max_mask_dt_s, &reader.entries_);
+  if (!options.masks_dir) {
+    // SEQ/masks/ is ground truth: opened only when asked for (diagnostics, evaluation, tests).
+    const std::string masks_dir = joinPath(sequence_dir, "masks");
+    if (options.read_masks && isDirectory(masks_dir)) attachMasks(masks_dir, options.max_mask_dt_s, &reader.entries_);
+  } else if (!options.masks_dir->empty()) {
+    if (!isDirectory(*options.masks_dir)) {
+      throw InputError(*options.masks_dir, 0, "mask folder does not exist");
+    }
+    attachMasks(*options.masks_dir, options.max_mask_dt_s, &reader.entries_);
+  }
 
   // IMU: imu.txt, else EuRoC imu0/data.csv, else OpenLORIS accel.txt + gyro.txt, else none.
   const std::string imu_txt = joinPath(sequence_dir, "imu.txt");
@@ -280,7 +289,12 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
 
 std::optional<RgbdImuFrame> SequenceReader::next() {
   if (next_index_ >= frameCount()) return std::nullopt;
-  const int index = next_index_++;
+  return load(next_index_++);
+}
+
+RgbdImuFrame SequenceReader::load(int index, bool with_colour) const {
+  LTLO_ASSERT(index >= 0 && index < frameCount(),
+              "frame index " << index << " of " << frameCount());
   const FrameFiles& files = entries_[index];
   const int width = calib_.camera.camera.width();
   const int height = calib_.camera.camera.height();
@@ -293,21 +307,26 @@ std::optional<RgbdImuFrame> SequenceReader::next() {
   frame.depth_path = files.depth_path;
   frame.mask_path = files.mask_path;
 
-  frame.color_bgr = loadColorImage(files);
-  checkSize(frame.color_bgr, width, height, "calibrated image size", files.color_path,
-            files.color_list_path, files.color_list_line);
+  // Depth and mask are checked against the colour image when it is loaded (the messages name it),
+  // else against the calibrated size.
+  const char* reference = with_colour ? "colour image" : "calibrated image size";
+  if (with_colour) {
+    frame.color_bgr = loadColorImage(files);
+    checkSize(frame.color_bgr, width, height, "calibrated image size", files.color_path,
+              files.color_list_path, files.color_list_line);
+  }
   const cv::Mat depth_raw = loadImage(files.depth_path, CV_16UC1, "16-bit 1-channel depth",
                                       files.depth_list_path, files.depth_list_line);
-  checkSize(depth_raw, frame.color_bgr.cols, frame.color_bgr.rows, "colour image", files.depth_path,
-            files.depth_list_path, files.depth_list_line);
+  checkSize(depth_raw, width, height, reference, files.depth_path, files.depth_list_path,
+            files.depth_list_line);
   depth_raw.convertTo(frame.depth_m, CV_32F, 1.0 / calib_.camera.depth_map_factor);
 
   if (!files.mask_path.empty()) {
     // Messages name the frame's colour index line: the mask belongs to that frame.
     frame.mask = loadImage(files.mask_path, CV_8UC1, "8-bit 1-channel mask", files.color_list_path,
                            files.color_list_line);
-    checkSize(frame.mask, frame.color_bgr.cols, frame.color_bgr.rows, "colour image",
-              files.mask_path, files.color_list_path, files.color_list_line);
+    checkSize(frame.mask, width, height, reference, files.mask_path, files.color_list_path,
+              files.color_list_line);
   }
 
   const double previous_t_s = index > 0 ? entries_[index - 1].t_s : files.t_s;

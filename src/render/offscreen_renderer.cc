@@ -81,14 +81,118 @@ Mesh makeBoxMesh(const Vec3& size_m, int texture, double uv_repeats_per_m) {
 
 namespace {
 
-enum class DrawableKind { kMesh, kPoints, kLines };
+enum class DrawableKind { kMesh, kPoints, kLines, kSplats };
 
 struct Drawable {
   DrawableKind kind;
-  GLuint list = 0;
+  GLuint list = 0;  // display list; unused (0) for splats
   int texture = -1;
   float size_px = 1.0f;
+  int splats = -1;  // index into Impl::splat_sets for kSplats
 };
+
+// Splats are expanded in chunks of this many hexagons (7 vertices, 6 triangles each).
+constexpr int kSplatChunk = 16384;
+constexpr int kSplatSides = 6;
+
+// Equal-area hexagon: (3 sqrt 3 / 2) R^2 = pi r^2.
+const float kHexagonRadiusScale =
+    static_cast<float>(std::sqrt(2.0 * M_PI / (3.0 * std::sqrt(3.0))));
+
+// Below this projected radius a splat is drawn as a square of the disc's area (4 vertices, 2
+// triangles) instead of a hexagon (7 and 6): a third of the cost, and no visible difference.
+constexpr float kQuadBelowRadiusPx = 2.0f;
+const float kSquareHalfSideScale = static_cast<float>(0.5 * std::sqrt(M_PI));
+
+// Draws one splat set seen from the camera at T_c_o (object frame o into the camera frame);
+// `fx_px` converts a radius at unit depth into pixels.
+void drawSplats(const SplatSet& set, const SE3& T_c_o, double near_m, double fx_px,
+                std::vector<float>* vertices, std::vector<uint8_t>* colours,
+                std::vector<float>* quad_vertices, std::vector<uint8_t>* quad_colours,
+                const std::vector<GLuint>& indices) {
+  const Eigen::Matrix3f R_c_o = T_c_o.rotationMatrix().cast<float>();
+  const Eigen::Vector3f t_c_o = T_c_o.translation().cast<float>();
+  const Eigen::Vector3f eye_o = -(R_c_o.transpose() * t_c_o);
+  const Eigen::Vector3f axis_o = R_c_o.row(2).transpose();  // optical axis in the object frame
+  const float near = static_cast<float>(near_m);
+  float cos_k[kSplatSides], sin_k[kSplatSides];
+  for (int k = 0; k < kSplatSides; ++k) {
+    cos_k[k] = std::cos(2.0f * static_cast<float>(M_PI) * k / kSplatSides);
+    sin_k[k] = std::sin(2.0f * static_cast<float>(M_PI) * k / kSplatSides);
+  }
+  vertices->resize(static_cast<std::size_t>(kSplatChunk) * (kSplatSides + 1) * 3);
+  colours->resize(static_cast<std::size_t>(kSplatChunk) * (kSplatSides + 1) * 4);
+  quad_vertices->resize(static_cast<std::size_t>(kSplatChunk) * 4 * 3);
+  quad_colours->resize(static_cast<std::size_t>(kSplatChunk) * 4 * 4);
+  const float fx = static_cast<float>(fx_px);
+  glEnableClientState(GL_VERTEX_ARRAY);
+  glEnableClientState(GL_COLOR_ARRAY);
+  int in_chunk = 0, quads_in_chunk = 0;
+  auto flush = [&] {
+    if (in_chunk == 0) return;
+    glVertexPointer(3, GL_FLOAT, 0, vertices->data());
+    glColorPointer(4, GL_UNSIGNED_BYTE, 0, colours->data());
+    glDrawElements(GL_TRIANGLES, 3 * kSplatSides * in_chunk, GL_UNSIGNED_INT, indices.data());
+    in_chunk = 0;
+  };
+  auto flush_quads = [&] {
+    if (quads_in_chunk == 0) return;
+    glVertexPointer(3, GL_FLOAT, 0, quad_vertices->data());
+    glColorPointer(4, GL_UNSIGNED_BYTE, 0, quad_colours->data());
+    glDrawArrays(GL_QUADS, 0, 4 * quads_in_chunk);
+    quads_in_chunk = 0;
+  };
+  for (std::size_t i = 0; i < set.positions_o.size(); ++i) {
+    const Eigen::Vector3f& p = set.positions_o[i];
+    const Eigen::Vector3f ray = p - eye_o;
+    const float depth = ray.dot(axis_o);
+    if (depth + set.radii_m[i] < near) continue;  // wholly behind the near plane
+    const Eigen::Vector3f& n = set.normals_o[i];
+    const float n_dot_ray = n.dot(ray);
+    if (set.cull_back_facing && n_dot_ray > 0.0f) continue;
+    const float shade =
+        set.ambient + (1.0f - set.ambient) * std::min(1.0f, std::abs(n_dot_ray) / ray.norm());
+    const Eigen::Vector3f helper =
+        std::abs(n.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
+    const Eigen::Vector3f axis = n.cross(helper).normalized();
+    const Eigen::Vector3f c = set.colours_rgb[i] * (255.0f * shade);
+    const uint8_t rgba[4] = {static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, c.x()))),
+                             static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, c.y()))),
+                             static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, c.z()))), 255};
+    if (depth > near && fx * set.radii_m[i] < kQuadBelowRadiusPx * depth) {
+      const Eigen::Vector3f e1 = axis * (kSquareHalfSideScale * set.radii_m[i]);
+      const Eigen::Vector3f e2 = n.cross(e1);
+      float* v = quad_vertices->data() + static_cast<std::size_t>(quads_in_chunk) * 4 * 3;
+      uint8_t* col = quad_colours->data() + static_cast<std::size_t>(quads_in_chunk) * 4 * 4;
+      const Eigen::Vector3f corners[4] = {p - e1 - e2, p + e1 - e2, p + e1 + e2, p - e1 + e2};
+      for (int k = 0; k < 4; ++k) {
+        v[3 * k] = corners[k].x();
+        v[3 * k + 1] = corners[k].y();
+        v[3 * k + 2] = corners[k].z();
+        std::copy(rgba, rgba + 4, col + 4 * k);
+      }
+      if (++quads_in_chunk == kSplatChunk) flush_quads();
+      continue;
+    }
+    const Eigen::Vector3f e1 = axis * (kHexagonRadiusScale * set.radii_m[i]);
+    const Eigen::Vector3f e2 = n.cross(e1);
+    float* v = vertices->data() + static_cast<std::size_t>(in_chunk) * (kSplatSides + 1) * 3;
+    uint8_t* col = colours->data() + static_cast<std::size_t>(in_chunk) * (kSplatSides + 1) * 4;
+    for (int k = 0; k <= kSplatSides; ++k) {
+      const Eigen::Vector3f q =
+          k == 0 ? p : Eigen::Vector3f(p + cos_k[k - 1] * e1 + sin_k[k - 1] * e2);
+      v[3 * k] = q.x();
+      v[3 * k + 1] = q.y();
+      v[3 * k + 2] = q.z();
+      std::copy(rgba, rgba + 4, col + 4 * k);
+    }
+    if (++in_chunk == kSplatChunk) flush();
+  }
+  flush();
+  flush_quads();
+  glDisableClientState(GL_COLOR_ARRAY);
+  glDisableClientState(GL_VERTEX_ARRAY);
+}
 
 // Colour = texture (unit 0, white when untextured) x vertex colour x constant (unit 1: gain in
 // RGB, item label in alpha). Unit 1 always samples the 1x1 white texture.
@@ -127,6 +231,12 @@ struct OffscreenRenderer::Impl {
   std::vector<GLuint> textures;
   GLuint white_texture = 0;
   std::vector<Drawable> drawables;
+  std::vector<SplatSet> splat_sets;
+  std::vector<float> splat_vertices;  // chunk buffers reused by every splat draw
+  std::vector<uint8_t> splat_colours;
+  std::vector<float> quad_vertices;
+  std::vector<uint8_t> quad_colours;
+  std::vector<GLuint> splat_indices;  // the fan pattern of one chunk
 
   void makeCurrent() {
     if (!OSMesaMakeCurrent(context, colour_bgra.data(), GL_UNSIGNED_BYTE, width, height)) {
@@ -169,7 +279,9 @@ OffscreenRenderer::OffscreenRenderer(int width, int height) : impl_(std::make_un
 OffscreenRenderer::~OffscreenRenderer() {
   if (impl_ && impl_->context) {
     impl_->makeCurrent();
-    for (const Drawable& d : impl_->drawables) glDeleteLists(d.list, 1);
+    for (const Drawable& d : impl_->drawables) {
+      if (d.list != 0) glDeleteLists(d.list, 1);
+    }
     glDeleteTextures(static_cast<GLsizei>(impl_->textures.size()), impl_->textures.data());
     glDeleteTextures(1, &impl_->white_texture);
     OSMesaDestroyContext(impl_->context);
@@ -259,6 +371,28 @@ int OffscreenRenderer::addLines(const LineSet& lines) {
   return static_cast<int>(impl_->drawables.size()) - 1;
 }
 
+int OffscreenRenderer::addSplats(SplatSet splats) {
+  const std::size_t n = splats.positions_o.size();
+  LTLO_ASSERT(
+      splats.normals_o.size() == n && splats.radii_m.size() == n && splats.colours_rgb.size() == n,
+      "addSplats: sizes differ");
+  LTLO_ASSERT(splats.ambient >= 0.0f && splats.ambient <= 1.0f, "ambient " << splats.ambient);
+  Impl& im = *impl_;
+  if (im.splat_indices.empty()) {
+    for (int s = 0; s < kSplatChunk; ++s) {
+      const GLuint centre = static_cast<GLuint>(s * (kSplatSides + 1));
+      for (int k = 0; k < kSplatSides; ++k) {
+        im.splat_indices.insert(im.splat_indices.end(),
+                                {centre, centre + 1 + k, centre + 1 + (k + 1) % kSplatSides});
+      }
+    }
+  }
+  im.splat_sets.push_back(std::move(splats));
+  Drawable d{DrawableKind::kSplats, 0, -1, 1.0f, static_cast<int>(im.splat_sets.size()) - 1};
+  im.drawables.push_back(d);
+  return static_cast<int>(im.drawables.size()) - 1;
+}
+
 Eigen::Matrix4d OffscreenRenderer::projectionMatrix(const PinholeCamera& camera, double near_m,
                                                     double far_m) {
   // Pixel u spans window x in [u, u + 1]; x_ndc = 2 * (u + 0.5) / W - 1 with u = fx X / Z + cx,
@@ -299,13 +433,20 @@ RenderResult OffscreenRenderer::render(const RenderView& view, const std::vector
     LTLO_ASSERT(item.drawable >= 0 && item.drawable < static_cast<int>(im.drawables.size()),
                 "unknown drawable " << item.drawable);
     const Drawable& d = im.drawables[item.drawable];
-    const Eigen::Matrix4d T_c_o = (view.T_c_w * item.T_w_o).matrix();
-    glLoadMatrixd(T_c_o.data());
+    const SE3 T_c_o = view.T_c_w * item.T_w_o;
+    const Eigen::Matrix4d T_c_o_matrix = T_c_o.matrix();
+    glLoadMatrixd(T_c_o_matrix.data());
     const bool textured = d.texture >= 0;
     setItemColour(textured ? im.textures[d.texture] : im.white_texture, item.gain, item.label);
     if (d.kind == DrawableKind::kPoints) glPointSize(d.size_px);
     if (d.kind == DrawableKind::kLines) glLineWidth(d.size_px);
-    glCallList(d.list);
+    if (d.kind == DrawableKind::kSplats) {
+      drawSplats(im.splat_sets[d.splats], T_c_o, view.near_m, view.camera.fx(),
+                 &im.splat_vertices, &im.splat_colours, &im.quad_vertices, &im.quad_colours,
+                 im.splat_indices);
+    } else {
+      glCallList(d.list);
+    }
   }
   glFinish();
 

@@ -240,6 +240,21 @@ TEST(SettingsErrors, CrossFieldRules) {
   EXPECT_EQ(loadError(path3), path3 +
                                   ": Dense.PyramidLevels = 6, expected an integer in [1, 5] for "
                                   "Dense.Resolution 320x240 (coarsest level at least 8 px)");
+  const std::string path4 = editedConfig("synthetic.yaml", "Recon.MaxDepth", "Recon.MaxDepth: 0.2");
+  EXPECT_EQ(
+      loadError(path4),
+      path4 + ": Recon.MaxDepth = 0.2, expected a number in [0.1, 50] above Recon.MinDepth = 0.3");
+  ReconOptions recon;
+  recon.min_depth_m = 6.0;
+  std::string message = "(no error)";
+  try {
+    recon.validate();
+  } catch (const ConfigError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(
+      message,
+      "settings: Recon.MaxDepth = 5, expected a number in [0.1, 50] above Recon.MinDepth = 6");
 }
 
 TEST(SettingsErrors, UnknownKeyIsReportedNotFatal) {

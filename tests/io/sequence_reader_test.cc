@@ -127,6 +127,45 @@ TEST(SequenceReader, DropsColourImagesWithoutDepthWithinTolerance) {
   EXPECT_EQ(SequenceReader::open(sequenceDir(tmp), options).frameCount(), spec.num_frames);
 }
 
+TEST(SequenceReader, MasksFromAnotherFolderOrNone) {
+  TempDir tmp("seq_masks_dir");
+  TestSequenceSpec spec;
+  spec.with_masks = true;
+  test::writeDataFormatSequence(sequenceDir(tmp), spec);
+  // A run's segmentation/ folder: frame k's mask is 255 in column k + 2 only.
+  const std::string seg_dir = tmp.file("run_segmentation");
+  fs::create_directories(seg_dir);
+  for (int k = 0; k < spec.num_frames; ++k) {
+    cv::Mat mask(spec.height, spec.width, CV_8UC1, cv::Scalar(0));
+    mask.col(k + 2).setTo(255);
+    cv::imwrite(seg_dir + "/" + test::timeText(test::frameTime(spec, k)) + ".png", mask);
+  }
+  SequenceReaderOptions options;
+  options.masks_dir = seg_dir;
+  SequenceReader from_run = SequenceReader::open(sequenceDir(tmp), options);
+  for (int k : {3, 1}) {  // load() in any order, next() untouched
+    const RgbdImuFrame frame = from_run.load(k);
+    EXPECT_EQ(frame.index, k);
+    ASSERT_EQ(frame.mask.type(), CV_8UC1);
+    EXPECT_EQ(frame.mask.at<uint8_t>(0, k + 2), 255);
+    EXPECT_EQ(frame.mask.at<uint8_t>(0, k), 0);
+    EXPECT_FLOAT_EQ(frame.depth_m.at<float>(5, 7), test::testDepthRaw(7, 5, k) / 1000.0f);
+  }
+  EXPECT_EQ(from_run.next()->index, 0);
+
+  options.masks_dir = std::string();  // no masks, although SEQ/masks exists
+  SequenceReader without = SequenceReader::open(sequenceDir(tmp), options);
+  EXPECT_TRUE(without.frameFiles(0).mask_path.empty());
+  EXPECT_TRUE(without.load(2).mask.empty());
+  const RgbdImuFrame depth_only = without.load(2, /*with_colour=*/false);
+  EXPECT_TRUE(depth_only.color_bgr.empty());
+  EXPECT_FLOAT_EQ(depth_only.depth_m.at<float>(5, 7), test::testDepthRaw(7, 5, 2) / 1000.0f);
+
+  options.masks_dir = tmp.file("missing_segmentation");
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp), options); }),
+                       "missing_segmentation: mask folder does not exist");
+}
+
 TEST(SequenceReader, TumRgbdWithoutImuGivesNoSamples) {
   TempDir tmp("seq_tum");
   TestSequenceSpec spec;

@@ -176,5 +176,96 @@ TEST(OffscreenRenderer, SplatsPointsAndLinesRender) {
   EXPECT_EQ(r.labels.at<uint8_t>(100, 80), 3);
 }
 
+// ---- SplatSet: discs of a known size give a known silhouette --------------------------------
+
+// One disc of radius r at distance z facing the camera, tilted by `tilt_rad` about the x axis.
+SplatSet oneDisc(double r_m, double z_m, double tilt_rad, bool cull) {
+  SplatSet set;
+  set.positions_o = {Eigen::Vector3f(0.0f, 0.0f, static_cast<float>(z_m))};
+  // Facing the camera (normal towards -z), tilted about x.
+  set.normals_o = {Eigen::Vector3f(0.0f, static_cast<float>(std::sin(tilt_rad)),
+                                   -static_cast<float>(std::cos(tilt_rad)))};
+  set.radii_m = {static_cast<float>(r_m)};
+  set.colours_rgb = {Eigen::Vector3f(1.0f, 1.0f, 1.0f)};
+  set.ambient = 0.35f;
+  set.cull_back_facing = cull;
+  return set;
+}
+
+int labelledPixels(const RenderResult& r, uint8_t label) {
+  return cv::countNonZero(r.labels == label);
+}
+
+// fx = fy = 300 px at 2 m: a 0.2 m disc projects to a 30 px radius, 2827 px^2 head-on. The
+// equal-area hexagon has the disc's area; sampling at pixel centres changes each row's count by
+// up to one pixel at either end, about +-60 px for the 60 rows, so 3 %. The principal point is
+// off the pixel grid to avoid a systematic alignment of the hexagon's sides with it.
+PinholeCamera splatCamera() { return PinholeCamera(300.0, 300.0, 49.3, 50.2, 100, 100); }
+constexpr double kDiscPx = M_PI * 30.0 * 30.0;
+
+TEST(OffscreenRenderer, SplatDiscSilhouetteHasTheDiscArea) {
+  const PinholeCamera cam = splatCamera();
+  OffscreenRenderer renderer(cam.width(), cam.height());
+  const int head_on = renderer.addSplats(oneDisc(0.2, 2.0, 0.0, true));
+  const int tilted = renderer.addSplats(oneDisc(0.2, 2.0, M_PI / 3.0, true));
+  const RenderView view{cam, SE3(), 0.05, 50.0};
+  const double disc_px = kDiscPx;
+  const RenderResult a = renderer.render(view, {{head_on, SE3(), 1.0f, 5}});
+  EXPECT_NEAR(labelledPixels(a, 5), disc_px, 0.03 * disc_px);
+  EXPECT_NEAR(a.depth_m.at<float>(50, 50), 2.0f, 1e-3);
+  // Lit head-on by the headlight: full colour at the centre.
+  EXPECT_EQ(a.bgr.at<cv::Vec3b>(49, 49), cv::Vec3b(255, 255, 255));
+
+  // Tilted by 60 deg: an ellipse of half the area (depth varies across it: within a few percent),
+  // shaded 0.35 + 0.65 |cos| with |cos| ~ 0.5 at the centre (the ray is the optical axis there).
+  const RenderResult b = renderer.render(view, {{tilted, SE3(), 1.0f, 6}});
+  EXPECT_NEAR(labelledPixels(b, 6), 0.5 * disc_px, 0.05 * 0.5 * disc_px);
+  EXPECT_NEAR(b.bgr.at<cv::Vec3b>(49, 49)[1], 255.0 * (0.35 + 0.65 * 0.5), 3.0);
+}
+
+TEST(OffscreenRenderer, BackFacingSplatsAreCulledOnlyWhenAsked) {
+  const PinholeCamera cam = splatCamera();
+  OffscreenRenderer renderer(cam.width(), cam.height());
+  SplatSet away = oneDisc(0.2, 2.0, 0.0, true);
+  away.normals_o[0] = -away.normals_o[0];  // facing away from the camera
+  SplatSet away_drawn = away;
+  away_drawn.cull_back_facing = false;
+  const int culled = renderer.addSplats(away);
+  const int drawn = renderer.addSplats(away_drawn);
+  const RenderView view{cam, SE3(), 0.05, 50.0};
+  EXPECT_EQ(labelledPixels(renderer.render(view, {{culled, SE3(), 1.0f, 3}}), 3), 0);
+  EXPECT_NEAR(labelledPixels(renderer.render(view, {{drawn, SE3(), 1.0f, 3}}), 3), kDiscPx,
+              0.03 * kDiscPx);
+}
+
+TEST(OffscreenRenderer, SplatGridCoversItsSquare) {
+  // 40 x 40 surfels 1 cm apart on the plane z = 2 m, radius 0.75 cm (discs overlap: no holes),
+  // more than one chunk of the renderer's expansion buffer when repeated: a 0.4 m square seen
+  // at 200 px/m... plus half a pixel of rim; the pose of the item moves it by 0.1 m in x.
+  const PinholeCamera cam(200.0, 200.0, 49.5, 49.5, 100, 100);
+  OffscreenRenderer renderer(cam.width(), cam.height());
+  SplatSet set;
+  for (int copy = 0; copy < 12; ++copy) {  // 19200 splats, the same square 12 times
+    for (int i = 0; i < 40; ++i) {
+      for (int j = 0; j < 40; ++j) {
+        set.positions_o.emplace_back(-0.195f + 0.01f * i, -0.195f + 0.01f * j, 2.0f);
+        set.normals_o.emplace_back(0.0f, 0.0f, -1.0f);
+        set.radii_m.push_back(0.0075f);
+        set.colours_rgb.emplace_back(0.2f, 0.4f, 0.6f);
+      }
+    }
+  }
+  const int grid = renderer.addSplats(set);
+  const SE3 T_w_o(Quat::Identity(), Vec3(0.1, 0.0, 0.0));
+  const RenderResult r = renderer.render({cam, SE3(), 0.05, 50.0}, {{grid, T_w_o, 1.0f, 9}});
+  // Square side: 0.39 m between outer centres + 2 x 0.0075 m radius = 0.405 m -> 40.5 px.
+  const double expected_px = 40.5 * 40.5;
+  EXPECT_NEAR(labelledPixels(r, 9), expected_px, 0.04 * expected_px);
+  // Shifted 0.1 m = 10 px right: columns left of u = 49.5 + 10 - 20.25 are empty.
+  EXPECT_EQ(cv::countNonZero(r.labels(cv::Rect(0, 0, 38, 100))), 0);
+  EXPECT_EQ(r.labels.at<uint8_t>(50, 60), 9);
+  EXPECT_EQ(r.bgr.at<cv::Vec3b>(50, 60), cv::Vec3b(153, 102, 51));  // BGR of (0.2, 0.4, 0.6)
+}
+
 }  // namespace
 }  // namespace ltlo::render

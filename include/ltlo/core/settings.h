@@ -246,6 +246,51 @@ struct ImuInitOptions {
   static ImuInitOptions load(const SettingsFile& file);
 };
 
+/// Offline surfel fusion of the static background (reconstruct; ElasticFusion-style surfels after
+/// Keller et al. 2013 and Whelan et al. 2015: projective association, confidence-weighted
+/// averaging, removal of unstable surfels and of free-space violations).
+struct ReconOptions {
+  /// input pixels per side of one fusion pixel: depth and colour are averaged over blocks of this
+  /// size (Recon.Downsample, [1, 8]; 2 = QVGA from VGA)
+  int downsample = 2;
+  /// depth readings outside [MinDepth, MaxDepth] are not fused, m (Recon.MinDepth, [0.01, 10])
+  double min_depth_m = 0.3;
+  /// (Recon.MaxDepth, [0.1, 50], above Recon.MinDepth)
+  double max_depth_m = 5.0;
+  /// sensor depth noise at 1 m, m; sigma(z) = DepthNoise z^2 (Recon.DepthNoise, [0, 0.1])
+  double depth_noise_m = 0.0025;
+  /// association window along the normal: AssocDistance + 3 sigma(z), m; covers the trajectory's
+  /// own error (Recon.AssocDistance, [0, 1])
+  double assoc_distance_m = 0.01;
+  /// largest angle between a measured normal and the surfel's to associate them, deg
+  /// (Recon.AssocMaxAngle, [1, 90])
+  double assoc_max_angle_deg = 30.0;
+  /// pixels seen more obliquely than this (angle between ray and normal) are not fused, deg
+  /// (Recon.MaxViewAngle, [1, 89])
+  double max_view_angle_deg = 75.0;
+  /// surfels are stable (kept, written) once their confidence, the sum of the radial weights alpha
+  /// in (0.25, 1] of the measurements fused into them, reaches this (Recon.ConfidenceStable,
+  /// [0, 1000]; 0 keeps every surfel)
+  double confidence_stable = 5.0;
+  /// an unstable surfel older than this is removed, s (Recon.UnstableTime, [0, 1000])
+  double unstable_time_s = 1.5;
+  /// a stable surfel seen through (the measured surface lies behind it) in this many frames more
+  /// than it was confirmed is removed; unstable ones at the first violation (Recon.FreeSpaceVotes,
+  /// [0, 1000]; 0 = no free-space removal)
+  int free_space_votes = 2;
+  /// dynamic pixels of the segmentation are grown by this many input pixels before fusing
+  /// (Recon.MaskDilation, [0, 100])
+  int mask_dilation_px = 4;
+  /// colour is read and fused on every n-th fused frame only; new surfels are made on those
+  /// frames, the others update geometry and confidence (decoding a colour PNG costs more than
+  /// fusing a frame; colour changes slowly) (Recon.ColourEvery, [1, 100]; 1 = every frame)
+  int colour_every = 2;
+
+  static ReconOptions load(const SettingsFile& file);  ///< reads and validates; throws ConfigError
+  /// Range and cross-field checks of values built in code; throws ConfigError.
+  void validate() const;
+};
+
 /// One "--set Key=Value" of a program's command line: replaces Key of the settings file (or of the
 /// sequence's calib.yaml for calibration keys) before loading, validated exactly like the file.
 struct SettingOverride {
@@ -272,6 +317,7 @@ struct Settings {
   LoopOptions loop;
   DenseOptions dense;
   ImuInitOptions imu_init;
+  ReconOptions recon;
   SequenceOptions sequence;
   /// "<file>: <key>" for every key no option asked for (also logged as warnings at load).
   std::vector<std::string> unknown_keys;

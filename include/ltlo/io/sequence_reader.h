@@ -65,6 +65,10 @@ struct SequenceReaderOptions {
   /// Attach and decode the ground-truth masks (masks/): only for diagnostics (the --oracle-masks
   /// ablation, evaluation, tests). Off, masks/ is never opened and frames carry no mask.
   bool read_masks = false;
+  /// Where the per-frame masks come from: unset = SEQ/masks/ when it exists and read_masks is set; an empty string = no
+  /// masks (nothing under SEQ/masks/ is read); a folder = its <timestamp>.png files (e.g. a run's
+  /// segmentation/), which must exist.
+  std::optional<std::string> masks_dir;
 };
 
 /// Not thread-safe: one consumer calls next().
@@ -78,6 +82,10 @@ class SequenceReader {
   /// Next frame (images loaded now), or nullopt after the last one. Colour images may be 8-bit
   /// BGR, grey or BGRA (the last two converted to BGR with one warning per reader).
   std::optional<RgbdImuFrame> next();
+  /// Frame `index` in [0, frameCount()) with its images loaded now; does not move next().
+  /// Without colour, color_bgr stays empty (decoding it is most of a frame's cost). Thread-safe:
+  /// several threads may load different frames at once (the reader is not changed).
+  RgbdImuFrame load(int index, bool with_colour = true) const;
   /// Back to the first frame.
   void rewind() { next_index_ = 0; }
 

@@ -54,6 +54,24 @@ Mesh makeSplatMesh(const std::vector<Eigen::Vector3f>& positions_o,
                    const std::vector<Eigen::Vector3f>& normals_o, const std::vector<float>& radii_m,
                    const std::vector<Eigen::Vector3f>& colours_rgb, int num_sides = 6);
 
+/// Surfel splats kept compactly (about 40 bytes each) and expanded at draw time into oriented
+/// discs: one hexagon of the disc's area per splat (radius scaled by sqrt(2 pi / (3 sqrt 3)) =
+/// 1.0996), in the plane normal to normals_o[i]; a splat projected smaller than 2 px in radius
+/// becomes a square of the disc's area (a third of the cost; the shape is not visible). Cheaper
+/// in memory than makeSplatMesh for millions of splats, and shaded per view.
+struct SplatSet {
+  std::vector<Eigen::Vector3f> positions_o;
+  std::vector<Eigen::Vector3f> normals_o;  ///< unit normals
+  std::vector<float> radii_m;
+  std::vector<Eigen::Vector3f> colours_rgb;  ///< 0..1
+  /// Headlight shading by normal: colour * (ambient + (1 - ambient) |n . ray| / |ray|), ray from
+  /// the viewer to the splat; 1 = unlit (flat colour).
+  float ambient = 1.0f;
+  /// Skip splats whose normal points away from the viewer (n . ray > 0): a room's inside then
+  /// shows from outside, and surfels only ever seen from one side keep to it.
+  bool cull_back_facing = false;
+};
+
 /// Axis-aligned box of the given full extents centred at the origin of its frame; each face
 /// maps the whole texture once with `uv_scale` repeats per metre (0 = once per face).
 Mesh makeBoxMesh(const Vec3& size_m, int texture, double uv_repeats_per_m = 0.0);
@@ -97,6 +115,8 @@ class OffscreenRenderer {
   int addMesh(const Mesh& mesh);
   int addPoints(const PointSet& points);
   int addLines(const LineSet& lines);
+  /// Stores the splats (moved in); they are expanded and shaded for each view in render().
+  int addSplats(SplatSet splats);
 
   /// Draws `items` (depth-tested) into the internal buffer and reads everything back.
   RenderResult render(const RenderView& view, const std::vector<DrawItem>& items);
