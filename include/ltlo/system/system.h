@@ -68,6 +68,10 @@ class FrameBuilder;
 }
 
 namespace ltlo::system {
+class SegmentationWriter;
+}
+
+namespace ltlo::system {
 
 struct SystemOptions {
   /// false: RGB-D only (the frames' IMU samples are ignored, no IMU initialisation). The IMU is
@@ -76,6 +80,9 @@ struct SystemOptions {
   /// false: local mapping and loop closing run synchronously inside trackFrame after each keyframe
   /// (deterministic, for tests); true: each in its own thread.
   bool threaded = true;
+  /// Folder for every frame's static/dynamic mask (<timestamp>.png, SegmentationWriter); empty:
+  /// no masks are written.
+  std::string segmentation_dir;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
@@ -147,6 +154,7 @@ class System {
   std::unique_ptr<tracking::Tracker> tracker_;
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;
+  std::unique_ptr<SegmentationWriter> segmentation_writer_;  // with SystemOptions::segmentation_dir
   std::thread mapping_thread_;
   std::thread loop_thread_;
   std::atomic<bool> finishing_{false};        ///< shutdown() asked the workers to finish
