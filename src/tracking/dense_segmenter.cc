@@ -43,11 +43,24 @@ segmentation::DensePrior densePrior(const MotionPrior& prior, const DenseOptions
   const double dt_s = prior.dt_s > 0.0 ? prior.dt_s : kDefaultDtS;
   const double translation_sigma_m = dense.prior_velocity_sigma_m_s * dt_s;
   switch (prior.kind) {
-    case MotionPrior::Kind::kImu:
+    case MotionPrior::Kind::kImu: {
       LTLO_ASSERT(prior.pim != nullptr, "an IMU motion prior without preintegration");
       out.kind = segmentation::DensePrior::Kind::kImu;
       out.pim = prior.pim.get();
+      // The previous state as the preintegration sees it from the prediction: the tracker may have
+      // predicted from a keyframe that local mapping moved since the previous frame was tracked,
+      // and the previous frame's pose must then move with it, or the image term would compare the
+      // two images under the map correction instead of the motion (imu::predict inverted).
+      const imu::ImuBias& bias = prior.bias_prev;
+      const double dt = prior.pim->dt_s();
+      const Mat3 R_prev =
+          normalizeRotation(prior.T_w_b_pred.rotationMatrix() * prior.pim->correctedDeltaR(bias).transpose());
+      out.v_w_b_prev = prior.v_w_b_pred - prior.g_w * dt - R_prev * prior.pim->correctedDeltaV(bias);
+      const Vec3 p_prev = prior.T_w_b_pred.translation() - out.v_w_b_prev * dt - 0.5 * prior.g_w * dt * dt -
+                          R_prev * prior.pim->correctedDeltaP(bias);
+      out.T_w_b_prev = SE3(R_prev, p_prev);
       break;
+    }
     case MotionPrior::Kind::kGyroConstantVelocity: {
       LTLO_ASSERT(prior.pim != nullptr, "a gyroscope motion prior without preintegration");
       // Rotation from the gyroscope, camera position from the constant-velocity prediction.
@@ -136,6 +149,12 @@ SegmentationOutcome DenseSegmenter::segment(map::Frame& frame, const MotionPrior
   }
   map::ClusterSegmentation seg = clusterSegmentation(current, gamma);
   outcome.dynamic_share = 1.0 - seg.staticAreaRatio(segmentation_.static_threshold);
+  if (has_previous_ && K > 0) {
+    log::debug("dense t = ", current.t_s, " s: prior ", static_cast<int>(prior.kind), ", chi2 ",
+               last_result_.prior_chi2, last_result_.prior_rejected ? " (rejected)" : "", ", moved ",
+               (last_result_.T_w_b.translation() - prior.T_w_b_pred.translation()).norm(), " m, dynamic ",
+               outcome.dynamic_share);
+  }
   frame.setSegmentation(std::move(seg), segmentation_.static_threshold);
   previous_gamma_ = std::move(gamma);
   has_previous_ = true;

@@ -27,9 +27,11 @@ namespace ltlo::tracking {
 struct PreparedFrame;
 class SegmentationWorker;
 
-/// The DensePrior of a motion prior: kImu -> the IMU term; kGyroConstantVelocity -> a pose prior
-/// with the gyroscope rotation and the predicted (constant-velocity) camera position;
-/// kConstantVelocity -> a pose prior at the prediction; kNone -> a weak pose prior at the
+/// The DensePrior of a motion prior: kImu -> the IMU term, its previous state recovered from the
+/// prediction and the preintegration (imu::predict inverted), so that a prediction from a keyframe
+/// local mapping moved since the previous frame keeps the frame-to-frame motion;
+/// kGyroConstantVelocity -> a pose prior with the gyroscope rotation and the predicted
+/// (constant-velocity) camera position; kConstantVelocity -> a pose prior at the prediction; kNone -> a weak pose prior at the
 /// prediction (image alignment alone). Standard deviations from Dense.Prior*.
 segmentation::DensePrior densePrior(const MotionPrior& prior, const DenseOptions& dense);
 
