@@ -245,6 +245,8 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
   result.gamma.push_back(1.0);  // the no-depth cluster K
   result.prior_gamma = problem.prior;
   result.prior_gamma.push_back(1.0);
+  result.data_coefficient = problem.data;
+  result.data_coefficient.push_back(0.0);
   return result;
 }
 

@@ -113,6 +113,8 @@ struct DenseResult {
   /// mean Eq. 60 cost per pixel of each cluster at the predicted state on the coarsest level
   /// (K + 1; -1 where a cluster had no pixel with both residuals), diagnostics
   std::vector<double> cost_at_prediction;
+  /// a_k of the last Gamma step (K + 1; 0 for the no-depth cluster), diagnostics
+  std::vector<double> data_coefficient;
   /// the state moved from the prediction and passed the prior gate
   bool state_refined = false;
   /// the refined state failed the prior gate (state = prediction)
