@@ -39,9 +39,8 @@ struct OrbOptions {
 /// Depth over-segmentation and the dense/sparse static-segmentation terms (thesis Eq. 50-64).
 struct SegmentationOptions {
   /// Segment every frame (Seg.Enable, 0/1). 0: every frame is one static cluster, the static core's
-  /// behaviour (an ablation: boxes are then mapped and tracked as static). Off until the dense
-  /// segmentation lands (TODO(#11): on by default).
-  bool enable = false;
+  /// behaviour (an ablation: boxes are then mapped and tracked as static).
+  bool enable = true;
   /// Estimate the initial segmentation and state densely, thesis Eq. 59-64 (Seg.DenseInit, 0/1).
   /// 0: depth clusters with every gamma = 1 (local mapping may still refine them; an ablation).
   bool dense_init = true;
