@@ -7,8 +7,8 @@
 #   3. rgbd_inertial: the SLAM system (tracking, local mapping, loop closing) -> run outputs
 #   4. reconstruct: surfels of the static background from the run (its trajectory and
 #      segmentation) and headless snapshots of them
-#   5. evaluate: ATE / RPE of the SLAM trajectory against ground truth; check_surfels: the
-#      reconstruction against the simulator's scene.ply
+#   5. evaluate: ATE / RPE of the SLAM trajectory and static IoU of its masks against ground
+#      truth; check_surfels: the reconstruction against the simulator's scene.ply
 #   6. imu_odometry + evaluate: the IMU-only dead-reckoning baseline, for comparison
 #   7. sim_preview: RGB | depth | mask snapshots of occluded and free frames
 set -euo pipefail
@@ -40,6 +40,7 @@ $BIN/reconstruct --run "$OUT/slam" --sequence "$OUT/sequence" --out "$OUT/recon"
 
 echo "== evaluate SLAM trajectory -> $OUT/metrics.txt / metrics.json"
 $BIN/evaluate --gt "$OUT/sequence/groundtruth.txt" --est "$OUT/slam/trajectory.txt" \
+  --gt-masks "$OUT/sequence/masks" --est-masks "$OUT/slam/segmentation" \
   --json "$OUT/metrics.json" | tee "$OUT/metrics.txt"
 
 echo "== check_surfels (reconstruction against scene.ply) -> $OUT/recon/check.txt"
@@ -59,6 +60,7 @@ value() { awk -v k="$1" '$1 == k { print $2 }' "$2"; }
 echo
 echo "== results ($SCENARIO, $SECONDS_TO_SIMULATE s, seed $SEED)"
 echo "  SLAM ATE RMSE          $(value ate_rmse_m "$OUT/metrics.txt") m"
+echo "  static IoU (all / >40% occluded)  $(value static_iou "$OUT/metrics.txt") / $(value static_iou_occluded "$OUT/metrics.txt")"
 echo "  IMU-only ATE RMSE      $(value ate_rmse_m "$OUT/imu_only_metrics.txt") m (baseline)"
 echo "  frames / with pose     $(value frames "$OUT/slam_summary.txt") / $(value frames_with_pose "$OUT/slam_summary.txt")"
 echo "  keyframes, maps, loops $(value keyframes "$OUT/slam_summary.txt"), $(value maps "$OUT/slam_summary.txt"), $(value loops "$OUT/slam_summary.txt")"
@@ -73,8 +75,9 @@ echo "  sequence/               generated input (DATA_FORMAT.md), stats in seque
 echo "  slam/trajectory.txt     SLAM camera trajectory (TUM, T_w_c, every frame with a pose)"
 echo "  slam/keyframes.txt      keyframe poses with id, map and static area ratio"
 echo "  slam/static_map.ply     static map points (colour, beta); open with any PLY viewer"
-echo "  slam/metrics.json       ATE/RPE, per-stage timing, peak memory, maps, loops, merges"
-echo "  metrics.txt/.json       evaluate's ATE / RPE of the SLAM trajectory"
+echo "  slam/segmentation/      every frame's dynamic mask (255 = dynamic), like sequence/masks/"
+echo "  slam/metrics.json       ATE/RPE, static IoU, per-stage timing, peak memory, maps, loops, merges"
+echo "  metrics.txt/.json       evaluate's ATE / RPE and static-background IoU of the SLAM run"
 echo "  imu_only_*              IMU-only baseline trajectory and its metrics"
 echo "  preview.png             RGB | depth | mask of four frames"
 echo "  recon/surfels.ply       surfels of the static background (MeshLab, CloudCompare, Open3D)"

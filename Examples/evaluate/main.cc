@@ -89,7 +89,11 @@ int main(int argc, char** argv) {
       const ltlo::eval::MaskIouResult iou =
           ltlo::eval::evaluateMaskFolders(gt_masks_dir, est_masks_dir);
       metrics.set("static_iou", iou.mean_static_iou);
+      metrics.set("static_iou_occluded", iou.mean_static_iou_occluded);
       metrics.set("num_mask_frames", iou.num_frames);
+      metrics.set("num_occluded_frames", iou.num_occluded_frames);
+      metrics.set("dynamic_recall", iou.dynamic_recall);
+      metrics.set("static_share", iou.mean_static_share);
     }
     metrics.set("ate_mean_m", ate.error_m.mean);
     metrics.set("ate_median_m", ate.error_m.median);

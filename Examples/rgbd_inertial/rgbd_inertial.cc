@@ -162,6 +162,7 @@ int run(const Arguments& args) {
   options.threaded = !args.single_thread;
   options.oracle_masks = args.oracle_masks;
   if (args.oracle_masks) log::warn(kProgram, ": --oracle-masks: ground-truth masks replace the segmentation (a diagnostic run)");
+  options.segmentation_dir = (fs::path(args.out_dir) / "segmentation").string();
   if (options.use_imu) requireImu(reader, setup.settings);
   system::System slam(setup.settings, vocabulary, options);
 
@@ -207,8 +208,10 @@ int run(const Arguments& args) {
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system::RunReport report = slam.report(wall_s);
   report.interrupted = interrupted;
-  const system::WrittenOutputs written = system::writeRunOutputs(
-      args.out_dir, report, reader.groundTruth(), setup.settings.local_mapping.min_point_beta);
+  const fs::path masks_dir = fs::path(args.sequence_dir) / "masks";
+  const system::WrittenOutputs written =
+      system::writeRunOutputs(args.out_dir, report, reader.groundTruth(), setup.settings.local_mapping.min_point_beta,
+                              fs::is_directory(masks_dir) ? masks_dir.string() : "");
 
   const system::SystemCounts& counts = report.counts;
   std::printf("frames %d\nframes_with_pose %d\nframes_tracked %d\nkeyframes %d\nmap_points %d\nstatic_points %d\n"
@@ -220,6 +223,11 @@ int run(const Arguments& args) {
     std::printf("ate_rmse_m %.6f\nrpe_trans_rmse_m_s %.6f\nrpe_rot_rmse_deg_s %.6f\n",
                 written.metrics.number("ate_rmse_m"), written.metrics.number("rpe_trans_rmse_m_s"),
                 written.metrics.number("rpe_rot_rmse_deg_s"));
+  }
+  if (written.has_metrics && written.metrics.has("static_iou")) {
+    std::printf("static_iou %.4f\nstatic_iou_occluded %.4f\ndynamic_recall %.4f\nstatic_share %.4f\n",
+                written.metrics.number("static_iou"), written.metrics.number("static_iou_occluded"),
+                written.metrics.number("dynamic_recall"), written.metrics.number("static_share"));
   }
   if (counts.frames > counts.frames_with_pose) {
     log::warn(kProgram, ": ", counts.frames - counts.frames_with_pose,

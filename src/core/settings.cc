@@ -40,7 +40,7 @@ template <typename O, typename V>
 void visitSegmentation(O& o, V& v) {
   v.boolean("Seg.Enable", o.enable);
   v.boolean("Seg.DenseInit", o.dense_init);
-  v.integer("Seg.Clusters", o.num_clusters, 2, 256);
+  v.integer("Seg.Clusters", o.num_clusters, 2, 255);
   v.integer("Seg.KMeansIterations", o.kmeans_iterations, 1, 50);
   v.real("Seg.MaxNeighbourGap", o.max_neighbour_gap_m, 0.001, 10.0);
   v.real("Seg.AlphaIntensity", o.alpha_intensity, 0.001, 10.0);
@@ -110,6 +110,18 @@ void visitDense(O& o, V& v) {
   v.integer("Dense.PyramidLevels", o.pyramid_levels, 1, 8);
   v.integer("Dense.IterationsPerLevel", o.iterations_per_level, 1, 100);
   v.integer("Dense.Alternations", o.alternations, 1, 20);
+  v.integer("Dense.FinestLevel", o.finest_level, 0, 7);
+  v.real("Dense.DynamicCost", o.dynamic_cost, 0.0, 1000.0);
+  v.real("Dense.LambdaD", o.lambda_d, 0.0, 1e6);
+  v.real("Dense.OcclusionGap", o.occlusion_gap_m, 0.01, 10.0);
+  v.real("Dense.MaxPriorChi2", o.max_prior_chi2, 0.1, 1e9);
+  v.real("Dense.PriorVelocitySigma", o.prior_velocity_sigma_m_s, 1e-4, 10.0);
+  v.real("Dense.PriorAngularRateSigma", o.prior_angular_rate_sigma_rad_s, 1e-4, 100.0);
+  v.real("Dense.PriorGyroBiasSigma", o.prior_gyro_bias_sigma_rad_s, 0.0, 1.0);
+  if (o.finest_level >= o.pyramid_levels) {
+    v.fail("Dense.FinestLevel", std::to_string(o.finest_level),
+           "an integer in [0, Dense.PyramidLevels - 1 = " + std::to_string(o.pyramid_levels - 1) + "]");
+  }
   // The coarsest level (base halved levels - 1 times) must keep at least 8 px per side.
   const int coarsest_side = std::min(o.width, o.height) >> (o.pyramid_levels - 1);
   if (coarsest_side < 8) {
@@ -234,7 +246,7 @@ struct Describer {
   void fail(const std::string&, const std::string&, const std::string&) {}  // describe never fails
 };
 
-// The whole-settings rule: the dense pyramid base cannot be finer than the camera image.
+// The whole-settings rule: the dense pyramid base is the camera image divided by an integer.
 template <typename Fail>
 void checkDenseAgainstCamera(const DenseOptions& dense, const PinholeCamera& camera,
                              const std::string& calib_source, Fail&& fail) {
@@ -243,6 +255,13 @@ void checkDenseAgainstCamera(const DenseOptions& dense, const PinholeCamera& cam
          "\"" + std::to_string(dense.width) + "x" + std::to_string(dense.height) + "\"",
          "at most the camera resolution " + std::to_string(camera.width()) + "x" +
              std::to_string(camera.height()) + " (" + calib_source + ")");
+  } else if (camera.width() % dense.width != 0 || camera.height() % dense.height != 0 ||
+             camera.width() / dense.width != camera.height() / dense.height) {
+    // The pyramid base averages s x s camera pixels (the segmentation labels use the same grid).
+    fail("Dense.Resolution",
+         "\"" + std::to_string(dense.width) + "x" + std::to_string(dense.height) + "\"",
+         "the camera resolution " + std::to_string(camera.width()) + "x" + std::to_string(camera.height()) +
+             " divided by an integer (" + calib_source + ")");
   }
 }
 

@@ -1,5 +1,7 @@
 #include "ltlo/core/timing.h"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
@@ -105,6 +107,12 @@ std::string TimingStats::toJson() const {
 void TimingStats::clear() {
   std::lock_guard<std::mutex> lock(mutex_);
   durations_s_.clear();
+}
+
+double threadCpuTimeS() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
 }
 
 }  // namespace ltlo

@@ -78,7 +78,7 @@ double staticIou(const cv::Mat& gt_mask, const cv::Mat& est_mask) {
 }
 
 MaskIouResult evaluateMaskFolders(const std::string& gt_dir, const std::string& est_dir,
-                                  double max_dt_s) {
+                                  double max_dt_s, double occluded_fraction) {
   const std::vector<std::pair<double, std::string>> gt = listMasks(gt_dir);
   const std::vector<std::pair<double, std::string>> est = listMasks(est_dir);
   std::vector<double> gt_times_s;
@@ -96,7 +96,8 @@ MaskIouResult evaluateMaskFolders(const std::string& gt_dir, const std::string& 
                          std::to_string(est.size()) + " estimated, " + std::to_string(gt.size()) +
                          " ground-truth masks)");
   }
-  double sum_iou = 0.0;
+  double sum_iou = 0.0, sum_iou_occluded = 0.0, sum_static_share = 0.0;
+  int64_t gt_dynamic = 0, found_dynamic = 0;
   for (const auto& [i, j] : pairs) {
     const cv::Mat gt_mask = loadMask(gt[i].second);
     const cv::Mat est_mask = loadMask(est[j].second);
@@ -106,10 +107,24 @@ MaskIouResult evaluateMaskFolders(const std::string& gt_dir, const std::string& 
          << "x" << gt_mask.rows << " of " << gt[i].second;
       throw InputError(est[j].second, 0, os.str());
     }
-    sum_iou += staticIou(gt_mask, est_mask);
+    const double iou = staticIou(gt_mask, est_mask);
+    sum_iou += iou;
+    const cv::Mat gt_is_dynamic = gt_mask >= 128;
+    const int frame_gt_dynamic = cv::countNonZero(gt_is_dynamic);
+    gt_dynamic += frame_gt_dynamic;
+    found_dynamic += cv::countNonZero(gt_is_dynamic & (est_mask >= 128));
+    sum_static_share += static_cast<double>(cv::countNonZero(est_mask < 128)) / static_cast<double>(est_mask.total());
+    if (frame_gt_dynamic > occluded_fraction * static_cast<double>(gt_mask.total())) {
+      sum_iou_occluded += iou;
+      ++result.num_occluded_frames;
+    }
   }
   result.num_frames = static_cast<int>(pairs.size());
   result.mean_static_iou = sum_iou / result.num_frames;
+  result.mean_static_iou_occluded =
+      result.num_occluded_frames > 0 ? sum_iou_occluded / result.num_occluded_frames : 0.0;
+  result.dynamic_recall = gt_dynamic > 0 ? static_cast<double>(found_dynamic) / static_cast<double>(gt_dynamic) : 1.0;
+  result.mean_static_share = sum_static_share / result.num_frames;
   return result;
 }
 

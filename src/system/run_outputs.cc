@@ -15,6 +15,7 @@
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "ltlo/eval/mask_iou.h"
 #include "ltlo/eval/trajectory_metrics.h"
 
 namespace ltlo::system {
@@ -267,7 +268,7 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
 }
 
 WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
-                               const io::Trajectory& ground_truth, double min_beta) {
+                               const io::Trajectory& ground_truth, double min_beta, const std::string& gt_masks_dir) {
   namespace fs = std::filesystem;
   std::error_code error;
   fs::create_directories(out_dir, error);
@@ -285,6 +286,17 @@ WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& repo
   if (!ground_truth.empty()) {
     written.metrics = computeRunMetrics(report, ground_truth);
     written.has_metrics = true;
+    const fs::path segmentation_dir = fs::path(out_dir) / "segmentation";
+    if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(segmentation_dir, error)) {
+      // The same figures as `evaluate --gt-masks SEQ/masks --est-masks RUN/segmentation`.
+      const eval::MaskIouResult iou = eval::evaluateMaskFolders(gt_masks_dir, segmentation_dir.string());
+      written.metrics.set("static_iou", iou.mean_static_iou);
+      written.metrics.set("static_iou_occluded", iou.mean_static_iou_occluded);
+      written.metrics.set("num_mask_frames", iou.num_frames);
+      written.metrics.set("num_occluded_frames", iou.num_occluded_frames);
+      written.metrics.set("dynamic_recall", iou.dynamic_recall);
+      written.metrics.set("static_share", iou.mean_static_share);
+    }
     const std::string metrics_path = (fs::path(out_dir) / "metrics.json").string();
     written.metrics.writeJson(metrics_path);
     written.files.push_back(metrics_path);

@@ -14,6 +14,8 @@
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/mapping/local_mapper.h"
+#include "ltlo/system/segmentation_writer.h"
+#include "ltlo/tracking/dense_segmenter.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/oracle_mask_segmenter.h"
 
@@ -33,16 +35,16 @@ std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector
 }
 
 /// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit), or the ground-truth
-/// masks of the --oracle-masks ablation.
-std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings, bool oracle_masks) {
+/// masks of the --oracle-masks ablation; its stages go to `timing`.
+std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings, bool oracle_masks, TimingStats* timing) {
   const SegmentationOptions& seg = settings.segmentation;
   if (oracle_masks) return std::make_unique<tracking::OracleMaskSegmenter>(seg.static_threshold);
   if (!seg.enable) return std::make_unique<tracking::AllStaticSegmenter>(seg.static_threshold);
   if (seg.dense_init) {
-    // TODO(#11): the dense initial segmentation and state (Eq. 59-64).
-    log::warn("system: Seg.DenseInit = 1 but the dense segmentation is not built yet; depth clusters with gamma = 1");
+    return std::make_unique<tracking::DenseSegmenter>(seg, settings.dense, settings.local_mapping,
+                                                      settings.calib.camera.camera, timing);
   }
-  return std::make_unique<tracking::ClusterOnlySegmenter>(seg, settings.dense, settings.calib.camera.camera);
+  return std::make_unique<tracking::ClusterOnlySegmenter>(seg, settings.dense, settings.calib.camera.camera, timing);
 }
 
 }  // namespace
@@ -64,7 +66,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   tracker_options.tracking = settings_.tracking;
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
-  tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks));
+  tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks, &timing_));
   tracker_->setLocalMappingCallback(
       [this](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { onNewKeyFrame(kf); });
 
@@ -91,6 +93,9 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
                                        }};
   closer_ = std::make_unique<loop::LoopCloser>(*atlas_, closer_options, std::move(mapping_control), &timing_);
 
+  if (!options_.segmentation_dir.empty()) {
+    segmentation_writer_ = std::make_unique<SegmentationWriter>(options_.segmentation_dir);
+  }
   if (options_.threaded) {
     mapper_->setKeyFrameProcessedCallback([this](const std::shared_ptr<map::KeyFrame>& kf) {
       if (!loop_stopped_.load()) closer_->insertKeyFrame(kf);
@@ -177,6 +182,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     }
   }
   ScopedTimer frame_timer(timing_, "tracking.frame");
+  ScopedThreadCpuTimer frame_cpu_timer(timing_, "tracking.frame_cpu");
   pollImuState();
 
   // The segmenter starts on the images (possibly on its worker thread) while ORB is extracted here.
@@ -206,6 +212,12 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     }
     current_input_ = nullptr;
   }
+  if (segmentation_writer_) {
+    // Every frame's mask at the input resolution; encoded and written on the writer's thread.
+    segmentation_writer_->push(SegmentationWriter::frameName(input.color_path, input.t_s),
+                               frame.segmentation().dynamicMask(frame.staticThreshold(), camera.height(), camera.width()),
+                               camera.width(), camera.height());
+  }
 
   ++frames_;
   if (frame.hasPose()) {
@@ -231,6 +243,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     records_.push_back(std::move(record));
   }
   frame_timer.stop();
+  frame_cpu_timer.stop();
 
   if (!options_.threaded) {
     processPendingKeyFrames();
@@ -250,6 +263,10 @@ void System::shutdown() {
     if (loop_thread_.joinable()) loop_thread_.join();
   } else {
     closer_->waitForGlobalBa();
+  }
+  if (segmentation_writer_) {
+    const int written = segmentation_writer_->finish();
+    log::info("system: ", written, " segmentation masks written to ", options_.segmentation_dir);
   }
   log::info("system shut down: ", frames_, " frames, ", closer_->numLoops(), " loops, ", closer_->numMerges(),
             " merges, ", atlas_->numMaps(), " map(s)");

@@ -70,6 +70,7 @@ int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {
     const features::Descriptor& d_last = last.descriptors()[static_cast<std::size_t>(j)];
     int best = -1, best_d = 257;
     for (const int i : area) {
+      if (!frame.isStatic(i)) continue;  // static features only (Seg.StaticThreshold)
       const int d = features::hammingDistance(d_last, frame.descriptors()[static_cast<std::size_t>(i)]);
       if (d < best_d) {
         best_d = d;
@@ -214,6 +215,7 @@ int Tracker::searchLocalMap(map::Frame& frame) {
     for (const int i : area) {
       const auto k = static_cast<std::size_t>(i);
       if (best_distance[k] < 0) continue;  // matched to the last frame
+      if (!frame.isStatic(i)) continue;    // static features only (Seg.StaticThreshold)
       const int d = features::hammingDistance(descriptor, frame.descriptors()[k]);
       const int octave = frame.keypoints()[k].octave;
       if (d < best_d) {

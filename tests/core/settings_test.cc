@@ -178,7 +178,7 @@ TEST(ConfigYaml, DescribeListsEverySetting) {
 
 TEST(SettingsErrors, OutOfRangeNamesFileKeyRangeAndValue) {
   const std::string path = editedConfig("tum_rgbd.yaml", "Seg.Clusters", "Seg.Clusters: 1");
-  EXPECT_EQ(loadError(path), path + ": Seg.Clusters = 1, expected an integer in [2, 256]");
+  EXPECT_EQ(loadError(path), path + ": Seg.Clusters = 1, expected an integer in [2, 255]");
   const std::string path2 =
       editedConfig("tum_rgbd.yaml", "Seg.AlphaIntensity", "Seg.AlphaIntensity: 12.5");
   EXPECT_EQ(loadError(path2),
@@ -200,9 +200,9 @@ TEST(SettingsErrors, MissingKeyNamesExpectedRange) {
 
 TEST(SettingsErrors, WrongTypeQuotesTheValue) {
   const std::string path = editedConfig("tum_rgbd.yaml", "Seg.Clusters", "Seg.Clusters: \"many\"");
-  EXPECT_EQ(loadError(path), path + ": Seg.Clusters = \"many\", expected an integer in [2, 256]");
+  EXPECT_EQ(loadError(path), path + ": Seg.Clusters = \"many\", expected an integer in [2, 255]");
   const std::string path2 = editedConfig("tum_rgbd.yaml", "Seg.Clusters", "Seg.Clusters: 24.5");
-  EXPECT_EQ(loadError(path2), path2 + ": Seg.Clusters = 24.5, expected an integer in [2, 256]");
+  EXPECT_EQ(loadError(path2), path2 + ": Seg.Clusters = 24.5, expected an integer in [2, 255]");
   const std::string path3 = editedConfig("tum_rgbd.yaml", "Loop.Enabled", "Loop.Enabled: 2");
   EXPECT_EQ(loadError(path3), path3 + ": Loop.Enabled = 2, expected a boolean (0/1 or true/false)");
   const std::string path4 =
@@ -235,6 +235,16 @@ TEST(SettingsErrors, CrossFieldRules) {
                                   ": Dense.Resolution = \"1280x960\", expected at most the camera "
                                   "resolution 640x480 (Camera.width/height of " +
                                   path2 + ")");
+  const std::string path_divisor =
+      editedConfig("tum_rgbd.yaml", "Dense.Resolution", "Dense.Resolution: \"300x240\"");
+  EXPECT_EQ(loadError(path_divisor), path_divisor +
+                                         ": Dense.Resolution = \"300x240\", expected the camera resolution 640x480 "
+                                         "divided by an integer (Camera.width/height of " +
+                                         path_divisor + ")");
+  const std::string path_finest =
+      editedConfig("tum_rgbd.yaml", "Dense.FinestLevel", "Dense.FinestLevel: 3");
+  EXPECT_EQ(loadError(path_finest),
+            path_finest + ": Dense.FinestLevel = 3, expected an integer in [0, Dense.PyramidLevels - 1 = 2]");
   const std::string path3 =
       editedConfig("tum_rgbd.yaml", "Dense.PyramidLevels", "Dense.PyramidLevels: 6");
   EXPECT_EQ(loadError(path3), path3 +
@@ -282,7 +292,7 @@ TEST(SettingsErrors, ValidateChecksValuesBuiltInCode) {
     settings.validate();
     FAIL() << "no error";
   } catch (const ConfigError& e) {
-    EXPECT_STREQ(e.what(), "settings: Seg.Clusters = 1, expected an integer in [2, 256]");
+    EXPECT_STREQ(e.what(), "settings: Seg.Clusters = 1, expected an integer in [2, 255]");
   }
   settings.segmentation.num_clusters = 24;
   settings.loop.min_static_ratio = 1.5;

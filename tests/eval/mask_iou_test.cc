@@ -57,6 +57,30 @@ TEST(StaticIou, FolderAverageOverCommonTimestamps) {
   EXPECT_NEAR(result.mean_static_iou, 0.5 * (8.0 / 14.0 + 1.0), 1e-12);
 }
 
+// The occluded average (ground truth more than 40 % dynamic), the dynamic recall (pixel-weighted
+// over all frames) and the estimate's static share.
+TEST(StaticIou, OccludedFramesRecallAndStaticShare) {
+  TempDir tmp("eval_masks_occluded");
+  fs::create_directories(tmp.file("gt"));
+  fs::create_directories(tmp.file("est"));
+  cv::Mat occluded(4, 4, CV_8UC1, cv::Scalar(0));
+  occluded(cv::Rect(0, 0, 4, 2)) = 255;  // 8 of 16 dynamic: 50 % > 40 %
+  cv::Mat found(4, 4, CV_8UC1, cv::Scalar(0));
+  found(cv::Rect(0, 0, 3, 2)) = 255;  // 6 of the 8 found, no false alarm
+  cv::imwrite(tmp.file("gt/1.000000.png"), gtMask());  // 25 % dynamic: not occluded
+  cv::imwrite(tmp.file("est/1.000000.png"), estMask());
+  cv::imwrite(tmp.file("gt/2.000000.png"), occluded);
+  cv::imwrite(tmp.file("est/2.000000.png"), found);
+  const MaskIouResult result = evaluateMaskFolders(tmp.file("gt"), tmp.file("est"));
+  ASSERT_EQ(result.num_frames, 2);
+  EXPECT_EQ(result.num_occluded_frames, 1);
+  EXPECT_NEAR(result.mean_static_iou_occluded, 8.0 / 10.0, 1e-12);
+  EXPECT_NEAR(result.mean_static_iou, 0.5 * (8.0 / 14.0 + 8.0 / 10.0), 1e-12);
+  // gt dynamic: 4 + 8 pixels; found: 2 (frame 1, columns 1) + 6.
+  EXPECT_NEAR(result.dynamic_recall, 8.0 / 12.0, 1e-12);
+  EXPECT_NEAR(result.mean_static_share, 0.5 * (10.0 / 16.0 + 10.0 / 16.0), 1e-12);
+}
+
 TEST(StaticIouErrors, MessagesNameTheFile) {
   TempDir tmp("eval_masks_err");
   fs::create_directories(tmp.file("gt"));

@@ -9,9 +9,12 @@
 #include <fstream>
 #include <random>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "ltlo/core/errors.h"
 #include "ltlo/io/trajectory_io.h"
 #include "ltlo/system/run_outputs.h"
+#include "ltlo/system/segmentation_writer.h"
 
 namespace ltlo::system {
 namespace {
@@ -196,6 +199,43 @@ TEST_F(RunOutputs, WriteRunOutputsWritesEveryFileAndTheTrajectoryReadsBack) {
   const WrittenOutputs without = writeRunOutputs(path("run2"), report, io::Trajectory(), 0.5);
   EXPECT_EQ(without.files.size(), 3u);
   EXPECT_FALSE(fs::exists(path("run2/metrics.json")));
+}
+
+// SegmentationWriter: masks pushed at the label resolution come out as <name>.png at the input
+// resolution (nearest upsampling, 0/255 kept), named like the sequence's masks/, written by the
+// writer thread; writeRunOutputs then adds the IoU figures against a ground-truth masks/ folder.
+TEST_F(RunOutputs, SegmentationMasksAreWrittenAndScoredAgainstTheGroundTruth) {
+  EXPECT_EQ(SegmentationWriter::frameName("seq/rgb/1.033333.png", 1.0333333), "1.033333");
+  EXPECT_EQ(SegmentationWriter::frameName("seq/rgb/frame_7.png", 2.5), "2.500000");
+  fs::create_directories(path("gt"));
+  {
+    SegmentationWriter writer(path("run/segmentation"), 2);  // a small queue: push waits, never drops
+    for (int i = 0; i < 5; ++i) {
+      cv::Mat label_mask(3, 4, CV_8U, cv::Scalar(0));
+      label_mask(cv::Rect(0, 0, 2, 3)) = 255;  // left half dynamic
+      const std::string name = std::to_string(i) + ".000000";
+      writer.push(name, label_mask, 8, 6);
+      cv::Mat gt(6, 8, CV_8U, cv::Scalar(0));
+      gt(cv::Rect(0, 0, i < 3 ? 4 : 2, 6)) = 255;  // frames 0-2: exactly the left half
+      cv::imwrite(path("gt/" + name + ".png"), gt);
+    }
+    EXPECT_EQ(writer.finish(), 5);
+  }
+  const cv::Mat written = cv::imread(path("run/segmentation/3.000000.png"), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(written.type(), CV_8UC1);
+  ASSERT_EQ(written.size(), cv::Size(8, 6));
+  EXPECT_EQ(cv::countNonZero(written == 255), 24);
+  EXPECT_EQ(cv::countNonZero(written == 0), 24);
+
+  const io::Trajectory gt = circleGroundTruth(30);
+  const WrittenOutputs outputs = writeRunOutputs(path("run"), syntheticReport(gt, 0.0), gt, 0.5, path("gt"));
+  // Frames 0-2: IoU 1; frames 3-4: static gt 36 px, static estimate 24 px inside it: 24 / 36.
+  EXPECT_NEAR(outputs.metrics.number("static_iou"), (3.0 + 2.0 * 24.0 / 36.0) / 5.0, 1e-12);
+  EXPECT_NEAR(outputs.metrics.number("static_iou_occluded"), 1.0, 1e-12);  // frames 0-2: 50 % dynamic
+  EXPECT_EQ(outputs.metrics.number("num_occluded_frames"), 3);
+  EXPECT_EQ(outputs.metrics.number("num_mask_frames"), 5);
+  EXPECT_NEAR(outputs.metrics.number("dynamic_recall"), 1.0, 1e-12);
+  EXPECT_NEAR(outputs.metrics.number("static_share"), 0.5, 1e-12);
 }
 
 TEST(PeakMemory, IsPositive) { EXPECT_GT(peakMemoryMb(), 1.0); }

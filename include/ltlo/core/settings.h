@@ -39,13 +39,12 @@ struct OrbOptions {
 /// Depth over-segmentation and the dense/sparse static-segmentation terms (thesis Eq. 50-64).
 struct SegmentationOptions {
   /// Segment every frame (Seg.Enable, 0/1). 0: every frame is one static cluster, the static core's
-  /// behaviour (an ablation: boxes are then mapped and tracked as static). Off until the dense
-  /// segmentation lands (TODO(#11): on by default).
-  bool enable = false;
+  /// behaviour (an ablation: boxes are then mapped and tracked as static).
+  bool enable = true;
   /// Estimate the initial segmentation and state densely, thesis Eq. 59-64 (Seg.DenseInit, 0/1).
   /// 0: depth clusters with every gamma = 1 (local mapping may still refine them; an ablation).
   bool dense_init = true;
-  /// K of the depth K-means (Seg.Clusters, [2, 256])
+  /// K of the depth K-means (Seg.Clusters, [2, 255]; labels are 8-bit with label K = no depth)
   int num_clusters = 24;
   /// K-means iterations from the grid seeds (Seg.KMeansIterations, [1, 50])
   int kmeans_iterations = 3;
@@ -61,7 +60,8 @@ struct SegmentationOptions {
   double noise_weight_depth = 10.0;
   /// sigma_I, intensity noise, intensity in [0, 1] (Seg.SigmaIntensity, [1e-6, 1])
   double sigma_intensity = 0.02;
-  /// sigma_D, depth noise, m (Seg.SigmaDepth, [1e-6, 1])
+  /// sigma_D, depth noise at 1 m, m; Eq. 64 uses sigma_D(z) = sigma_D (z / 1 m)^2
+  /// (Seg.SigmaDepth, [1e-6, 1])
   double sigma_depth_m = 0.01;
   /// c, inflection point of the Cauchy penalty F, in weighted residual units
   /// (Seg.CauchyC, [1e-6, 1000])
@@ -203,8 +203,9 @@ struct LoopOptions {
 
 /// Dense coarse-to-fine alignment of the initial segmentation and state (thesis Eq. 59-64).
 struct DenseOptions {
-  /// Base resolution of the dense pyramid, px: Dense.Resolution "<width>x<height>", each side in
-  /// [16, 4096] and at most the camera's (DESIGN.md: 320x240, QVGA).
+  /// Base resolution of the dense pyramid and of the segmentation labels, px: Dense.Resolution
+  /// "<width>x<height>", each side in [16, 4096], the camera's divided by an integer (DESIGN.md:
+  /// 320x240, QVGA).
   int width = 320;
   int height = 240;
   /// levels, each half the previous (Dense.PyramidLevels, [1, 8]; the coarsest level keeps at least
@@ -214,6 +215,35 @@ struct DenseOptions {
   int iterations_per_level = 5;
   /// state <-> Gamma alternations per level (Dense.Alternations, [1, 20])
   int alternations = 2;
+  /// finest level the state is solved on, 0 = Dense.Resolution (Dense.FinestLevel, [0,
+  /// Dense.PyramidLevels - 1]); the last Gamma step runs there too
+  int finest_level = 1;
+  /// c^, the price per pixel of calling it dynamic in Eq. 60 (the (1 - gamma) c^ of Eq. 53), in
+  /// units of the Cauchy penalty F: a cluster whose mean F per pixel exceeds it leans dynamic
+  /// (Dense.DynamicCost, [0, 1000])
+  double dynamic_cost = 0.25;
+  /// a pixel whose warped point lies this far behind the previous frame's depth was hidden there
+  /// (disoccluded since, e.g. behind a box moving aside): it gives no residual, evidence or prior,
+  /// m; above any object's motion in one frame, below the depth steps around it
+  /// (Dense.OcclusionGap, [0.01, 10])
+  double occlusion_gap_m = 0.1;
+  /// lambda_d of the tracking initialisation (Eq. 59): the weight of R_d (Eq. 54: temporal prior
+  /// and smoothness over V_i) against the per-pixel mean of Eq. 60; Seg.LambdaD weighs the same
+  /// term in local mapping's Eq. 50, whose data term has another scale (Dense.LambdaD, [0, 1e6])
+  double lambda_d = 0.1;
+  /// whitened motion-prior residual (chi^2) above which the dense state is rejected and the
+  /// prediction kept (Dense.MaxPriorChi2, [0.1, 1e9])
+  double max_prior_chi2 = 30.0;
+  /// standard deviation of the previous frame's velocity, m/s: widens the IMU term of Eq. 59 (the
+  /// previous state is held fixed) and sets the constant-velocity translation prior, sigma dt
+  /// (Dense.PriorVelocitySigma, [1e-4, 10])
+  double prior_velocity_sigma_m_s = 0.05;
+  /// standard deviation of the change of angular rate between frames without a gyroscope (RGB-D
+  /// only: constant angular rate), rad/s (Dense.PriorAngularRateSigma, [1e-4, 100])
+  double prior_angular_rate_sigma_rad_s = 0.5;
+  /// standard deviation of the gyroscope bias before the IMU is initialised (the gyroscope rotation
+  /// prior), rad/s (Dense.PriorGyroBiasSigma, [0, 1])
+  double prior_gyro_bias_sigma_rad_s = 0.01;
 
   static DenseOptions load(const SettingsFile& file);
 };

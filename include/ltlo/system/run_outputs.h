@@ -5,7 +5,9 @@
 ///   static_map.ply   binary little-endian PLY: float x y z, uchar red green blue, float beta
 ///                    (world frame of the active map, points with beta >= the threshold)
 ///   metrics.json     when ground truth is given: ATE / RPE, frame counts, per-stage median/p95
-///                    times, peak memory, wall time, FPS, maps, loops, merges, keyframes, points
+///                    times, peak memory, wall time, FPS, maps, loops, merges, keyframes, points,
+///                    and the static-background IoU of segmentation/ against the sequence's masks/
+///   segmentation/    every frame's mask (written during the run by SegmentationWriter)
 /// Readers for keyframes.txt and static_map.ply round-trip the writers (tests, tools). Writers
 /// and readers throw InputError naming the file (and line) on failure.
 #include <string>
@@ -42,8 +44,12 @@ struct WrittenOutputs {
 };
 
 /// Creates `out_dir` and writes trajectory.txt, keyframes.txt, static_map.ply and, with ground
-/// truth, metrics.json.
+/// truth, metrics.json. With `gt_masks_dir` (a sequence's masks/) and the run's segmentation/
+/// folder (SystemOptions::segmentation_dir = out_dir/segmentation), metrics.json also gets the
+/// segmentation figures of eval::evaluateMaskFolders: static_iou, static_iou_occluded,
+/// num_mask_frames, num_occluded_frames, dynamic_recall, static_share.
 WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
-                               const io::Trajectory& ground_truth, double min_beta);
+                               const io::Trajectory& ground_truth, double min_beta,
+                               const std::string& gt_masks_dir = "");
 
 }  // namespace ltlo::system

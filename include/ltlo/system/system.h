@@ -68,6 +68,10 @@ class FrameBuilder;
 }
 
 namespace ltlo::system {
+class SegmentationWriter;
+}
+
+namespace ltlo::system {
 
 struct SystemOptions {
   /// false: RGB-D only (the frames' IMU samples are ignored, no IMU initialisation). The IMU is
@@ -80,6 +84,9 @@ struct SystemOptions {
   /// (io::RgbdImuFrame::mask, read with SequenceReaderOptions::read_masks) replaces the
   /// segmentation (tracking::OracleMaskSegmenter); the run's metrics record it.
   bool oracle_masks = false;
+  /// Folder for every frame's static/dynamic mask (<timestamp>.png, SegmentationWriter); empty:
+  /// no masks are written.
+  std::string segmentation_dir;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
@@ -151,6 +158,7 @@ class System {
   std::unique_ptr<tracking::Tracker> tracker_;
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;
+  std::unique_ptr<SegmentationWriter> segmentation_writer_;  // with SystemOptions::segmentation_dir
   std::thread mapping_thread_;
   std::thread loop_thread_;
   std::atomic<bool> finishing_{false};        ///< shutdown() asked the workers to finish

@@ -22,17 +22,17 @@
 #include "ltlo/core/calib.h"
 #include "ltlo/core/lie.h"
 #include "ltlo/core/settings.h"
+#include "ltlo/core/timing.h"
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/imu/preintegration.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/frame.h"
 
-namespace ltlo::segmentation {
-class DepthClustering;
-}
-
 namespace ltlo::tracking {
+
+struct PreparedFrame;
+class SegmentationWorker;
 
 /// What tracking knows of the motion from the previous frame to the current one when it segments
 /// the current frame: the IMU term of thesis Eq. 59, or its stand-ins before the IMU is
@@ -105,20 +105,23 @@ class AllStaticSegmenter final : public FrameSegmenter {
 };
 
 /// Seg.DenseInit = 0: the depth over-segmentation of every frame with all gamma = 1 (local mapping's
-/// robust VIBA may still refine them on keyframes).
+/// robust VIBA may still refine them on keyframes). The clustering (segmentation::DepthKMeans at
+/// Dense.Resolution) runs on a persistent worker thread between begin() and segment(); `timing`
+/// (optional) gets "tracking.segmentation" and "tracking.segmentation_cpu".
 class ClusterOnlySegmenter final : public FrameSegmenter {
  public:
-  ClusterOnlySegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense, const PinholeCamera& camera);
+  ClusterOnlySegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense, const PinholeCamera& camera,
+                       TimingStats* timing = nullptr);
   ~ClusterOnlySegmenter() override;
   void begin(const io::RgbdImuFrame& input) override;
   SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior) override;
+  void cancel() override;
   const char* name() const override { return "clusters"; }
 
  private:
   double static_threshold_;
-  PinholeCamera camera_;
-  std::unique_ptr<segmentation::DepthClustering> clustering_;
-  const io::RgbdImuFrame* input_ = nullptr;
+  std::unique_ptr<PreparedFrame> prepared_;
+  std::unique_ptr<SegmentationWorker> worker_;  // last: its thread stops before the rest goes
 };
 
 }  // namespace ltlo::tracking

@@ -1,0 +1,72 @@
+#pragma once
+/// DenseSegmenter (Seg.Enable = 1, Seg.DenseInit = 1): the dense initial state and segmentation of
+/// thesis Eq. 59-64 on every frame, as a FrameSegmenter step of tracking.
+///
+///   begin(input)          the persistent worker thread builds the frame's intensity + depth pyramid
+///                         (DenseFrame, Dense.*) and clusters its base level (DepthKMeans, Seg.*)
+///                         while the tracking thread extracts ORB features;
+///   segment(frame, prior) the tracking thread waits for it and solves Eq. 59 against the previous
+///                         frame (segmentation::DenseSolver) with the motion prior turned into the
+///                         IMU term (kImu), the gyroscope rotation + constant-velocity prior
+///                         (kGyroConstantVelocity, before the IMU is initialised) or the
+///                         constant-velocity prior (kConstantVelocity, RGB-D only); it sets the
+///                         frame's segmentation and returns the refined state.
+/// Every segmented frame (tracked or not) becomes the previous frame of the next one: its pyramid,
+/// labels and Gamma are kept. Without a previous frame (the first one, or after a frame without
+/// images) every cluster is static.
+#include <memory>
+#include <vector>
+
+#include "ltlo/core/settings.h"
+#include "ltlo/core/timing.h"
+#include "ltlo/segmentation/dense_solver.h"
+#include "ltlo/tracking/frame_segmenter.h"
+
+namespace ltlo::tracking {
+
+struct PreparedFrame;
+class SegmentationWorker;
+
+/// The DensePrior of a motion prior: kImu -> the IMU term, its previous state recovered from the
+/// prediction and the preintegration (imu::predict inverted), so that a prediction from a keyframe
+/// local mapping moved since the previous frame keeps the frame-to-frame motion;
+/// kGyroConstantVelocity -> a pose prior with the gyroscope rotation and the predicted
+/// (constant-velocity) camera position; kConstantVelocity -> a pose prior at the prediction; kNone -> a weak pose prior at the
+/// prediction (image alignment alone). Standard deviations from Dense.Prior*.
+segmentation::DensePrior densePrior(const MotionPrior& prior, const DenseOptions& dense);
+
+/// Not thread-safe: one tracking thread calls begin() / segment() alternately (the worker thread
+/// is internal).
+class DenseSegmenter final : public FrameSegmenter {
+ public:
+  /// `camera` is the input camera (its size a multiple of Dense.Resolution); `timing` (optional,
+  /// must outlive the segmenter) gets "tracking.segmentation" (pyramid + clustering, worker) and
+  /// "tracking.dense" (the solve), wall and thread CPU time ("..._cpu").
+  DenseSegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense,
+                 const LocalMappingOptions& local_mapping, const PinholeCamera& camera,
+                 TimingStats* timing = nullptr);
+  ~DenseSegmenter() override;
+
+  void begin(const io::RgbdImuFrame& input) override;
+  SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior) override;
+  void cancel() override;
+  const char* name() const override { return "dense"; }
+
+  /// The last solve (diagnostics, tests); empty gamma before the second frame.
+  const segmentation::DenseResult& lastResult() const { return last_result_; }
+
+ private:
+  SegmentationOptions segmentation_;
+  DenseOptions dense_;
+  PinholeCamera camera_;
+  TimingStats* timing_;
+  std::unique_ptr<PreparedFrame> frames_[2];  // [current_] is being prepared / segmented
+  int current_ = 0;
+  bool has_previous_ = false;
+  std::vector<double> previous_gamma_;
+  segmentation::DenseSolver solver_;
+  segmentation::DenseResult last_result_;
+  std::unique_ptr<SegmentationWorker> worker_;  // last: its thread stops before the rest goes
+};
+
+}  // namespace ltlo::tracking

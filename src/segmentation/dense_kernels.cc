@@ -1,0 +1,218 @@
+#include "dense_kernels.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace ltlo::segmentation::detail {
+
+namespace {
+
+/// Points closer than this to the previous camera are not warped (behind it or degenerate), m.
+constexpr float kMinWarpDepth_m = 0.05f;
+/// A bilinear depth sample counts only when all four taps have depth.
+constexpr float kAllTapsValid = 0.999f;
+
+/// The current pixel's point p (camera frame) in the previous camera and its projection there
+/// (Eq. 63); false when it falls behind the camera or outside the bilinear domain.
+struct Warped {
+  float X, Y, Z, inv_Z, u, v;
+};
+inline bool warpPoint(const Warp& warp, const LevelCamera& camera, float x, float y, float z, Warped* out) {
+  const float* R = warp.R;
+  out->X = R[0] * x + R[1] * y + R[2] * z + warp.t[0];
+  out->Y = R[3] * x + R[4] * y + R[5] * z + warp.t[1];
+  out->Z = R[6] * x + R[7] * y + R[8] * z + warp.t[2];
+  if (!(out->Z > kMinWarpDepth_m)) return false;
+  out->inv_Z = 1.0f / out->Z;
+  out->u = camera.fx * out->X * out->inv_Z + camera.cx;
+  out->v = camera.fy * out->Y * out->inv_Z + camera.cy;
+  return out->u >= 0.0f && out->v >= 0.0f && out->u < static_cast<float>(camera.width - 1) &&
+         out->v < static_cast<float>(camera.height - 1);
+}
+
+/// Bilinear lookup of all channels at (u, v) (inside [0, w-1) x [0, h-1)).
+inline void bilinear(const float* lookup, int width, float u, float v, float out[kLookupChannels]) {
+  const int c = static_cast<int>(u), r = static_cast<int>(v);
+  const float fu = u - static_cast<float>(c), fv = v - static_cast<float>(r);
+  const float w00 = (1.0f - fu) * (1.0f - fv), w01 = fu * (1.0f - fv), w10 = (1.0f - fu) * fv, w11 = fu * fv;
+  const float* p00 = lookup + (static_cast<std::size_t>(r) * width + c) * kLookupChannels;
+  const float* p01 = p00 + kLookupChannels;
+  const float* p10 = p00 + static_cast<std::size_t>(width) * kLookupChannels;
+  const float* p11 = p10 + kLookupChannels;
+  for (int k = 0; k < kLookupChannels; ++k) out[k] = w00 * p00[k] + w01 * p01[k] + w10 * p10[k] + w11 * p11[k];
+}
+
+/// Cauchy penalty F(s) = c^2/2 log(1 + (s/c)^2) (Eq. 27 / 64) and its IRLS weight F'(s)/s.
+inline float cauchy(float s, float inv_c2, float half_c2) { return half_c2 * std::log1p(s * s * inv_c2); }
+inline float cauchyWeight(float s, float inv_c2) { return 1.0f / (1.0f + s * s * inv_c2); }
+
+/// Jacobian row of a residual whose gradient w.r.t. the warped point is g (previous camera frame):
+/// d/d eps of R (Exp(eps) p) = R [-[p]x, I], so the row is [p x h, h] with h = R^T g.
+inline void jacobianRow(const Warp& warp, float x, float y, float z, float gx, float gy, float gz, float J[6]) {
+  const float* R = warp.R;
+  const float hx = R[0] * gx + R[3] * gy + R[6] * gz;
+  const float hy = R[1] * gx + R[4] * gy + R[7] * gz;
+  const float hz = R[2] * gx + R[5] * gy + R[8] * gz;
+  J[0] = y * hz - z * hy;
+  J[1] = z * hx - x * hz;
+  J[2] = x * hy - y * hx;
+  J[3] = hx;
+  J[4] = hy;
+  J[5] = hz;
+}
+
+constexpr int kLanes = 8;
+constexpr int kAccumulators = 27;  // 21 of the upper triangle of H, 6 of b
+
+/// H and b from the rows: per lane accumulators, so the inner loops vectorise without
+/// reassociating a float sum.
+void accumulateRows(const RowScratch& rows, std::size_t num_rows, ImageNormalEquations* out) {
+  alignas(32) float acc[kAccumulators][kLanes] = {};
+  const float* J[6] = {rows.J[0].data(), rows.J[1].data(), rows.J[2].data(),
+                       rows.J[3].data(), rows.J[4].data(), rows.J[5].data()};
+  const float* r = rows.r.data();
+  const float* w = rows.w.data();
+  std::size_t i = 0;
+  for (; i + kLanes <= num_rows; i += kLanes) {
+    float j[6][kLanes], wj[6][kLanes];
+    for (int a = 0; a < 6; ++a) {
+      for (int l = 0; l < kLanes; ++l) {
+        j[a][l] = J[a][i + l];
+        wj[a][l] = w[i + l] * J[a][i + l];
+      }
+    }
+    int m = 0;
+    for (int a = 0; a < 6; ++a) {
+      for (int c = a; c < 6; ++c, ++m) {
+        for (int l = 0; l < kLanes; ++l) acc[m][l] += wj[a][l] * j[c][l];
+      }
+    }
+    for (int a = 0; a < 6; ++a) {
+      for (int l = 0; l < kLanes; ++l) acc[21 + a][l] += wj[a][l] * r[i + l];
+    }
+  }
+  for (; i < num_rows; ++i) {
+    int m = 0;
+    for (int a = 0; a < 6; ++a) {
+      const float wja = w[i] * J[a][i];
+      for (int c = a; c < 6; ++c, ++m) acc[m][0] += wja * J[c][i];
+      acc[21 + a][0] += wja * r[i];
+    }
+  }
+  double total[kAccumulators];
+  for (int m = 0; m < kAccumulators; ++m) {
+    double sum = 0.0;
+    for (int l = 0; l < kLanes; ++l) sum += acc[m][l];
+    total[m] = sum;
+  }
+  int m = 0;
+  for (int a = 0; a < 6; ++a) {
+    for (int c = a; c < 6; ++c, ++m) {
+      out->H(a, c) += total[m];
+      if (c != a) out->H(c, a) += total[m];
+    }
+    out->b(a) += total[21 + a];
+  }
+}
+
+}  // namespace
+
+void RowScratch::reserve(std::size_t rows) {
+  for (std::vector<float>& column : J) {
+    if (column.size() < rows) column.resize(rows);
+  }
+  if (r.size() < rows) r.resize(rows);
+  if (w.size() < rows) w.resize(rows);
+}
+
+void ClusterEvidence::reset(int num_labels) {
+  cost_sum.assign(static_cast<std::size_t>(num_labels), 0.0);
+  num_pixels.assign(static_cast<std::size_t>(num_labels), 0);
+  prior_sum.assign(static_cast<std::size_t>(num_labels), 0.0);
+  prior_count.assign(static_cast<std::size_t>(num_labels), 0);
+}
+
+void accumulateImageTerm(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
+                         const float* gamma_of_label, const ResidualParams& params, RowScratch* scratch,
+                         ImageNormalEquations* out) {
+  const LevelCamera& camera = previous.camera;
+  const std::size_t n = current.pixel.size();
+  scratch->reserve(2 * n);
+  RowScratch& rows = *scratch;
+  const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
+  const float half_c2 = 0.5f * params.cauchy_c * params.cauchy_c;
+  const float* lookup = previous.lookup.data();
+  std::size_t num_rows = 0;
+  double cost = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float gamma = gamma_of_label[current.label[i]];
+    if (!(gamma > 0.0f)) continue;
+    const float x = current.x_m[i], y = current.y_m[i], z = current.z_m[i];
+    Warped p;
+    if (!warpPoint(warp, camera, x, y, z, &p)) continue;
+    float s[kLookupChannels];
+    bilinear(lookup, camera.width, p.u, p.v, s);
+    const bool has_depth = s[kLookupValid] > kAllTapsValid;
+    if (has_depth && s[kLookupD] < p.Z - params.occlusion_gap_m) continue;  // hidden in the previous frame
+    float J[6];
+    // Intensity, Eq. 61: r_I = I_{i-1}(W(u, T)) - I_i(u).
+    {
+      const float r = s[kLookupI] - current.intensity_at[i];
+      const float aw = params.alpha_intensity * current.weight_I[i];
+      const float scaled = aw * r;
+      const float gx = s[kLookupIu] * camera.fx * p.inv_Z, gy = s[kLookupIv] * camera.fy * p.inv_Z;
+      jacobianRow(warp, x, y, z, gx, gy, -(gx * p.X + gy * p.Y) * p.inv_Z, J);
+      for (int a = 0; a < 6; ++a) rows.J[a][num_rows] = J[a];
+      rows.r[num_rows] = r;
+      rows.w[num_rows] = gamma * cauchyWeight(scaled, inv_c2) * aw * aw;
+      ++num_rows;
+      cost += gamma * cauchy(scaled, inv_c2, half_c2);
+    }
+    // Depth, Eq. 62: r_D = D_{i-1}(W(u, T)) - |T p|_z, where the previous frame has depth.
+    if (has_depth) {
+      const float r = s[kLookupD] - p.Z;
+      const float wd = current.weight_D[i];
+      const float scaled = wd * r;
+      const float gx = s[kLookupDu] * camera.fx * p.inv_Z, gy = s[kLookupDv] * camera.fy * p.inv_Z;
+      jacobianRow(warp, x, y, z, gx, gy, -(gx * p.X + gy * p.Y) * p.inv_Z - 1.0f, J);
+      for (int a = 0; a < 6; ++a) rows.J[a][num_rows] = J[a];
+      rows.r[num_rows] = r;
+      rows.w[num_rows] = gamma * cauchyWeight(scaled, inv_c2) * wd * wd;
+      ++num_rows;
+      cost += gamma * cauchy(scaled, inv_c2, half_c2);
+    }
+  }
+  accumulateRows(rows, num_rows, out);
+  out->cost += cost;
+  out->num_residuals += static_cast<int>(num_rows);
+}
+
+void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
+                     const float* previous_gamma_of_label, const ResidualParams& params, ClusterEvidence* out) {
+  const LevelCamera& camera = previous.camera;
+  const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
+  const float half_c2 = 0.5f * params.cauchy_c * params.cauchy_c;
+  const float* lookup = previous.lookup.data();
+  const std::uint8_t* previous_labels = previous.labels.ptr<std::uint8_t>(0);
+  const std::size_t n = current.pixel.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t k = current.label[i];
+    Warped p;
+    if (!warpPoint(warp, camera, current.x_m[i], current.y_m[i], current.z_m[i], &p)) continue;
+    float s[kLookupChannels];
+    bilinear(lookup, camera.width, p.u, p.v, s);
+    const bool has_depth = s[kLookupValid] > kAllTapsValid;
+    if (has_depth && s[kLookupD] < p.Z - params.occlusion_gap_m) continue;  // hidden in the previous frame
+    // Temporal prior, Eq. 30: the previous score at the nearest previous pixel.
+    const int c = static_cast<int>(p.u + 0.5f), r = static_cast<int>(p.v + 0.5f);
+    out->prior_sum[k] += previous_gamma_of_label[previous_labels[static_cast<std::size_t>(r) * camera.width + c]];
+    ++out->prior_count[k];
+    if (!has_depth) continue;
+    const float scaled_I = params.alpha_intensity * current.weight_I[i] * (s[kLookupI] - current.intensity_at[i]);
+    const float scaled_D = current.weight_D[i] * (s[kLookupD] - p.Z);
+    out->cost_sum[k] += cauchy(scaled_I, inv_c2, half_c2) + cauchy(scaled_D, inv_c2, half_c2);
+    ++out->num_pixels[k];
+  }
+}
+
+}  // namespace ltlo::segmentation::detail

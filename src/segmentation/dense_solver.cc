@@ -1,0 +1,253 @@
+#include "ltlo/segmentation/dense_solver.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+
+#include "dense_kernels.h"
+#include "ltlo/core/assert.h"
+#include "ltlo/imu/inertial_residual.h"
+#include "ltlo/segmentation/gamma_step.h"
+
+namespace ltlo::segmentation {
+
+namespace {
+
+/// Below this many pixels with both residuals, a cluster's mean cost is shrunk towards "no
+/// evidence" (a_k = (sum - c^ n) / max(n, kMinEvidencePixels)): a few pixels say little.
+constexpr int kMinEvidencePixels = 8;
+/// Gauss-Newton stops on a level when the step is below this (rad and m).
+constexpr double kMinStep = 1e-6;
+
+using Mat15 = Eigen::Matrix<double, 15, 15>;
+using Vec15 = Eigen::Matrix<double, 15, 1>;
+
+struct State {
+  SE3 T_w_b;
+  Vec3 v_w_b = Vec3::Zero();
+  imu::ImuBias bias;
+};
+
+detail::Warp warpOf(const DensePrior& prior, const SE3& T_w_b) {
+  const SE3 T_prev_cur = (prior.T_w_b_prev * prior.T_b_c).inverse() * (T_w_b * prior.T_b_c);
+  const Mat3 R = T_prev_cur.rotationMatrix();
+  detail::Warp warp;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) warp.R[3 * r + c] = static_cast<float>(R(r, c));
+    warp.t[r] = static_cast<float>(T_prev_cur.translation()(r));
+  }
+  return warp;
+}
+
+imu::NavState navState(const SE3& T_w_b, const Vec3& v_w_b) {
+  imu::NavState state;
+  state.R_w_b = T_w_b.rotationMatrix();
+  state.p_w_b = T_w_b.translation();
+  state.v_w_b = v_w_b;
+  return state;
+}
+
+/// Information of the IMU term: the preintegration covariance widened by the previous velocity's
+/// uncertainty (r_v and r_p depend on v_{i-1} through -R^T and -R^T dt).
+Mat9 imuInformation(const DensePrior& prior) {
+  Mat9 covariance = prior.pim->covariance();
+  const double s2 = prior.prev_velocity_sigma_m_s * prior.prev_velocity_sigma_m_s;
+  const double dt = prior.pim->dt_s();
+  covariance.block<3, 3>(3, 3) += s2 * Mat3::Identity();
+  covariance.block<3, 3>(6, 6) += s2 * dt * dt * Mat3::Identity();
+  covariance.block<3, 3>(3, 6) += s2 * dt * Mat3::Identity();
+  covariance.block<3, 3>(6, 3) += s2 * dt * Mat3::Identity();
+  return covariance.inverse();
+}
+
+/// Information of the bias regulariser of Eq. 58 (M = 1): lambda_imu Sigma_b^-1, [b_g; b_a].
+Mat6 biasInformation(const DensePrior& prior, double lambda_imu) {
+  return lambda_imu * prior.pim->noise().biasWalkCovariance(std::max(prior.pim->dt_s(), 1e-4)).inverse();
+}
+
+/// Whitened motion-prior residual of a state (the IMU term, or the relative-pose prior).
+double priorChi2(const DensePrior& prior, const State& state, const Mat9& imu_information) {
+  if (prior.kind == DensePrior::Kind::kImu) {
+    const Vec9 r = imu::inertialResidual(navState(prior.T_w_b_prev, prior.v_w_b_prev),
+                                         navState(state.T_w_b, state.v_w_b), state.bias, *prior.pim, prior.g_w);
+    return r.dot(imu_information * r);
+  }
+  const Vec6 r = (prior.T_w_b_pred.inverse() * state.T_w_b).log();
+  return r.dot(prior.pose_information * r);
+}
+
+}  // namespace
+
+struct detail::DenseSolverBuffers {
+  RowScratch rows;
+  ClusterEvidence evidence;
+};
+
+DenseSolverOptions DenseSolverOptions::from(const SegmentationOptions& segmentation, const DenseOptions& dense,
+                                            const LocalMappingOptions& local_mapping) {
+  DenseSolverOptions options;
+  options.alpha_intensity = segmentation.alpha_intensity;
+  options.cauchy_c = segmentation.cauchy_c;
+  options.dynamic_cost = dense.dynamic_cost;
+  options.occlusion_gap_m = dense.occlusion_gap_m;
+  options.lambda_d = dense.lambda_d;
+  options.static_threshold = segmentation.static_threshold;
+  options.lambda_imu = local_mapping.lambda_imu;
+  options.iterations_per_level = dense.iterations_per_level;
+  options.alternations = dense.alternations;
+  options.finest_level = dense.finest_level;
+  options.max_prior_chi2 = dense.max_prior_chi2;
+  return options;
+}
+
+DenseSolver::DenseSolver(const DenseSolverOptions& options)
+    : options_(options), buffers_(std::make_unique<detail::DenseSolverBuffers>()) {
+  LTLO_ASSERT(options.iterations_per_level >= 1 && options.alternations >= 1,
+              "iterations " << options.iterations_per_level << ", alternations " << options.alternations);
+  LTLO_ASSERT(options.cauchy_c > 0.0 && options.lambda_d >= 0.0, "cauchy_c " << options.cauchy_c << ", lambda_d "
+                                                                             << options.lambda_d);
+}
+
+DenseSolver::~DenseSolver() = default;
+
+DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<double>& previous_gamma,
+                               const DenseFrame& current, const std::vector<ClusterEdge>& edges,
+                               const DensePrior& prior) {
+  LTLO_ASSERT(!previous.empty() && !current.empty() && previous.numLevels() == current.numLevels(),
+              "dense frames of " << previous.numLevels() << " and " << current.numLevels() << " levels");
+  LTLO_ASSERT(static_cast<int>(previous_gamma.size()) == previous.numClusters() + 1,
+              previous_gamma.size() << " previous scores for " << previous.numClusters() << " clusters");
+  LTLO_ASSERT(prior.kind != DensePrior::Kind::kImu || prior.pim != nullptr, "an IMU prior needs the preintegration");
+  const int K = current.numClusters();
+  const bool with_imu = prior.kind == DensePrior::Kind::kImu;
+  detail::DenseSolverBuffers& buffers = *buffers_;
+  const detail::ResidualParams params{static_cast<float>(options_.alpha_intensity),
+                                      static_cast<float>(options_.cauchy_c),
+                                      static_cast<float>(options_.occlusion_gap_m)};
+
+  std::array<float, 256> previous_gamma_of_label;
+  previous_gamma_of_label.fill(1.0f);
+  for (std::size_t k = 0; k < previous_gamma.size(); ++k) previous_gamma_of_label[k] = static_cast<float>(previous_gamma[k]);
+  std::array<float, 256> gamma_of_label;
+  gamma_of_label.fill(1.0f);
+
+  State state;
+  state.T_w_b = prior.T_w_b_pred;
+  state.v_w_b = prior.v_w_b_pred;
+  state.bias = prior.bias_prev;
+  const Mat9 imu_information = with_imu ? imuInformation(prior) : Mat9::Identity();
+  const Mat6 bias_information = with_imu ? biasInformation(prior, options_.lambda_imu) : Mat6::Identity();
+  const Mat6 A = prior.T_b_c.inverse().adjoint();  // camera twist eps = Ad(T_c_b) body twist delta
+
+  DenseResult result;
+  std::vector<double> gamma(static_cast<std::size_t>(K), 1.0);
+  GammaProblem problem;
+  problem.edges = edges;
+  problem.lambda_d = options_.lambda_d;
+  problem.data.assign(static_cast<std::size_t>(K), 0.0);
+  problem.prior.assign(static_cast<std::size_t>(K), 1.0);
+
+  // Gamma step at the state, on `level`: Eq. 60 evidence per cluster and the warped prior.
+  auto gammaStep = [&](int level, bool record_prediction_cost) {
+    buffers.evidence.reset(K + 1);
+    detail::clusterEvidence(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
+                            previous_gamma_of_label.data(), params, &buffers.evidence);
+    if (record_prediction_cost) result.cost_at_prediction.assign(static_cast<std::size_t>(K) + 1, -1.0);
+    for (int k = 0; k < K; ++k) {
+      const auto kk = static_cast<std::size_t>(k);
+      const int n = buffers.evidence.num_pixels[kk];
+      problem.data[kk] = (buffers.evidence.cost_sum[kk] - options_.dynamic_cost * n) / std::max(n, kMinEvidencePixels);
+      const int m = buffers.evidence.prior_count[kk];
+      problem.prior[kk] = m > 0 ? buffers.evidence.prior_sum[kk] / m : 1.0;
+      if (record_prediction_cost && n > 0) result.cost_at_prediction[kk] = buffers.evidence.cost_sum[kk] / n;
+    }
+    gamma = solveGamma(problem, gamma);
+    for (int k = 0; k < K; ++k) gamma_of_label[static_cast<std::size_t>(k)] = static_cast<float>(gamma[static_cast<std::size_t>(k)]);
+  };
+
+  // Gauss-Newton step on the state at `level` (Gamma fixed); returns the step size. Only clusters
+  // at or above the static threshold take part (weighted by gamma): a dynamic cluster, however
+  // large, cannot pull the state.
+  std::array<float, 256> state_weight_of_label;
+  auto stateStep = [&](int level) {
+    for (std::size_t k = 0; k < state_weight_of_label.size(); ++k) {
+      state_weight_of_label[k] = gamma_of_label[k] >= options_.static_threshold ? gamma_of_label[k] : 0.0f;
+    }
+    detail::ImageNormalEquations image;
+    detail::accumulateImageTerm(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
+                                state_weight_of_label.data(), params, &buffers.rows, &image);
+    ++result.gauss_newton_steps;
+    const Mat6 H_pose = A.transpose() * image.H * A;
+    const Vec6 b_pose = A.transpose() * image.b;
+    if (with_imu) {
+      Mat15 H = Mat15::Zero();
+      Vec15 b = Vec15::Zero();
+      H.block<6, 6>(0, 0) = H_pose;
+      b.head<6>() = b_pose;
+      const imu::InertialResidualJacobians jac = imu::inertialResidualJacobians(
+          navState(prior.T_w_b_prev, prior.v_w_b_prev), navState(state.T_w_b, state.v_w_b), state.bias,
+          *prior.pim, prior.g_w);
+      Eigen::Matrix<double, 9, 15> J;
+      J << jac.d_r_d_R_j, jac.d_r_d_p_j * state.T_w_b.rotationMatrix(), jac.d_r_d_v_j, jac.d_r_d_b_g, jac.d_r_d_b_a;
+      H += J.transpose() * imu_information * J;
+      b += J.transpose() * imu_information * jac.residual;
+      Vec6 r_bias;
+      r_bias << state.bias.b_g - prior.bias_prev.b_g, state.bias.b_a - prior.bias_prev.b_a;
+      H.block<6, 6>(9, 9) += bias_information;
+      b.tail<6>() += bias_information * r_bias;
+      const Vec15 delta = -H.ldlt().solve(b);
+      if (!delta.allFinite()) return 0.0;
+      state.T_w_b = state.T_w_b * SE3::exp(delta.head<6>());
+      state.v_w_b += delta.segment<3>(6);
+      state.bias.b_g += delta.segment<3>(9);
+      state.bias.b_a += delta.segment<3>(12);
+      return delta.head<6>().norm();
+    }
+    // Relative-pose prior r = Log(T_pred^-1 T) with d r / d delta ~ I near the prediction.
+    const Vec6 r = (prior.T_w_b_pred.inverse() * state.T_w_b).log();
+    const Mat6 H = H_pose + prior.pose_information;
+    const Vec6 b = b_pose + prior.pose_information * r;
+    const Vec6 delta = -H.ldlt().solve(b);
+    if (!delta.allFinite()) return 0.0;
+    state.T_w_b = state.T_w_b * SE3::exp(delta);
+    return delta.norm();
+  };
+
+  const int coarsest = current.numLevels() - 1;
+  const int finest = std::clamp(options_.finest_level, 0, coarsest);
+  if (K > 0) {
+    for (int level = coarsest; level >= finest; --level) {
+      for (int alternation = 0; alternation < options_.alternations; ++alternation) {
+        gammaStep(level, level == coarsest && alternation == 0);
+        for (int iteration = 0; iteration < options_.iterations_per_level; ++iteration) {
+          if (stateStep(level) < kMinStep) break;
+        }
+      }
+    }
+    result.prior_chi2 = priorChi2(prior, state, imu_information);
+    if (result.prior_chi2 > options_.max_prior_chi2) {
+      // The images pulled the state away from the motion prior: keep the prediction.
+      result.prior_rejected = true;
+      state.T_w_b = prior.T_w_b_pred;
+      state.v_w_b = prior.v_w_b_pred;
+      state.bias = prior.bias_prev;
+      result.prior_chi2 = priorChi2(prior, state, imu_information);
+    }
+    gammaStep(finest, false);
+  }
+  result.state_refined = K > 0 && !result.prior_rejected;
+  result.T_w_b = state.T_w_b;
+  result.v_w_b = state.v_w_b;
+  result.bias = state.bias;
+  result.gamma = gamma;
+  result.gamma.push_back(1.0);  // the no-depth cluster K
+  result.prior_gamma = problem.prior;
+  result.prior_gamma.push_back(1.0);
+  result.data_coefficient = problem.data;
+  result.data_coefficient.push_back(0.0);
+  return result;
+}
+
+}  // namespace ltlo::segmentation

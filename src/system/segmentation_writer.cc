@@ -1,0 +1,75 @@
+#include "ltlo/system/segmentation_writer.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <utility>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ltlo/core/errors.h"
+#include "ltlo/core/log.h"
+
+namespace ltlo::system {
+
+SegmentationWriter::SegmentationWriter(std::string dir, std::size_t capacity) : dir_(std::move(dir)), queue_(capacity) {
+  std::error_code error;
+  std::filesystem::create_directories(dir_, error);
+  if (error) throw InputError(dir_, 0, "cannot create the segmentation folder: " + error.message());
+  thread_ = std::thread([this] { run(); });
+}
+
+SegmentationWriter::~SegmentationWriter() { finish(); }
+
+void SegmentationWriter::push(std::string name, cv::Mat mask, int width, int height) {
+  queue_.push(Item{std::move(name), std::move(mask), width, height});
+}
+
+int SegmentationWriter::finish() {
+  if (!finished_) {
+    finished_ = true;
+    queue_.close();
+    if (thread_.joinable()) thread_.join();
+  }
+  return written_.load();
+}
+
+std::string SegmentationWriter::frameName(const std::string& color_path, double t_s) {
+  const std::string stem = std::filesystem::path(color_path).stem().string();
+  char* end = nullptr;
+  const double value = stem.empty() ? 0.0 : std::strtod(stem.c_str(), &end);
+  if (!stem.empty() && end != nullptr && *end == '\0' && std::isfinite(value)) return stem;
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.6f", t_s);
+  return text;
+}
+
+void SegmentationWriter::run() {
+  log::setThreadName("seg-writer");
+  cv::Mat full;
+  while (std::optional<Item> item = queue_.pop()) {
+    if (failed_) continue;  // drain after a failure
+    const cv::Mat* image = &item->mask;
+    if (item->mask.cols != item->width || item->mask.rows != item->height) {
+      cv::resize(item->mask, full, cv::Size(item->width, item->height), 0.0, 0.0, cv::INTER_NEAREST);
+      image = &full;
+    }
+    const std::string path = (std::filesystem::path(dir_) / (item->name + ".png")).string();
+    bool ok = false;
+    try {
+      ok = cv::imwrite(path, *image);
+    } catch (const cv::Exception& e) {
+      log::error("segmentation writer: ", path, ": ", e.what());
+    }
+    if (!ok) {
+      log::error("segmentation writer: cannot write ", path, "; no further masks are written");
+      failed_ = true;
+      continue;
+    }
+    written_.fetch_add(1);
+  }
+}
+
+}  // namespace ltlo::system

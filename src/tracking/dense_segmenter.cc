@@ -1,0 +1,165 @@
+#include "ltlo/tracking/dense_segmenter.h"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <utility>
+
+#include "ltlo/core/assert.h"
+#include "ltlo/core/log.h"
+#include "prepared_frame.h"
+#include "segmentation_worker.h"
+
+namespace ltlo::tracking {
+
+namespace {
+
+/// Without any motion information (kNone) the relative pose gets a weak prior at the prediction
+/// (the held pose): about a walking person's motion in one frame, so the images decide.
+constexpr double kNoMotionSigmaRad = 0.2;
+constexpr double kNoMotionSigmaM = 0.2;
+/// Frame interval assumed when the prior has none, s.
+constexpr double kDefaultDtS = 1.0 / 30.0;
+
+Mat6 poseInformation(const Mat3& rotation_covariance, double translation_sigma_m) {
+  Mat6 information = Mat6::Zero();
+  information.block<3, 3>(0, 0) = rotation_covariance.inverse();
+  information.block<3, 3>(3, 3) = Mat3::Identity() / (translation_sigma_m * translation_sigma_m);
+  return information;
+}
+
+}  // namespace
+
+segmentation::DensePrior densePrior(const MotionPrior& prior, const DenseOptions& dense) {
+  segmentation::DensePrior out;
+  out.T_w_b_prev = prior.T_w_b_prev;
+  out.v_w_b_prev = prior.v_w_b_prev;
+  out.bias_prev = prior.bias_prev;
+  out.T_w_b_pred = prior.T_w_b_pred;
+  out.v_w_b_pred = prior.v_w_b_pred;
+  out.T_b_c = prior.T_b_c;
+  out.g_w = prior.g_w;
+  out.prev_velocity_sigma_m_s = dense.prior_velocity_sigma_m_s;
+  const double dt_s = prior.dt_s > 0.0 ? prior.dt_s : kDefaultDtS;
+  const double translation_sigma_m = dense.prior_velocity_sigma_m_s * dt_s;
+  switch (prior.kind) {
+    case MotionPrior::Kind::kImu: {
+      LTLO_ASSERT(prior.pim != nullptr, "an IMU motion prior without preintegration");
+      out.kind = segmentation::DensePrior::Kind::kImu;
+      out.pim = prior.pim.get();
+      // The previous state as the preintegration sees it from the prediction: the tracker may have
+      // predicted from a keyframe that local mapping moved since the previous frame was tracked,
+      // and the previous frame's pose must then move with it, or the image term would compare the
+      // two images under the map correction instead of the motion (imu::predict inverted).
+      const imu::ImuBias& bias = prior.bias_prev;
+      const double dt = prior.pim->dt_s();
+      const Mat3 R_prev =
+          normalizeRotation(prior.T_w_b_pred.rotationMatrix() * prior.pim->correctedDeltaR(bias).transpose());
+      out.v_w_b_prev = prior.v_w_b_pred - prior.g_w * dt - R_prev * prior.pim->correctedDeltaV(bias);
+      const Vec3 p_prev = prior.T_w_b_pred.translation() - out.v_w_b_prev * dt - 0.5 * prior.g_w * dt * dt -
+                          R_prev * prior.pim->correctedDeltaP(bias);
+      out.T_w_b_prev = SE3(R_prev, p_prev);
+      break;
+    }
+    case MotionPrior::Kind::kGyroConstantVelocity: {
+      LTLO_ASSERT(prior.pim != nullptr, "a gyroscope motion prior without preintegration");
+      // Rotation from the gyroscope, camera position from the constant-velocity prediction.
+      const Mat3 R_w_b = normalizeRotation(prior.T_w_b_prev.rotationMatrix() * prior.pim->correctedDeltaR(prior.bias_prev));
+      const Vec3 t_w_c = (prior.T_w_b_pred * prior.T_b_c).translation();
+      out.T_w_b_pred = SE3(R_w_b, t_w_c - R_w_b * prior.T_b_c.translation());
+      const double bias_sigma_rad = dense.prior_gyro_bias_sigma_rad_s * prior.pim->dt_s();
+      const Mat3 rotation_covariance =
+          prior.pim->covariance().block<3, 3>(0, 0) + bias_sigma_rad * bias_sigma_rad * Mat3::Identity();
+      out.pose_information = poseInformation(rotation_covariance, translation_sigma_m);
+      break;
+    }
+    case MotionPrior::Kind::kConstantVelocity: {
+      const double rotation_sigma_rad = dense.prior_angular_rate_sigma_rad_s * dt_s;
+      out.pose_information =
+          poseInformation(rotation_sigma_rad * rotation_sigma_rad * Mat3::Identity(), translation_sigma_m);
+      break;
+    }
+    case MotionPrior::Kind::kNone:
+      out.pose_information =
+          poseInformation(kNoMotionSigmaRad * kNoMotionSigmaRad * Mat3::Identity(), kNoMotionSigmaM);
+      break;
+  }
+  return out;
+}
+
+DenseSegmenter::DenseSegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense,
+                               const LocalMappingOptions& local_mapping, const PinholeCamera& camera,
+                               TimingStats* timing)
+    : segmentation_(segmentation),
+      dense_(dense),
+      camera_(camera),
+      timing_(timing),
+      solver_(segmentation::DenseSolverOptions::from(segmentation, dense, local_mapping)) {
+  for (std::unique_ptr<PreparedFrame>& frame : frames_) frame = std::make_unique<PreparedFrame>();
+  const segmentation::DenseFrameOptions frame_options = segmentation::DenseFrameOptions::from(segmentation, dense);
+  auto kmeans = std::make_shared<segmentation::DepthKMeans>(segmentation::DepthKMeansOptions::from(segmentation));
+  worker_ = std::make_unique<SegmentationWorker>([this, frame_options, kmeans](const io::RgbdImuFrame& input) {
+    // Worker thread: writes only frames_[current_] (the tracking thread reads it after wait()).
+    prepareFrame(input, camera_, frame_options, *kmeans, frames_[current_].get(), timing_);
+  });
+}
+
+DenseSegmenter::~DenseSegmenter() { worker_.reset(); }
+
+void DenseSegmenter::begin(const io::RgbdImuFrame& input) { worker_->post(input); }
+
+void DenseSegmenter::cancel() {
+  try {
+    worker_->wait();
+  } catch (const std::exception& e) {
+    log::warn("segmentation of a cancelled frame failed: ", e.what());
+  }
+}
+
+SegmentationOutcome DenseSegmenter::segment(map::Frame& frame, const MotionPrior& prior) {
+  LTLO_ASSERT(worker_->pending(), "DenseSegmenter::segment without begin()");
+  worker_->wait();
+  const PreparedFrame& current = *frames_[current_];
+  const PreparedFrame& previous = *frames_[1 - current_];
+  SegmentationOutcome outcome;
+  if (!current.valid) {
+    frame.setSegmentation(map::ClusterSegmentation::allStatic(), segmentation_.static_threshold);
+    has_previous_ = false;
+    return outcome;
+  }
+  const int K = current.clusters.num_clusters;
+  std::vector<double> gamma(static_cast<std::size_t>(K) + 1, 1.0);
+  last_result_ = segmentation::DenseResult();
+  if (has_previous_ && K > 0) {
+    std::optional<ScopedTimer> wall;
+    std::optional<ScopedThreadCpuTimer> cpu;
+    if (timing_ != nullptr) {
+      wall.emplace(*timing_, "tracking.dense");
+      cpu.emplace(*timing_, "tracking.dense_cpu");
+    }
+    const segmentation::DensePrior dense_prior = densePrior(prior, dense_);
+    last_result_ = solver_.solve(previous.dense, previous_gamma_, current.dense, current.clusters.edges, dense_prior);
+    gamma = last_result_.gamma;
+    if (last_result_.state_refined) {
+      outcome.state_refined = true;
+      outcome.T_w_b = last_result_.T_w_b;
+      outcome.v_w_b = last_result_.v_w_b;
+      outcome.bias = last_result_.bias;
+    }
+  }
+  map::ClusterSegmentation seg = clusterSegmentation(current, gamma);
+  outcome.dynamic_share = 1.0 - seg.staticAreaRatio(segmentation_.static_threshold);
+  if (has_previous_ && K > 0) {
+    log::debug("dense t = ", current.t_s, " s: prior ", static_cast<int>(prior.kind), ", chi2 ",
+               last_result_.prior_chi2, last_result_.prior_rejected ? " (rejected)" : "", ", moved ",
+               (last_result_.T_w_b.translation() - prior.T_w_b_pred.translation()).norm(), " m, dynamic ",
+               outcome.dynamic_share);
+  }
+  frame.setSegmentation(std::move(seg), segmentation_.static_threshold);
+  previous_gamma_ = std::move(gamma);
+  has_previous_ = true;
+  current_ = 1 - current_;
+  return outcome;
+}
+
+}  // namespace ltlo::tracking
