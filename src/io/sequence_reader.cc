@@ -156,7 +156,7 @@ void checkSize(const cv::Mat& image, int width, int height, const std::string& w
 
 }  // namespace
 
-cv::Mat SequenceReader::loadColorImage(const FrameFiles& files) {
+cv::Mat SequenceReader::loadColorImage(const FrameFiles& files) const {
   cv::Mat image;
   try {
     image = cv::imread(files.color_path, cv::IMREAD_UNCHANGED);
@@ -174,8 +174,7 @@ cv::Mat SequenceReader::loadColorImage(const FrameFiles& files) {
     const int grey_to_bgr[] = {0, 0, 0, 1, 0, 2};
     const int bgra_to_bgr[] = {0, 0, 1, 1, 2, 2};
     cv::mixChannels(&image, 1, &bgr, 1, image.channels() == 1 ? grey_to_bgr : bgra_to_bgr, 3);
-    if (!warned_color_conversion_) {
-      warned_color_conversion_ = true;
+    if (!warned_color_conversion_->exchange(true)) {
       log::warn(files.color_path, ": ", image.channels() == 1 ? "8-bit grey" : "8-bit BGRA",
                 " colour image converted to 3-channel BGR (warned once per sequence)");
     }

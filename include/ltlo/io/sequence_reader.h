@@ -3,6 +3,8 @@
 /// RGB-D without IMU), the OpenLORIS-Scene layout, and EuRoC-style imu0/data.csv. Index files,
 /// IMU and ground truth are read and checked when the reader is opened; images are loaded one
 /// frame at a time by next(). Bad input throws InputError naming the file, the line and the value.
+#include <atomic>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -107,7 +109,7 @@ class SequenceReader {
  private:
   SequenceReader() = default;
   /// The colour image of `files` as CV_8UC3; 8-bit grey and BGRA are converted (warned once).
-  cv::Mat loadColorImage(const FrameFiles& files);
+  cv::Mat loadColorImage(const FrameFiles& files) const;
 
   std::string dir_;
   SequenceLayout layout_ = SequenceLayout::kDataFormat;
@@ -116,7 +118,8 @@ class SequenceReader {
   ImuSamples imu_;
   std::string imu_path_;
   Trajectory ground_truth_;
-  bool warned_color_conversion_ = false;
+  /// load() may run in several threads at once: the warn-once flag is atomic.
+  std::shared_ptr<std::atomic<bool>> warned_color_conversion_ = std::make_shared<std::atomic<bool>>(false);
   int next_index_ = 0;
 };
 
