@@ -14,12 +14,15 @@ namespace ltlo::optim {
 LocalBaResult localBundleAdjust(const LocalBaProblem& problem, const LocalBaOptions& options) {
   LocalBaGraph graph(problem, options);
   sparse_opt::Summary summary = graph.optimize(options.iterations);
+  const double initial_chi2 = summary.initial_chi2;
   const bool stopped = options.stop_flag != nullptr && options.stop_flag->load();
   if (options.reject_outliers && !stopped) {
     graph.rejectOutliers();
     summary = graph.optimize(options.iterations);
   }
-  return graph.result(summary);
+  LocalBaResult result = graph.result(summary);
+  result.initial_chi2 = initial_chi2;
+  return result;
 }
 
 double visualVarianceFactor(const LocalBaProblem& problem) {
