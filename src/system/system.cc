@@ -264,6 +264,8 @@ void System::shutdown() {
   } else {
     closer_->waitForGlobalBa();
   }
+  // The tracking stage's own worker thread (depth clusters, pyramid) ends with the run.
+  if (tracking::FrameSegmenter* segmenter = tracker_->segmenter()) segmenter->finish();
   if (segmentation_writer_) {
     const int written = segmentation_writer_->finish();
     log::info("system: ", written, " segmentation masks written to ", options_.segmentation_dir);

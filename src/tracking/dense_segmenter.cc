@@ -106,9 +106,19 @@ DenseSegmenter::DenseSegmenter(const SegmentationOptions& segmentation, const De
 
 DenseSegmenter::~DenseSegmenter() { worker_.reset(); }
 
-void DenseSegmenter::begin(const io::RgbdImuFrame& input) { worker_->post(input); }
+void DenseSegmenter::begin(const io::RgbdImuFrame& input) {
+  LTLO_ASSERT(worker_ != nullptr, "DenseSegmenter::begin after finish()");
+  worker_->post(input);
+}
+
+void DenseSegmenter::finish() {
+  if (worker_ == nullptr) return;
+  cancel();
+  worker_.reset();
+}
 
 void DenseSegmenter::cancel() {
+  if (worker_ == nullptr) return;  // finished
   try {
     worker_->wait();
   } catch (const std::exception& e) {

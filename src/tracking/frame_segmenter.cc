@@ -30,9 +30,19 @@ ClusterOnlySegmenter::ClusterOnlySegmenter(const SegmentationOptions& segmentati
 
 ClusterOnlySegmenter::~ClusterOnlySegmenter() { worker_.reset(); }
 
-void ClusterOnlySegmenter::begin(const io::RgbdImuFrame& input) { worker_->post(input); }
+void ClusterOnlySegmenter::begin(const io::RgbdImuFrame& input) {
+  LTLO_ASSERT(worker_ != nullptr, "ClusterOnlySegmenter::begin after finish()");
+  worker_->post(input);
+}
+
+void ClusterOnlySegmenter::finish() {
+  if (worker_ == nullptr) return;
+  cancel();
+  worker_.reset();
+}
 
 void ClusterOnlySegmenter::cancel() {
+  if (worker_ == nullptr) return;  // finished
   try {
     worker_->wait();
   } catch (const std::exception& e) {

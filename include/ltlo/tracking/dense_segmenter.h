@@ -50,6 +50,7 @@ class DenseSegmenter final : public FrameSegmenter {
   void begin(const io::RgbdImuFrame& input) override;
   SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior) override;
   void cancel() override;
+  void finish() override;
   const char* name() const override { return "dense"; }
 
   /// The last solve (diagnostics, tests); empty gamma before the second frame.

@@ -88,6 +88,9 @@ class FrameSegmenter {
   virtual SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior) = 0;
   /// No segment() follows the last begin() (error path): waits for any work on the images.
   virtual void cancel() {}
+  /// The run is over: stops any worker thread of the segmenter (after a pending frame is done);
+  /// no begin() follows. Idempotent.
+  virtual void finish() {}
   /// Short name for logs and metrics ("all-static", "clusters", "dense", "oracle-masks").
   virtual const char* name() const = 0;
 };
@@ -116,6 +119,7 @@ class ClusterOnlySegmenter final : public FrameSegmenter {
   void begin(const io::RgbdImuFrame& input) override;
   SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior) override;
   void cancel() override;
+  void finish() override;
   const char* name() const override { return "clusters"; }
 
  private:
