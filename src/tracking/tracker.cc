@@ -167,10 +167,16 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
   clearMatches(frame);
   // The predicted state; with the inertial optimisation it carries the propagated information (the
   // next frame's prior), so a frame after the gap is matched in windows of its real uncertainty.
-  frame.setPose_T_w_b(T_w_b_pred);
-  frame.setVelocity(v_w_b_pred);
+  // With the IMU it is the IMU's own prediction, not the dense solve's refinement of it: too few
+  // static features matched the map to confirm that refinement, and when an occluder fills the
+  // view the image term can only follow the occluder. Chained over lost frames, a refined velocity
+  // that leans towards the occluder's motion would integrate into the pose (issue 10: the IMU
+  // carries the pose while vision cannot).
+  const bool imu_carries = imu_prediction_.valid;
+  frame.setPose_T_w_b(imu_carries ? imu_prediction_.state.T_w_b : T_w_b_pred);
+  frame.setVelocity(imu_carries ? imu_prediction_.state.v_w_b : v_w_b_pred);
+  if (imu_carries) frame.setBias(imu_prediction_.state.bias);
   if (imu_prediction_.link) {
-    frame.setBias(imu_prediction_.state.bias);
     frame_information_.valid = true;
     frame_information_.information = imu_prediction_.information;
   } else {
