@@ -264,6 +264,10 @@ void System::shutdown() {
   } else {
     closer_->waitForGlobalBa();
   }
+  // The segmenter's worker thread is the tracker's: released here (trackFrame refuses to run after
+  // shutdown), so that every thread of the system has ended when shutdown() returns (the programs
+  // check that no "ltlo." thread is left; the 3-minute soak found the worker still waiting).
+  tracker_->setSegmenter(nullptr);
   if (segmentation_writer_) {
     const int written = segmentation_writer_->finish();
     log::info("system: ", written, " segmentation masks written to ", options_.segmentation_dir);
