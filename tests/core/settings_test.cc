@@ -525,17 +525,17 @@ TEST(SettingOverrides, ReplaceValuesTypedLikeTheFileAndAreLogged) {
   test::LogCapture capture;
   const Settings settings = Settings::load(
       config, "",
-      {SettingOverride::parse("Seg.Enable=1"), SettingOverride::parse("LocalMapping.Alternations=5"),
+      {SettingOverride::parse("Seg.Enable=0"), SettingOverride::parse("LocalMapping.Alternations=5"),
        SettingOverride::parse("Loop.MinStaticRatio=0.6"), SettingOverride::parse("Dense.Resolution=160x120"),
        SettingOverride::parse("Loop.MinStaticRatio=0.7")});
-  EXPECT_TRUE(settings.segmentation.enable);
+  EXPECT_FALSE(settings.segmentation.enable);
   EXPECT_EQ(settings.local_mapping.alternations, 5);
   EXPECT_DOUBLE_EQ(settings.loop.min_static_ratio, 0.7);  // the later one wins
   EXPECT_EQ(settings.dense.width, 160);
   EXPECT_EQ(settings.dense.height, 120);
   EXPECT_TRUE(settings.unknown_keys.empty());
   ASSERT_GE(capture.lines().size(), 2u);
-  EXPECT_EQ(capture.lines()[0], "[main] info settings: --set Seg.Enable = 1 (" + config + " has 0)");
+  EXPECT_EQ(capture.lines()[0], "[main] info settings: --set Seg.Enable = 0 (" + config + " has 1)");
   const std::string text = settings.describe();
   EXPECT_NE(text.find("\n--set LocalMapping.Alternations = 5\n"), std::string::npos);
   EXPECT_NE(text.find("\nLocalMapping.Alternations = 5\n"), std::string::npos);
@@ -544,9 +544,9 @@ TEST(SettingOverrides, ReplaceValuesTypedLikeTheFileAndAreLogged) {
 TEST(SettingOverrides, ValidatedLikeTheFile) {
   const std::string config = (configDir() / "synthetic.yaml").string();
   EXPECT_EQ(loadErrorWith(config, {"Seg.Clusters=1"}),
-            config + " (--set): Seg.Clusters = 1, expected an integer in [2, 256]");
+            config + " (--set): Seg.Clusters = 1, expected an integer in [2, 255]");
   EXPECT_EQ(loadErrorWith(config, {"Seg.Clusters=24.5"}),
-            config + " (--set): Seg.Clusters = 24.5, expected an integer in [2, 256]");
+            config + " (--set): Seg.Clusters = 24.5, expected an integer in [2, 255]");
   EXPECT_EQ(loadErrorWith(config, {"Loop.Enabled=yes"}),
             config + " (--set): Loop.Enabled = \"yes\", expected a boolean (0/1 or true/false)");
   EXPECT_EQ(loadErrorWith(config, {"Seg.Clustres=24"}),
