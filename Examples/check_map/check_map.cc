@@ -226,7 +226,10 @@ int run(const Arguments& args) {
   }
   int on_moving = 0, unexplained = 0;
   std::ofstream list;
-  if (!args.list_path.empty()) list.open(args.list_path);
+  if (!args.list_path.empty()) {
+    list.open(args.list_path);
+    if (!list) throw InputError(args.list_path, 0, "cannot open for writing");
+  }
   for (std::size_t k = 0; k < off_geometry.size(); ++k) {
     if (moving_votes[k] == 0 && static_votes[k] == 0) {
       ++unexplained;
