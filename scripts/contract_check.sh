@@ -16,7 +16,8 @@ SETTINGS=$ROOT/config_yaml/synthetic.yaml
 VOC=$ROOT/Vocabulary/ltlo_orb_k10_L5.bin
 export LTLO_SOURCE_DIR=$ROOT
 
-for p in simulate evaluate rgbd_inertial rgbd imu_odometry sim_preview train_vocabulary; do
+for p in simulate evaluate rgbd_inertial rgbd imu_odometry sim_preview train_vocabulary reconstruct check_surfels \
+  check_map report; do
   [ -x "$BIN/$p" ] || { echo "contract_check: $BIN/$p missing (run scripts/build.sh)" >&2; exit 1; }
 done
 
@@ -53,13 +54,14 @@ TABLE=$OUT/table.txt
 failures=0
 total=0
 
-# variant NAME [omit...]: a copy of the sequence's text files (image folders linked) in CASES/NAME.
+# variant NAME [omit...]: a copy of the sequence's text files (image folders linked) in CASES/NAME
+# (of VARIANT_OF instead of SEQ when set).
 variant() {
   local dir=$CASES/$1
   shift
   mkdir -p "$dir"
   local f
-  for f in "$SEQ"/*; do
+  for f in "${VARIANT_OF:-$SEQ}"/*; do
     local name
     name=$(basename "$f")
     [ "$name" = DONE ] && continue
@@ -280,7 +282,7 @@ d=$(variant masks_small)
 own_images "$d" masks
 python3 "$OUT/grey_png.py" "$d/masks" 32 24
 check sim_preview "masks of another size" 2 "sizes differ" --sequence "$d" --out "$OUT/runs/p.png" --frames 0
-slam rgbd_inertial "masks of another size" 2 "differs from the colour image" "$d"
+slam rgbd_inertial "masks of another size" 2 "differs from 32x24" "$d"
 
 # ---- train_vocabulary --------------------------------------------------------------------------
 check train_vocabulary "no arguments" 2 ""
@@ -293,17 +295,201 @@ check train_vocabulary "--k 1" 2 "" --images "$SEQ/rgb" --out "$OUT/runs/v.bin" 
 check train_vocabulary "--out in a missing folder" 2 "/nonexistent/v.bin" --images "$SEQ/rgb" --out /nonexistent/v.bin --k 3 --levels 2 --crops 1 --max-images 2
 check train_vocabulary "small vocabulary" 0 "" --images "$SEQ/rgb" --out "$OUT/runs/v.bin" --k 3 --levels 2 --crops 1 --max-images 2
 
-# ---- reconstruct (once it exists): generic probes ----------------------------------------------
-if [ -x "$BIN/reconstruct" ]; then
-  check reconstruct "no arguments" 2 ""
-  check reconstruct "--help" 0 ""
-  check reconstruct "unknown flag" 2 "" --bogus
-  # Every option the help names, alone with a path that does not exist.
-  for option in $("$BIN/reconstruct" --help 2>&1 | grep -o -- '--[a-z][a-z-]*' | sort -u); do
-    [ "$option" = --help ] && continue
-    check reconstruct "$option /nonexistent (alone)" 2 "" "$option" /nonexistent
-  done
+# ---- a finished run: the input of reconstruct, check_surfels, check_map and report ----------------
+# 3 s at 320x240 (check_map needs 3 keyframes; reconstruct needs 5 fusions of a surface).
+RSEQ=$OUT/seq_run
+if [ ! -f "$RSEQ/DONE" ]; then
+  rm -rf "$RSEQ"
+  "$BIN/simulate" --scenario static --seed 2 --seconds 3 --width 320 --height 240 --out "$RSEQ" >/dev/null 2>&1 || {
+    echo "contract_check: simulate failed" >&2
+    exit 1
+  }
+  touch "$RSEQ/DONE"
 fi
+RUN=$OUT/run_3s_320x240
+if [ ! -f "$RUN/DONE" ]; then
+  rm -rf "$RUN"
+  "$BIN/rgbd_inertial" --settings "$SETTINGS" --sequence "$RSEQ" --out "$RUN" --vocabulary "$VOC" \
+    >"$OUT/run_ok.out" 2>"$OUT/run_ok.log" || { echo "contract_check: rgbd_inertial on $RSEQ failed" >&2; exit 1; }
+  [ -d "$RUN/segmentation" ] && [ -f "$RUN/static_map.ply" ] && [ -f "$RUN/keyframes.txt" ] ||
+    { echo "contract_check: $RUN lacks segmentation/, static_map.ply or keyframes.txt" >&2; exit 1; }
+  touch "$RUN/DONE"
+fi
+# run_variant NAME [omit...]: a copy of RUN's files (segmentation/ linked unless omitted) in CASES/NAME.
+run_variant() {
+  local dir=$CASES/$1
+  shift
+  mkdir -p "$dir"
+  local f
+  for f in "$RUN"/*; do
+    local name
+    name=$(basename "$f")
+    [ "$name" = DONE ] && continue
+    local skip=0 o
+    for o in "$@"; do [ "$name" = "$o" ] && skip=1; done
+    [ $skip -eq 1 ] && continue
+    if [ -d "$f" ]; then ln -s "$f" "$dir/$name"; else cp "$f" "$dir/$name"; fi
+  done
+  echo "$dir"
+}
+# A PLY header announcing more records than the file holds (a reader must not allocate for them).
+huge_ply() {  # huge_ply FILE HEADER_PROPERTIES...
+  local file=$1
+  shift
+  { printf 'ply\nformat binary_little_endian 1.0\nelement vertex 4000000000000\n'
+    local p
+    for p in "$@"; do printf 'property %s\n' "$p"; done
+    printf 'end_header\n0123456789'; } > "$file"
+}
+
+# ---- reconstruct ---------------------------------------------------------------------------------
+check reconstruct "no arguments" 2 ""
+check reconstruct "--help" 0 "" --help
+check reconstruct "unknown flag" 2 "" --bogus
+# Every option the help names, alone with a path that does not exist.
+for option in $("$BIN/reconstruct" --help 2>&1 | grep -o -- '--[a-z][a-z-]*' | sort -u); do
+  [ "$option" = --help ] && continue
+  check reconstruct "$option /nonexistent (alone)" 2 "" "$option" /nonexistent
+done
+recon() {  # recon "INPUT" EXPECTED MUST RUN_DIR [extra args]: fusion of every 3rd frame, no pictures
+  local input=$1 expected=$2 must=$3 run=$4
+  shift 4
+  check reconstruct "$input" "$expected" "$must" --run "$run" --sequence "$RSEQ" --out "$OUT/runs/recon_$total" \
+    --every 3 --no-snapshots --threads 1 "$@"
+}
+recon "plain run (every 3rd frame, no snapshots)" 0 "" "$RUN"
+check reconstruct "plain run with snapshots 128x96" 0 "" --run "$RUN" --sequence "$RSEQ" --out "$OUT/runs/recon_snap" \
+  --size 128x96 --threads 1
+check reconstruct "--snapshots-only on that output" 0 "" --run "$RUN" --sequence "$RSEQ" --out "$OUT/runs/recon_snap" \
+  --snapshots-only --size 128x96 --threads 1
+recon "--run missing" 2 "/nonexistent" /nonexistent
+d=$(run_variant recon_no_traj trajectory.txt)
+recon "trajectory.txt missing" 2 "$d/trajectory.txt" "$d"
+d=$(run_variant recon_traj_empty trajectory.txt)
+: > "$d/trajectory.txt"
+recon "trajectory.txt empty" 2 "$d/trajectory.txt" "$d"
+d=$(run_variant recon_traj_bad trajectory.txt)
+sed '3s/ [^ ]* / abc /' "$RUN/trajectory.txt" > "$d/trajectory.txt"
+recon "trajectory.txt bad value on line 3" 2 "$d/trajectory.txt:3" "$d"
+d=$(run_variant recon_traj_garbage trajectory.txt)
+head -c 300 "$VOC" > "$d/trajectory.txt"
+recon "trajectory.txt binary garbage" 2 "$d/trajectory.txt" "$d"
+d=$(run_variant recon_traj_zero_q trajectory.txt)
+awk '/^#/ { print; next } { printf "%s %s %s %s 0 0 0 0\n", $1, $2, $3, $4 }' "$RUN/trajectory.txt" > "$d/trajectory.txt"
+recon "trajectory.txt zero quaternions" 2 "$d/trajectory.txt" "$d"
+d=$(run_variant recon_traj_crlf trajectory.txt)
+sed 's/$/\r/' "$RUN/trajectory.txt" | awk 'NR == 2 { print "# a comment"; print "" } { print }' > "$d/trajectory.txt"
+recon "trajectory.txt CRLF, comment, blank line (benign)" 0 "" "$d"
+recon "--trajectory missing" 2 "/nonexistent.txt" "$RUN" --trajectory /nonexistent.txt
+recon "--trajectory bad value on line 3" 2 "recon_traj_bad/trajectory.txt:3" "$RUN" --trajectory "$CASES/recon_traj_bad/trajectory.txt"
+d=$(run_variant recon_no_seg segmentation)
+recon "run without segmentation/ (benign, warned)" 0 "no segmentation/" "$d"
+d=$(run_variant recon_seg_garbage segmentation)
+cp -r "$RUN/segmentation" "$d/segmentation"
+seg=$(ls "$d/segmentation" | head -1)
+printf 'not a png' > "$d/segmentation/$seg"
+recon "segmentation/ mask that is text" 2 "$seg" "$d"
+d=$(run_variant recon_seg_name segmentation)
+cp -r "$RUN/segmentation" "$d/segmentation"
+printf 'x' > "$d/segmentation/not_a_time.png"
+recon "segmentation/ with a non-timestamp file name" 2 "not_a_time.png" "$d"
+d=$(run_variant recon_seg_small segmentation)
+cp -r "$RUN/segmentation" "$d/segmentation"
+python3 "$OUT/grey_png.py" "$d/segmentation" 32 24
+recon "segmentation/ masks of another size" 2 "$d/segmentation" "$d"
+check reconstruct "--sequence missing" 2 "/nonexistent" --run "$RUN" --sequence /nonexistent --out "$OUT/runs/recon_x" --no-snapshots
+recon "--settings binary garbage" 2 "binary.yaml" "$RUN" --settings "$CASES/binary.yaml"
+sed 's/^Recon.ConfidenceStable: .*/Recon.ConfidenceStable: -1/' "$SETTINGS" > "$CASES/recon_bad_key.yaml"
+recon "--settings Recon key out of range" 2 "Recon.ConfidenceStable = -1" "$RUN" --settings "$CASES/recon_bad_key.yaml"
+recon "--size 10x10" 2 "--size 10x10" "$RUN" --size 10x10
+recon "--view 1,2,3" 2 "--view 1,2,3" "$RUN" --view 1,2,3
+check reconstruct "--out under a file" 2 "binary.yaml" --run "$RUN" --sequence "$RSEQ" --out "$CASES/binary.yaml/x" --every 3 --no-snapshots
+mkdir -p "$OUT/runs/recon_none"
+check reconstruct "--snapshots-only without surfels.ply" 2 "recon_none/surfels.ply" --run "$RUN" --sequence "$RSEQ" \
+  --out "$OUT/runs/recon_none" --snapshots-only
+mkdir -p "$OUT/runs/recon_trunc"
+SURFELS=$OUT/runs/recon_snap/surfels.ply
+head -c $(( $(stat -c %s "$SURFELS") - 40 )) "$SURFELS" > "$OUT/runs/recon_trunc/surfels.ply"
+check reconstruct "--snapshots-only, surfels.ply truncated" 2 "recon_trunc/surfels.ply: truncated" --run "$RUN" \
+  --sequence "$RSEQ" --out "$OUT/runs/recon_trunc" --snapshots-only
+
+# ---- check_surfels -------------------------------------------------------------------------------
+check check_surfels "no arguments" 2 ""
+check check_surfels "plain (surfels of the run above)" 0 "" --surfels "$SURFELS" --sequence "$RSEQ" --trajectory "$RUN/trajectory.txt" --frame-step 5
+check check_surfels "--surfels missing" 2 "/nonexistent.ply" --surfels /nonexistent.ply --sequence "$RSEQ"
+check check_surfels "--surfels binary garbage" 2 "binary.yaml" --surfels "$CASES/binary.yaml" --sequence "$RSEQ"
+check check_surfels "--surfels truncated" 2 "recon_trunc/surfels.ply: truncated" --surfels "$OUT/runs/recon_trunc/surfels.ply" --sequence "$RSEQ"
+huge_ply "$CASES/huge_surfels.ply" "float x" "float y" "float z" "float nx" "float ny" "float nz" "uchar red" "uchar green" \
+  "uchar blue" "float radius" "float confidence"
+check check_surfels "--surfels announcing 4e12 surfels" 2 "huge_surfels.ply: truncated" --surfels "$CASES/huge_surfels.ply" --sequence "$RSEQ"
+check check_surfels "--surfels static_map.ply (other layout)" 2 "static_map.ply" --surfels "$RUN/static_map.ply" --sequence "$RSEQ"
+check check_surfels "--sequence missing" 2 "/nonexistent" --surfels "$SURFELS" --sequence /nonexistent
+check check_surfels "--scene missing" 2 "/nonexistent.ply" --surfels "$SURFELS" --sequence "$RSEQ" --scene /nonexistent.ply
+check check_surfels "--scene binary garbage" 2 "binary.yaml" --surfels "$SURFELS" --sequence "$RSEQ" --scene "$CASES/binary.yaml"
+check check_surfels "--trajectory bad value on line 3" 2 "recon_traj_bad/trajectory.txt:3" --surfels "$SURFELS" --sequence "$RSEQ" \
+  --trajectory "$CASES/recon_traj_bad/trajectory.txt"
+check check_surfels "--json in a missing folder" 2 "/nonexistent/c.json" --surfels "$SURFELS" --sequence "$RSEQ" --frame-step 5 \
+  --json /nonexistent/c.json
+
+# ---- check_map -----------------------------------------------------------------------------------
+check check_map "no arguments" 2 ""
+check check_map "plain run" 0 "" --run "$RUN" --sequence "$RSEQ" --max-share 1
+check check_map "--run missing" 2 "/nonexistent" --run /nonexistent --sequence "$RSEQ"
+d=$(run_variant map_no_ply static_map.ply)
+check check_map "static_map.ply missing" 2 "$d/static_map.ply" --run "$d" --sequence "$RSEQ"
+d=$(run_variant map_ply_garbage static_map.ply)
+head -c 300 "$VOC" > "$d/static_map.ply"
+check check_map "static_map.ply binary garbage" 2 "$d/static_map.ply" --run "$d" --sequence "$RSEQ"
+d=$(run_variant map_ply_huge static_map.ply)
+huge_ply "$d/static_map.ply" "float x" "float y" "float z" "uchar red" "uchar green" "uchar blue" "float beta"
+check check_map "static_map.ply announcing 4e12 points" 2 "$d/static_map.ply" --run "$d" --sequence "$RSEQ"
+d=$(run_variant map_kf_bad keyframes.txt)
+awk 'NR == 3 { $2 = "x" } { print }' "$RUN/keyframes.txt" > "$d/keyframes.txt"
+check check_map "keyframes.txt bad value on line 3" 2 "$d/keyframes.txt:3" --run "$d" --sequence "$RSEQ"
+d=$(run_variant map_kf_missing keyframes.txt)
+check check_map "keyframes.txt missing" 2 "$d/keyframes.txt" --run "$d" --sequence "$RSEQ"
+d=$(VARIANT_OF=$RSEQ variant no_scene scene.ply)
+check check_map "--sequence without scene.ply" 2 "$d/scene.ply" --run "$RUN" --sequence "$d"
+d=$(VARIANT_OF=$RSEQ variant scene_huge scene.ply)
+printf 'ply\nformat ascii 1.0\nelement vertex 2000000000\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nend_header\n0 0 0\n' > "$d/scene.ply"
+check check_map "scene.ply announcing 2e9 vertices" 2 "$d/scene.ply" --run "$RUN" --sequence "$d"
+d=$(VARIANT_OF=$RSEQ variant scene_face scene.ply)
+printf 'ply\nformat ascii 1.0\nelement vertex 3\nelement face 1\nend_header\n0 0 0\n1 0 0\n0 1 0\n2000000000 0 1 2\n' > "$d/scene.ply"
+check check_map "scene.ply face of 2e9 vertices" 2 "$d/scene.ply:9" --run "$RUN" --sequence "$d"
+check check_map "--list in a missing folder" 2 "/nonexistent/l.txt" --run "$RUN" --sequence "$RSEQ" --max-share 1 --list /nonexistent/l.txt
+
+# ---- report --------------------------------------------------------------------------------------
+# bench DIR [omit...]: a scripts/benchmark.sh-like folder DIR/runs/static_s2/core/ holding RUN's files.
+bench() {
+  local dir=$CASES/$1
+  shift
+  local run_dir=$dir/runs/static_s2/core
+  mkdir -p "$run_dir"
+  local f
+  for f in trajectory.txt metrics.json; do cp "$RUN/$f" "$run_dir/$f"; done
+  ln -s "$RUN/segmentation" "$run_dir/segmentation"
+  echo "$RSEQ" > "$run_dir/sequence_path.txt"
+  echo "$dir"
+}
+check report "no arguments" 2 ""
+check report "plain benchmark folder, one run" 0 "" --benchmark "$(bench bench_ok)"
+check report "--benchmark missing" 2 "/nonexistent" --benchmark /nonexistent
+check report "--benchmark without runs/" 2 "$CASES/empty_dir" --benchmark "$CASES/empty_dir"
+d=$(bench bench_json)
+head -c 300 "$VOC" > "$d/runs/static_s2/core/metrics.json"
+check report "metrics.json binary garbage" 2 "$d/runs/static_s2/core/metrics.json" --benchmark "$d"
+d=$(bench bench_json_cut)
+head -c 40 "$RUN/metrics.json" > "$d/runs/static_s2/core/metrics.json"
+check report "metrics.json cut after 40 bytes" 2 "$d/runs/static_s2/core/metrics.json" --benchmark "$d"
+d=$(bench bench_traj)
+cp "$CASES/recon_traj_bad/trajectory.txt" "$d/runs/static_s2/core/trajectory.txt"
+check report "trajectory.txt bad value on line 3" 2 "$d/runs/static_s2/core/trajectory.txt:3" --benchmark "$d"
+d=$(bench bench_seq)
+echo /nonexistent > "$d/runs/static_s2/core/sequence_path.txt"
+check report "sequence_path.txt names a missing sequence" 2 "/nonexistent" --benchmark "$d"
+d=$(bench bench_no_seq_path)
+rm "$d/runs/static_s2/core/sequence_path.txt"
+check report "sequence_path.txt missing" 2 "sequence_path.txt" --benchmark "$d"
 
 echo "contract_check: $total inputs, $failures not as the contract says; table in $TABLE"
 [ "$failures" -eq 0 ]

@@ -3,7 +3,7 @@
 # ASan + UBSan + coverage, only the readers' libraries are compiled), writes a seed corpus from a
 # generated sequence, runs each target for SECONDS_EACH seconds and fails on any crash, leak,
 # sanitizer report, timeout or out-of-memory. Not part of scripts/test.sh (see README).
-#   scripts/fuzz.sh [SECONDS_EACH]           default 60 s per target (6 targets)
+#   scripts/fuzz.sh [SECONDS_EACH]           default 60 s per target (7 targets)
 #   TARGETS="fuzz_ply fuzz_imu" scripts/fuzz.sh 10
 # Findings (crashing inputs) land in build-fuzz/findings/<target>/ (once fixed, keep them in
 # tests/fuzz/regressions/<target>/: they are replayed on every run); the corpus grows in
@@ -13,7 +13,7 @@ cd "$(dirname "$0")/.."
 SECONDS_EACH=${1:-60}
 JOBS=${JOBS:-2}
 DIR=build-fuzz
-TARGETS=${TARGETS:-"fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_vocabulary"}
+TARGETS=${TARGETS:-"fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_surfels fuzz_vocabulary"}
 export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
 
 # ---- Setup: clang and its libFuzzer runtime (Debian: clang-14, libclang-rt-14-dev) -------------
@@ -53,7 +53,7 @@ if [ ! -f "$SEEDS/DONE" ]; then
   rm -rf "$seq_dir"
   build/bin/simulate --scenario ltlo --seed 1 --seconds 1 --width 160 --height 120 --out "$seq_dir" \
     >/dev/null 2>&1 || { echo "fuzz: simulate failed" >&2; exit 1; }
-  for t in $TARGETS fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_vocabulary; do
+  for t in $TARGETS fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_surfels fuzz_vocabulary; do
     mkdir -p "$SEEDS/$t"
   done
   cp config_yaml/*.yaml "$seq_dir/calib.yaml" "$SEEDS/fuzz_settings/"
@@ -85,6 +85,22 @@ if [ ! -f "$SEEDS/DONE" ]; then
     --crops 2 --max-images 4 --threads 1 >/dev/null 2>&1 || { echo "fuzz: train_vocabulary failed" >&2; exit 1; }
   rm -rf "$seq_dir"
   touch "$SEEDS/DONE"
+fi
+
+# surfels.ply as recon::writeSurfelPly writes it: 2 surfels of float x y z nx ny nz, uchar red
+# green blue, float radius confidence (outside the DONE block: seed folders made before it existed).
+if [ ! -f "$SEEDS/fuzz_surfels/surfels.ply" ]; then
+  mkdir -p "$SEEDS/fuzz_surfels"
+  {
+    printf 'ply\nformat binary_little_endian 1.0\ncomment LTLO-SLAM surfels\nelement vertex 2\n'
+    printf 'property float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n'
+    printf 'property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n'
+    printf 'property float radius\nproperty float confidence\nend_header\n'
+    printf '\x00\x00\x80\x3f\x00\x00\x00\x3f\x00\x00\x00\x40\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x80\x3f'
+    printf '\x10\x20\x30\x00\x00\x00\x3f\x00\x00\x00\x40'
+    printf '\x00\x00\x00\x40\x00\x00\x80\x3f\x00\x00\x00\x3f\x00\x00\x80\x3f\x00\x00\x00\x00\x00\x00\x00\x00'
+    printf '\x40\x50\x60\x00\x00\x00\x3f\x00\x00\x80\x3f'
+  } > "$SEEDS/fuzz_surfels/surfels.ply"
 fi
 
 # ---- Run each target ----------------------------------------------------------------------------

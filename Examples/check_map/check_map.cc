@@ -71,21 +71,28 @@ std::vector<Triangle> readSceneTriangles(const std::string& path) {
     if (keyword == "end_header") break;
   }
   if (vertices < 0 || faces < 0) throw InputError(path, line_number, "needs vertex and face elements");
-  std::vector<Vec3> points(static_cast<std::size_t>(vertices));
-  for (Vec3& p : points) {
+  // Nothing is sized by the header's counts before the lines are there: a corrupt count ends in
+  // "unexpected end of file", not in a huge allocation.
+  std::vector<Vec3> points;
+  for (int v = 0; v < vertices; ++v) {
     next();
     std::istringstream words(line);
-    if (!(words >> p.x() >> p.y() >> p.z())) throw InputError(path, line_number, "bad vertex '" + line + "'");
+    Vec3 p;
+    if (!(words >> p.x() >> p.y() >> p.z()) || !p.allFinite()) throw InputError(path, line_number, "bad vertex '" + line + "'");
+    points.push_back(p);
   }
   std::vector<Triangle> triangles;
+  std::vector<int> ids;
   for (int f = 0; f < faces; ++f) {
     next();
     std::istringstream words(line);
     int n = 0;
-    words >> n;
-    std::vector<int> ids(static_cast<std::size_t>(std::max(n, 0)));
-    for (int& id : ids) {
+    if (!(words >> n) || n < 3) throw InputError(path, line_number, "bad face '" + line + "'");
+    ids.clear();
+    for (int k = 0; k < n; ++k) {
+      int id = -1;
       if (!(words >> id) || id < 0 || id >= vertices) throw InputError(path, line_number, "bad face '" + line + "'");
+      ids.push_back(id);
     }
     for (int k = 1; k + 1 < n; ++k) {
       triangles.push_back({points[static_cast<std::size_t>(ids[0])], points[static_cast<std::size_t>(ids[static_cast<std::size_t>(k)])],
@@ -219,7 +226,10 @@ int run(const Arguments& args) {
   }
   int on_moving = 0, unexplained = 0;
   std::ofstream list;
-  if (!args.list_path.empty()) list.open(args.list_path);
+  if (!args.list_path.empty()) {
+    list.open(args.list_path);
+    if (!list) throw InputError(args.list_path, 0, "cannot open for writing");
+  }
   for (std::size_t k = 0; k < off_geometry.size(); ++k) {
     if (moving_votes[k] == 0 && static_votes[k] == 0) {
       ++unexplained;

@@ -117,6 +117,11 @@ int run(const Arguments& args) {
   if (!fs::is_directory(args.run_dir))
     throw InputError(args.run_dir, 0, "run folder does not exist");
   const recon::SnapshotOptions snapshot_options = snapshotOptions(args);
+  if (!args.snapshots_only) {  // before the fusion: a bad --out must not cost a whole fusion
+    std::error_code error;
+    fs::create_directories(args.out_dir, error);
+    if (error) throw InputError(args.out_dir, 0, "cannot create the output folder: " + error.message());
+  }
 
   ReconOptions options;
   std::optional<SensorCalib> settings_calib;
@@ -163,7 +168,6 @@ int run(const Arguments& args) {
     result.trajectory = io::readTumTrajectory(request.trajectory_path);
   } else {
     result = recon::reconstruct(request, options);
-    fs::create_directories(args.out_dir);
     recon::writeSurfelPly(ply_path, result.surfels);
   }
 

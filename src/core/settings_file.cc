@@ -167,6 +167,20 @@ MatX SettingsFile::getMatrix(const std::string& key, int rows, int cols) const {
   const std::string expected =
       "a " + std::to_string(rows) + "x" + std::to_string(cols) + " !!opencv-matrix of finite numbers";
   if (n.empty() || n.isNone()) failMissing(key, expected);
+  // The !!opencv-matrix fields are checked before OpenCV reads the node: it sizes the matrix from
+  // rows and cols as written (a corrupt count asked it for 64 GB, a fuzzing finding).
+  if (!n.isMap()) fail(key, describe(n), expected);
+  const cv::FileNode rows_node = n["rows"], cols_node = n["cols"], data_node = n["data"];
+  if (!rows_node.isInt() || !cols_node.isInt() || !n["dt"].isString() || !data_node.isSeq()) {
+    fail(key, "a map without integer rows, cols, a dt string and a data list", expected);
+  }
+  const int file_rows = static_cast<int>(rows_node), file_cols = static_cast<int>(cols_node);
+  if (file_rows != rows || file_cols != cols) {
+    fail(key, std::to_string(file_rows) + "x" + std::to_string(file_cols) + " matrix", expected);
+  }
+  if (data_node.size() != static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols)) {
+    fail(key, "a matrix with " + std::to_string(data_node.size()) + " data values", expected);
+  }
   cv::Mat m;
   try {
     n >> m;

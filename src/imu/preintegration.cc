@@ -1,5 +1,8 @@
 #include "ltlo/imu/preintegration.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "ltlo/core/assert.h"
 #include "ltlo/core/lie.h"
 
@@ -36,7 +39,19 @@ void Preintegrated::integrateStep(const Vec3& gyro_mean_rad_s, const Vec3& acc_m
 }
 
 void Preintegrated::integrate(const ImuSample& a, const ImuSample& b) {
-  integrateStep(0.5 * (a.gyro_rad_s + b.gyro_rad_s), 0.5 * (a.acc_m_s2 + b.acc_m_s2), b.t_s - a.t_s);
+  const Vec3 gyro_mean_rad_s = 0.5 * (a.gyro_rad_s + b.gyro_rad_s);
+  const Vec3 acc_mean_m_s2 = 0.5 * (a.acc_m_s2 + b.acc_m_s2);
+  const double dt_s = b.t_s - a.t_s;
+  // Across a gap between samples (the reader integrates across IMU gaps) the step is split into
+  // sub-steps of at most kMaxGapStepS with the same mean reading: one step's covariance has rank 6
+  // of 9 (its v and p errors come from the same noise), so a frame whose only step spans a 0.5 s
+  // gap had a singular covariance (found by the outage soak); sub-steps accumulate the noise as a
+  // random walk over the gap. Steps of IMUs at >= 50 Hz are not split.
+  constexpr double kMaxGapStepS = 0.02;
+  constexpr int kMaxSubSteps = 10000;  // 200 s; a longer gap takes longer sub-steps
+  const int sub_steps =
+      dt_s > kMaxGapStepS ? static_cast<int>(std::min<double>(std::ceil(dt_s / kMaxGapStepS), kMaxSubSteps)) : 1;
+  for (int k = 0; k < sub_steps; ++k) integrateStep(gyro_mean_rad_s, acc_mean_m_s2, dt_s / sub_steps);
 }
 
 void Preintegrated::integrate(const std::vector<ImuSample>& samples) {

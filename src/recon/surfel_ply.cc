@@ -1,6 +1,9 @@
 #include "ltlo/recon/surfel_ply.h"
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -90,8 +93,14 @@ std::vector<Surfel> readSurfelPly(const std::string& path) {
     if (line == "end_header") break;
     if (line.rfind("comment", 0) == 0) continue;
     if (line.rfind("element vertex ", 0) == 0) {
-      std::istringstream is(line.substr(15));
-      if (!(is >> count) || count < 0) throw InputError(path, line_number, "bad vertex count");
+      const std::string count_text = line.substr(15);
+      char* end = nullptr;
+      errno = 0;
+      const long long parsed = std::strtoll(count_text.c_str(), &end, 10);
+      if (count >= 0 || count_text.empty() || *end != '\0' || errno == ERANGE || parsed < 0) {
+        throw InputError(path, line_number, "bad or repeated vertex count '" + count_text + "'");
+      }
+      count = static_cast<long>(parsed);
       continue;
     }
     if (property >= std::size(kProperties) || line != kProperties[property]) {
@@ -108,6 +117,19 @@ std::vector<Surfel> readSurfelPly(const std::string& path) {
                      "header lists " + std::to_string(property) + " of " +
                          std::to_string(std::size(kProperties)) + " properties");
   }
+  // The announced count must fit in the file before anything is allocated for it (a corrupt count
+  // would otherwise ask for terabytes).
+  const std::streamoff body_begin = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::streamoff body_bytes = in.tellg() - body_begin;
+  in.seekg(body_begin);
+  if (body_begin < 0 || !in ||
+      body_bytes / static_cast<std::streamoff>(kRecordBytes) < static_cast<std::streamoff>(count)) {
+    throw InputError(path, 0,
+                     "truncated: " + std::to_string(std::max<std::streamoff>(body_bytes, 0) /
+                                                    static_cast<std::streamoff>(kRecordBytes)) +
+                         " of " + std::to_string(count) + " surfels");
+  }
   std::vector<Surfel> surfels(static_cast<std::size_t>(count));
   std::vector<char> record(kRecordBytes);
   for (long i = 0; i < count; ++i) {
@@ -122,6 +144,10 @@ std::vector<Surfel> readSurfelPly(const std::string& path) {
     for (int a = 0; a < 3; ++a) s.colour_rgb[a] = static_cast<uint8_t>(r[24 + a]);
     s.radius_m = getFloat(r + 27);
     s.confidence = getFloat(r + 31);
+    if (!s.position_w.allFinite() || !s.normal_w.allFinite() || !std::isfinite(s.radius_m) ||
+        !std::isfinite(s.confidence)) {
+      throw InputError(path, 0, "surfel " + std::to_string(i) + " has a value that is not finite");
+    }
   }
   return surfels;
 }

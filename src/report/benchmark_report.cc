@@ -146,6 +146,10 @@ std::vector<RunRecord> findRuns(const std::string& benchmark_dir) {
       run.variant = dir.filename().string();
       run.run_dir = dir.string();
       run.sequence_dir = readFirstLine((dir / "sequence_path.txt").string());
+      if (!fs::is_directory(run.sequence_dir, ec)) {  // no ground truth: ATE and IoU would be silently missing
+        throw InputError((dir / "sequence_path.txt").string(), 1,
+                         "sequence folder '" + run.sequence_dir + "' does not exist");
+      }
       run.metrics = FlatJson::read((dir / "metrics.json").string());
       if (fs::is_regular_file(dir / "recon" / "reconstruct.json", ec)) {
         run.recon = FlatJson::read((dir / "recon" / "reconstruct.json").string());
@@ -317,6 +321,10 @@ cv::Mat runFigure(const RunRecord& run, const RunSeries& series) {
 }
 
 int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& title) {
+  std::error_code exists_ec;
+  if (!fs::is_directory(fs::path(benchmark_dir) / "runs", exists_ec)) {
+    throw InputError(benchmark_dir, 0, "no runs/ folder (not a scripts/benchmark.sh output folder)");
+  }
   const std::vector<RunRecord> runs = findRuns(benchmark_dir);
   const std::string plots_dir = benchmark_dir + "/plots";
   const std::string cache_dir = benchmark_dir + "/cache";

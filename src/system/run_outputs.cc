@@ -287,7 +287,9 @@ WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& repo
     written.metrics = computeRunMetrics(report, ground_truth);
     written.has_metrics = true;
     const fs::path segmentation_dir = fs::path(out_dir) / "segmentation";
-    if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(segmentation_dir, error)) {
+    // No masks (Ctrl-C before the first frame): nothing to compare, not an error.
+    if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(segmentation_dir, error) &&
+        !fs::is_empty(segmentation_dir, error)) {
       // The same figures as `evaluate --gt-masks SEQ/masks --est-masks RUN/segmentation`.
       const eval::MaskIouResult iou = eval::evaluateMaskFolders(gt_masks_dir, segmentation_dir.string());
       written.metrics.set("static_iou", iou.mean_static_iou);

@@ -2,7 +2,8 @@
 // bad input exits 2 naming the file and the value (vocabulary, missing IMU), a sequence without
 // calib.yaml takes the settings file's calibration with one log line, evaluate normalises
 // non-unit quaternions, and SIGINT part-way through rgbd_inertial leaves a complete, parseable
-// trajectory of every processed frame. Runs the built programs on a short generated sequence.
+// trajectory of every processed frame; reconstruct and check_surfels name a broken run file. Runs
+// the built programs on a short generated sequence.
 #include <gtest/gtest.h>
 
 #include <csignal>
@@ -115,6 +116,38 @@ TEST_F(CliContract, MissingOrGarbageVocabularyExitsTwoNamingTheFile) {
   EXPECT_EQ(result.exit_code, 2) << result.describe();
   EXPECT_NE(result.err.find(garbage.string() + ": byte 0: not an LTLOBOW1 vocabulary file (magic 'this is ')"),
             std::string::npos)
+      << result.err;
+}
+
+// The reconstruction tools on a broken run folder: a missing or malformed trajectory, or a
+// surfels.ply whose header announces more surfels than the file holds, exits 2 naming the file.
+TEST_F(CliContract, ReconstructionToolsExitTwoNamingTheBrokenFile) {
+  const fs::path run = work_ / "run_folder";
+  fs::create_directories(run);
+  const auto reconstruct = [&]() {
+    return runProgram({programPath("reconstruct"), "--run", run.string(), "--sequence", sharedSequence().string(),
+                       "--out", (work_ / "recon").string(), "--no-snapshots", "--threads", "1"});
+  };
+  ProgramResult result = reconstruct();
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find((run / "trajectory.txt").string()), std::string::npos) << result.err;
+
+  writeFile(run / "trajectory.txt", "# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n0.1 0 0 x 0 0 0 1\n");
+  result = reconstruct();
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find((run / "trajectory.txt").string() + ":3"), std::string::npos) << result.err;
+
+  const fs::path ply = work_ / "surfels.ply";
+  std::string header = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000000\n";
+  for (const char* property : {"float x", "float y", "float z", "float nx", "float ny", "float nz", "uchar red",
+                               "uchar green", "uchar blue", "float radius", "float confidence"}) {
+    header += std::string("property ") + property + "\n";
+  }
+  writeFile(ply, header + "end_header\n0123456789");
+  result = runProgram({programPath("check_surfels"), "--surfels", ply.string(), "--sequence",
+                       sharedSequence().string()});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find(ply.string() + ": truncated: 0 of 4000000000000 surfels"), std::string::npos)
       << result.err;
 }
 

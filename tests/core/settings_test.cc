@@ -475,6 +475,37 @@ TEST(SettingsFile, TypedGettersAndDefaults) {
       path + ": A.int = 7, expected an integer in [1, 5]");  // optional but present: validated
 }
 
+// The !!opencv-matrix fields are checked before OpenCV sizes a matrix from them (found by
+// fuzzing: rows that are not a number made OpenCV ask for 64 GB).
+TEST(SettingsFile, MatrixWithBadRowsColsOrDataCountIsAConfigError) {
+  const fs::path dir = scratchDir();
+  const std::string path = (dir / "m.yaml").string();
+  writeText(path,
+            "%YAML:1.0\n---\n"
+            "M.text_rows: !!opencv-matrix\n   rows: St5ctypeIcE4\n   cols: 4\n   dt: d\n   data: [ 1, 2 ]\n"
+            "M.huge: !!opencv-matrix\n   rows: 1000000000\n   cols: 1000000000\n   dt: d\n   data: [ 1 ]\n"
+            "M.short: !!opencv-matrix\n   rows: 2\n   cols: 2\n   dt: d\n   data: [ 1, 2, 3 ]\n"
+            "M.scalar: 3\n");
+  SettingsFile file(path);
+  const auto message = [&](const std::string& key, int rows, int cols) {
+    try {
+      file.getMatrix(key, rows, cols);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_EQ(message("M.text_rows", 4, 4),
+            path + ": M.text_rows = a map without integer rows, cols, a dt string and a data list, "
+                   "expected a 4x4 !!opencv-matrix of finite numbers");
+  EXPECT_EQ(message("M.huge", 4, 4),
+            path + ": M.huge = 1000000000x1000000000 matrix, expected a 4x4 !!opencv-matrix of finite numbers");
+  EXPECT_EQ(message("M.short", 2, 2),
+            path + ": M.short = a matrix with 3 data values, expected a 2x2 !!opencv-matrix of finite numbers");
+  EXPECT_EQ(message("M.scalar", 2, 2),
+            path + ": M.scalar = 3, expected a 2x2 !!opencv-matrix of finite numbers");
+}
+
 // ---- --set Key=Value overrides --------------------------------------------------------------
 
 std::string loadErrorWith(const std::string& config, const std::vector<std::string>& texts,

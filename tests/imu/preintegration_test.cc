@@ -351,6 +351,28 @@ TEST(ImuPreintegration, CovarianceMatchesMonteCarlo) {
   EXPECT_NEAR(predicted(0, 0), calib.noise_gyro * calib.noise_gyro * 0.5, 1e-3 * predicted(0, 0));
 }
 
+// Two samples 0.5 s apart (an IMU gap integrated across): 25 sub-steps of 20 ms with the same
+// mean reading, so the covariance is positive definite (a single step's has rank 6 of 9) and the
+// deltas are those of the constant reading.
+TEST(ImuPreintegration, GapBetweenTwoSamplesIsSplitAndHasAFullRankCovariance) {
+  Preintegrated pim(ImuBias(), testNoise());
+  ImuSample a, b;
+  a.t_s = 10.0;
+  b.t_s = 10.5;
+  a.acc_m_s2 = b.acc_m_s2 = Vec3(0.0, 0.0, kGravity_m_s2);
+  pim.integrate({a, b});
+  EXPECT_EQ(pim.numSteps(), 25);
+  EXPECT_NEAR(pim.dt_s(), 0.5, 1e-12);
+  EXPECT_NEAR(pim.deltaP().z(), 0.5 * kGravity_m_s2 * 0.25, 1e-9);
+  const Eigen::LLT<Mat9> llt(pim.covariance());
+  EXPECT_EQ(llt.info(), Eigen::Success);
+  // One 5 ms step of a 200 Hz IMU is not split.
+  Preintegrated single(ImuBias(), testNoise());
+  b.t_s = 10.005;
+  single.integrate({a, b});
+  EXPECT_EQ(single.numSteps(), 1);
+}
+
 TEST(ImuPreintegration, ZeroStepIgnoredNegativeStepAsserts) {
   Preintegrated pim(ImuBias(), testNoise());
   pim.integrateStep(Vec3(0.1, 0.0, 0.0), Vec3(0.0, 0.0, 9.81), 0.0);

@@ -6,7 +6,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <random>
 #include <tuple>
 
@@ -300,6 +304,48 @@ TEST(SurfelPly, RoundTripKeepsEveryProperty) {
     EXPECT_NE(std::string(e.what()).find(path + ": truncated: 2 of 3 surfels"), std::string::npos)
         << e.what();
   }
+  std::filesystem::remove(path);
+}
+
+// A corrupt vertex count is refused before anything is allocated for it; a non-finite value is
+// refused naming the surfel (check_surfels and the snapshots grid the positions).
+TEST(SurfelPly, RefusesCountsBeyondTheFileAndNonFiniteValues) {
+  std::vector<Surfel> surfels(2);
+  surfels[0].radius_m = surfels[1].radius_m = 0.01f;
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("surfels_bad_" + std::to_string(::getpid()) + ".ply"))
+          .string();
+  writeSurfelPly(path, surfels);
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const auto rewrite = [&](const std::string& content) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << content;
+  };
+  const auto message = [&]() -> std::string {
+    try {
+      readSurfelPly(path);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  std::string huge = bytes;
+  huge.replace(huge.find("element vertex 2"), 16, "element vertex 4000000000000");
+  rewrite(huge);
+  EXPECT_NE(message().find(path + ": truncated: 2 of 4000000000000 surfels"), std::string::npos)
+      << message();
+
+  std::string nan = bytes;
+  const std::size_t body = nan.find("end_header\n") + 11;
+  const float not_a_number = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(&nan[body + 35 + 4], &not_a_number, 4);  // surfel 1, y (little-endian hosts)
+  rewrite(nan);
+  EXPECT_NE(message().find(path + ": surfel 1 has a value that is not finite"), std::string::npos)
+      << message();
   std::filesystem::remove(path);
 }
 

@@ -115,6 +115,24 @@ TEST_F(BenchmarkFolder, RunSeriesHaveTheKnownErrorsAndIou) {
   EXPECT_TRUE(fs::is_regular_file(dir_ + "/cache/ltlo_s7_dynamic.txt"));
 }
 
+// A folder that is not a benchmark output, or a run whose sequence moved, is bad input naming the
+// file (the report would silently lack ATE and IoU).
+TEST_F(BenchmarkFolder, MissingRunsFolderOrSequenceIsAnInputErrorNamingIt) {
+  const auto message = [](const std::string& dir) -> std::string {
+    try {
+      writeBenchmarkReport(dir, "x");
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_EQ(message(dir_ + "/seq"),
+            dir_ + "/seq: no runs/ folder (not a scripts/benchmark.sh output folder)");
+  const std::string path = dir_ + "/runs/ltlo_s7/rgbd_inertial/sequence_path.txt";
+  std::ofstream(path) << dir_ << "/moved\n";
+  EXPECT_EQ(message(dir_), path + ":1: sequence folder '" + dir_ + "/moved' does not exist");
+}
+
 TEST_F(BenchmarkFolder, ReportHasTheTablesAndThePlot) {
   EXPECT_EQ(writeBenchmarkReport(dir_, "test report"), 1);
   const std::string md = readAll(dir_ + "/report.md");

@@ -59,7 +59,8 @@ RunSeries loadSeries(const RunRecord& run, const std::string& cache_dir);
 cv::Mat runFigure(const RunRecord& run, const RunSeries& series);
 
 /// Writes report.md and plots/ for every finished run; returns the number of runs reported.
-/// `title` is the report's first line (e.g. date and commit).
+/// `title` is the report's first line (e.g. date and commit). Throws InputError naming the folder
+/// when it has no runs/ folder.
 int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& title);
 
 }  // namespace ltlo::report
