@@ -143,6 +143,7 @@ void visitImuInit(O& o, V& v) {
   v.boolean("ImuInit.VisualInertialRefinement", o.visual_inertial_refinement);
   v.integer("ImuInit.RefineIterations", o.refine_iterations, 1, 1000);
   v.integer("ImuInit.RefineMaxKeyFrames", o.refine_max_keyframes, 3, 10000);
+  v.real("ImuInit.RefineInterval", o.refine_interval_s, 0.0, 100.0);
 }
 
 template <typename O, typename V>

@@ -60,10 +60,41 @@ std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const
   estimate.keyframes = static_cast<int>(chain.keyframes.size());
   estimate.span_s = chain.span_s();
   estimate.final_chi2 = result.summary.final_chi2;
+  estimate.acceleration_covariance_w = result.acceleration_covariance_w;
   return estimate;
 }
 
 namespace {
+
+/// optim::inertialAccelerationCovariance over the newest `max_keyframes` of `chain` at the chain's
+/// current velocities, the newest bias and `g_w` (after a refinement: the inertial evidence alone,
+/// so the visual part of the refinement can only make the truth better known than this).
+/// T_w_b / v_w_b: the states of the chain's newest T_w_b.size() keyframes (pims between them from
+/// the chain), `bias` the newest bias.
+Mat3 chainAccelerationCovariance(const ImuChain& chain, const std::vector<SE3>& T_w_b,
+                                 const std::vector<Vec3>& v_w_b, const imu::ImuBias& bias, const Vec3& g_w,
+                                 const ImuInitOptions& options) {
+  const std::size_t count = chain.keyframes.size();
+  const std::size_t window = T_w_b.size();
+  LTLO_ASSERT(window >= 2 && window <= count && v_w_b.size() == window,
+              "chainAccelerationCovariance: " << window << " states for a chain of " << count);
+  const std::size_t first = count - window;
+  optim::ImuInitProblem problem;
+  optim::ImuInitResult estimate;
+  problem.T_w_b = T_w_b;
+  estimate.v_w_b = v_w_b;
+  for (std::size_t k = first + 1; k < count; ++k) problem.pims.push_back(chain.pims[k - 1]);
+  const double span_s = chain.keyframes.back()->t_s() - chain.keyframes[first]->t_s();
+  const optim::BiasPriorInformation prior =
+      optim::biasPriorInformation(chain.pims.front()->noise(), span_s, options.bias_prior_samples);
+  problem.gyro_bias_prior_information = prior.gyro;
+  problem.acc_bias_prior_information = prior.acc;
+  problem.bias_init = bias;
+  estimate.bias = bias;
+  estimate.R_w_g = imu::gravityRotationFromDirection(g_w);
+  estimate.g_w = g_w;
+  return optim::inertialAccelerationCovariance(problem, estimate);
+}
 
 bool usable(const std::shared_ptr<map::KeyFrame>& kf) { return kf != nullptr && !kf->isBad(); }
 
@@ -213,6 +244,24 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
              out.v_w_b.allFinite() && out.bias.b_g.allFinite() && out.bias.b_a.allFinite();
   }
   if (!finite) return std::nullopt;
+  // The refined estimate's own uncertainty (inertial evidence over the optimised keyframes).
+  std::vector<SE3> refined_T_w_b;
+  std::vector<Vec3> refined_v_w_b;
+  for (std::size_t k = first; k < count; ++k) {
+    const auto it = index_of.find(chain.keyframes[k]->id());
+    if (it == index_of.end()) break;
+    refined_T_w_b.push_back(result.keyframes[it->second].T_w_b);
+    refined_v_w_b.push_back(result.keyframes[it->second].v_w_b);
+  }
+  if (refined_T_w_b.size() != window) return std::nullopt;  // a chain keyframe went bad meanwhile
+  const Mat3 acceleration_covariance_w = chainAccelerationCovariance(
+      chain, refined_T_w_b, refined_v_w_b, result.keyframes[optimised_end - 1].bias, result.g_w, options);
+  const double sigma_m_s2 = optim::accelerationSigma(acceleration_covariance_w);
+  if (!(sigma_m_s2 <= context.max_acceleration_sigma_m_s2)) {
+    log::info("IMU refinement not applied: acceleration sigma ", sigma_m_s2, " m/s^2 over ", window,
+              " keyframes, the current estimate's is ", context.max_acceleration_sigma_m_s2, " m/s^2");
+    return std::nullopt;
+  }
 
   // ---- write back (what went bad meanwhile is skipped) ----
   for (std::size_t k = 0; k < optimised_end; ++k) {
@@ -234,6 +283,7 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
   estimate.keyframes = static_cast<int>(window);
   estimate.span_s = chain.keyframes.back()->t_s() - chain.keyframes[first]->t_s();
   estimate.final_chi2 = result.summary.final_chi2;
+  estimate.acceleration_covariance_w = acceleration_covariance_w;
   return estimate;
 }
 

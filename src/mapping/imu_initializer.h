@@ -5,6 +5,7 @@
 /// biases, gravity direction and points); scale is known from depth, and the map is not rotated (g_w
 /// in the map frame). The zero-mean bias priors follow the IMU's noise and random walk
 /// (optim::biasPriorInformation, ImuInit.BiasPriorSamples).
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -34,6 +35,9 @@ struct ImuInitEstimate {
   int keyframes = 0;
   double span_s = 0.0;
   double final_chi2 = 0.0;
+  /// Posterior covariance of the world acceleration a prediction integrates ((m/s^2)^2; see
+  /// optim::inertialAccelerationCovariance), over the estimate's window.
+  Mat3 acceleration_covariance_w = Mat3::Zero();
 };
 
 /// Runs optim::initializeImu on `chain` from `bias_init` (priors and iterations from `options`) and,
@@ -49,6 +53,10 @@ struct RefinementContext {
   bool visual_variance_estimation = true;  ///< LocalMapping.VisualVarianceEstimation
   int num_threads = 1;
   std::vector<float> level_sigma2;  ///< OrbExtractor::levelSigma2()
+  /// A refinement is written back only when its acceleration sigma (chainAccelerationCovariance at
+  /// the refined states) is at most this (m/s^2): the current estimate's, so a refinement over a
+  /// shorter or worse window (a new map's first seconds) never replaces a better-informed estimate.
+  double max_acceleration_sigma_m_s2 = std::numeric_limits<double>::infinity();
 };
 
 struct ImuRefinementStats {

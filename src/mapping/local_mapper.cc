@@ -9,6 +9,7 @@
 #include "local_window_ba.h"
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
+#include "ltlo/optim/bundle_adjust.h"
 #include "map_culling.h"
 #include "point_fusion.h"
 
@@ -92,6 +93,7 @@ struct LocalMapper::Impl {
   RecentPointCuller recent_points;
   int sequence = 0;
   double first_imu_init_t_s = 0.0;
+  double last_imu_estimate_t_s = 0.0;  ///< keyframe time of the last (re)estimate
   std::size_t imu_refinements = 0;  ///< refinements done (index into imu_refinement_delays_s)
 };
 
@@ -207,6 +209,10 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
   } else if (imu_refinements < options.imu_refinement_delays_s.size() &&
              kf->t_s() - first_imu_init_t_s >= options.imu_refinement_delays_s[imu_refinements]) {
     what = "refined";
+  } else if (options.imu_init.refine_interval_s > 0.0 &&
+             optim::accelerationSigma(state.acceleration_covariance_w) > options.refine_until_acceleration_sigma_m_s2 &&
+             kf->t_s() - last_imu_estimate_t_s >= options.imu_init.refine_interval_s) {
+    what = "refined (acceleration sigma above Tracking.AccBiasSigma)";
   } else {
     return false;
   }
@@ -220,19 +226,30 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
   if (timing != nullptr) timer.emplace(*timing, refinement ? "mapping.imu_refine" : "mapping.imu_init");
   std::optional<ImuInitEstimate> current;
   if (state.initialised) current = ImuInitEstimate{state.g_w, state.bias};
-  const RefinementContext context{options.bf_px_m, options.local_mapping.min_point_beta,
-                                  options.local_mapping.lambda_imu,
-                                  options.local_mapping.visual_variance_estimation, options.ba_threads, level_sigma2};
+  RefinementContext context{options.bf_px_m, options.local_mapping.min_point_beta,
+                            options.local_mapping.lambda_imu,
+                            options.local_mapping.visual_variance_estimation, options.ba_threads, level_sigma2};
+  if (state.initialised) context.max_acceleration_sigma_m_s2 = optim::accelerationSigma(state.acceleration_covariance_w);
   const std::optional<ImuInitEstimate> estimate = estimateImu(map, chain, options.imu_init, context, current);
+  const bool scheduled = state.initialised && imu_refinements < options.imu_refinement_delays_s.size() &&
+                         kf->t_s() - first_imu_init_t_s >= options.imu_refinement_delays_s[imu_refinements];
   if (!estimate) {
-    log::warn("IMU initialisation at kf ", kf->id(), " gave a non-finite estimate; retrying later");
+    if (!state.initialised) {
+      log::warn("IMU initialisation at kf ", kf->id(), " gave a non-finite estimate; retrying later");
+      return false;
+    }
+    // A refinement that was not applied (non-finite, or less informed than the current estimate)
+    // counts as done: the next one follows the schedule, not every keyframe.
+    if (scheduled) ++imu_refinements;
+    last_imu_estimate_t_s = kf->t_s();
     return false;
   }
   if (!state.initialised) {
     first_imu_init_t_s = kf->t_s();
-  } else {
+  } else if (scheduled) {
     ++imu_refinements;
   }
+  last_imu_estimate_t_s = kf->t_s();
   publishImu(*estimate, what);
   return true;
 }
@@ -244,6 +261,7 @@ void LocalMapper::Impl::publishImu(const ImuInitEstimate& estimate, const char* 
     imu_state.initialised = true;
     imu_state.bias = estimate.bias;
     imu_state.g_w = estimate.g_w;
+    imu_state.acceleration_covariance_w = estimate.acceleration_covariance_w;
     ++imu_state.generation;
     published = imu_state;
   }
@@ -252,7 +270,8 @@ void LocalMapper::Impl::publishImu(const ImuInitEstimate& estimate, const char* 
             angleDeg(published.g_w, Vec3(0.0, 0.0, -1.0)), " deg from the map's -z, b_g = (",
             published.bias.b_g.x(), ", ", published.bias.b_g.y(), ", ", published.bias.b_g.z(), ") rad/s, b_a = (",
             published.bias.b_a.x(), ", ", published.bias.b_a.y(), ", ", published.bias.b_a.z(),
-            ") m/s^2, generation ", published.generation);
+            ") m/s^2, acceleration sigma ", optim::accelerationSigma(published.acceleration_covariance_w),
+            " m/s^2, generation ", published.generation);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <unordered_map>
 
 #include "ltlo/core/assert.h"
 #include "ltlo/optim/inertial_edges.h"
@@ -109,56 +111,143 @@ ImuInitResult linearImuInit(const ImuInitProblem& problem) {
   return result;
 }
 
+namespace {
+
+/// The inertial-only initialisation's graph (Campos et al. 2021 §V-B): keyframe poses held,
+/// velocities, one bias pair and the gravity direction free.
+struct ImuInitGraph {
+  sparse_opt::Graph graph;
+  std::vector<VertexVelocity*> velocities;
+  VertexGyroBias* gyro_bias = nullptr;
+  VertexAccBias* acc_bias = nullptr;
+  VertexGravityDir* gravity = nullptr;
+
+  ImuInitGraph(const ImuInitProblem& problem, const ImuInitResult& start) {
+    const int n = static_cast<int>(problem.T_w_b.size());
+    // Ids: pose k = 2k, velocity k = 2k+1, then biases and gravity.
+    std::vector<VertexPose*> poses;
+    for (int k = 0; k < n; ++k) {
+      auto pose = std::make_unique<VertexPose>(2 * k, problem.T_w_b[static_cast<size_t>(k)]);
+      pose->setFixed(true);
+      poses.push_back(graph.addVertex(std::move(pose)));
+      velocities.push_back(
+          graph.addVertex(std::make_unique<VertexVelocity>(2 * k + 1, start.v_w_b[static_cast<size_t>(k)])));
+    }
+    gyro_bias = graph.addVertex(std::make_unique<VertexGyroBias>(2 * n, start.bias.b_g));
+    acc_bias = graph.addVertex(std::make_unique<VertexAccBias>(2 * n + 1, start.bias.b_a));
+    gravity = graph.addVertex(std::make_unique<VertexGravityDir>(2 * n + 2, start.R_w_g));
+    for (int k = 0; k + 1 < n; ++k) {
+      auto edge = std::make_unique<EdgeInertialGravity>(problem.pims[static_cast<size_t>(k)], problem.gravity_m_s2);
+      edge->setVertex(0, poses[static_cast<size_t>(k)]);
+      edge->setVertex(1, velocities[static_cast<size_t>(k)]);
+      edge->setVertex(2, gyro_bias);
+      edge->setVertex(3, acc_bias);
+      edge->setVertex(4, poses[static_cast<size_t>(k + 1)]);
+      edge->setVertex(5, velocities[static_cast<size_t>(k + 1)]);
+      edge->setVertex(6, gravity);
+      graph.addEdge(std::move(edge));
+    }
+    auto gyro_prior = std::make_unique<EdgeGyroBiasPrior>();
+    gyro_prior->setVertex(0, gyro_bias);
+    gyro_prior->setMeasurement(Vec3::Zero());
+    gyro_prior->setInformation(problem.gyro_bias_prior_information * Mat3::Identity());
+    graph.addEdge(std::move(gyro_prior));
+    auto acc_prior = std::make_unique<EdgeAccBiasPrior>();
+    acc_prior->setVertex(0, acc_bias);
+    acc_prior->setMeasurement(Vec3::Zero());
+    acc_prior->setInformation(problem.acc_bias_prior_information * Mat3::Identity());
+    graph.addEdge(std::move(acc_prior));
+  }
+};
+
+}  // namespace
+
 ImuInitResult initializeImu(const ImuInitProblem& problem) {
   ImuInitResult result = linearImuInit(problem);
   const int n = static_cast<int>(problem.T_w_b.size());
-  sparse_opt::Graph graph;
-  // Ids: pose k = 2k, velocity k = 2k+1, then biases and gravity.
-  std::vector<VertexPose*> poses;
-  std::vector<VertexVelocity*> velocities;
-  for (int k = 0; k < n; ++k) {
-    auto pose = std::make_unique<VertexPose>(2 * k, problem.T_w_b[static_cast<size_t>(k)]);
-    pose->setFixed(true);
-    poses.push_back(graph.addVertex(std::move(pose)));
-    velocities.push_back(graph.addVertex(std::make_unique<VertexVelocity>(2 * k + 1, result.v_w_b[static_cast<size_t>(k)])));
-  }
-  auto* gyro_bias = graph.addVertex(std::make_unique<VertexGyroBias>(2 * n, problem.bias_init.b_g));
-  auto* acc_bias = graph.addVertex(std::make_unique<VertexAccBias>(2 * n + 1, problem.bias_init.b_a));
-  auto* gravity = graph.addVertex(std::make_unique<VertexGravityDir>(2 * n + 2, result.R_w_g));
-  for (int k = 0; k + 1 < n; ++k) {
-    auto edge = std::make_unique<EdgeInertialGravity>(problem.pims[static_cast<size_t>(k)], problem.gravity_m_s2);
-    edge->setVertex(0, poses[static_cast<size_t>(k)]);
-    edge->setVertex(1, velocities[static_cast<size_t>(k)]);
-    edge->setVertex(2, gyro_bias);
-    edge->setVertex(3, acc_bias);
-    edge->setVertex(4, poses[static_cast<size_t>(k + 1)]);
-    edge->setVertex(5, velocities[static_cast<size_t>(k + 1)]);
-    edge->setVertex(6, gravity);
-    graph.addEdge(std::move(edge));
-  }
-  auto gyro_prior = std::make_unique<EdgeGyroBiasPrior>();
-  gyro_prior->setVertex(0, gyro_bias);
-  gyro_prior->setMeasurement(Vec3::Zero());
-  gyro_prior->setInformation(problem.gyro_bias_prior_information * Mat3::Identity());
-  graph.addEdge(std::move(gyro_prior));
-  auto acc_prior = std::make_unique<EdgeAccBiasPrior>();
-  acc_prior->setVertex(0, acc_bias);
-  acc_prior->setMeasurement(Vec3::Zero());
-  acc_prior->setInformation(problem.acc_bias_prior_information * Mat3::Identity());
-  graph.addEdge(std::move(acc_prior));
-
+  ImuInitGraph init(problem, result);
   sparse_opt::Options options;
   options.max_iterations = problem.iterations;
   options.use_schur = false;
   options.num_threads = 1;
-  result.summary = graph.optimize(options);
+  result.summary = init.graph.optimize(options);
 
-  result.R_w_g = gravity->estimate();
+  result.R_w_g = init.gravity->estimate();
   result.g_w = imu::gravityFromRotation(result.R_w_g, problem.gravity_m_s2);
-  result.bias.b_g = gyro_bias->estimate();
-  result.bias.b_a = acc_bias->estimate();
-  for (int k = 0; k < n; ++k) result.v_w_b[static_cast<size_t>(k)] = velocities[static_cast<size_t>(k)]->estimate();
+  result.bias.b_g = init.gyro_bias->estimate();
+  result.bias.b_a = init.acc_bias->estimate();
+  for (int k = 0; k < n; ++k) result.v_w_b[static_cast<size_t>(k)] = init.velocities[static_cast<size_t>(k)]->estimate();
+  result.acceleration_covariance_w = inertialAccelerationCovariance(problem, result);
   return result;
+}
+
+Mat3 inertialAccelerationCovariance(const ImuInitProblem& problem, const ImuInitResult& estimate) {
+  const int n = static_cast<int>(problem.T_w_b.size());
+  LTLO_ASSERT(n >= 2 && static_cast<int>(estimate.v_w_b.size()) == n,
+              "inertialAccelerationCovariance: " << n << " keyframes, " << estimate.v_w_b.size() << " velocities");
+  ImuInitGraph init(problem, estimate);
+  // Dense normal equations H = sum J^T Omega J over the free vertices (3n + 8 unknowns, at most a
+  // few hundred: a dense inverse is cheaper than the sparse machinery and gives the joint blocks).
+  std::unordered_map<const sparse_opt::VertexBase*, int> offset;
+  int dim = 0;
+  for (VertexVelocity* v : init.velocities) {
+    offset[v] = dim;
+    dim += 3;
+  }
+  const int gyro_at = dim;
+  offset[init.gyro_bias] = gyro_at;
+  const int acc_at = gyro_at + 3;
+  offset[init.acc_bias] = acc_at;
+  const int gravity_at = acc_at + 3;
+  offset[init.gravity] = gravity_at;
+  dim = gravity_at + 2;
+  MatX H = MatX::Zero(dim, dim);
+  for (sparse_opt::EdgeBase* edge : init.graph.edges()) {
+    if (!edge->linearize()) return Mat3::Constant(std::numeric_limits<double>::infinity());
+    for (int a = 0; a < edge->numVertices(); ++a) {
+      const auto ia = offset.find(edge->vertex(a));
+      if (ia == offset.end()) continue;
+      for (int b = 0; b < edge->numVertices(); ++b) {
+        const auto ib = offset.find(edge->vertex(b));
+        if (ib == offset.end()) continue;
+        const int da = edge->vertex(a)->dimension();
+        const int db = edge->vertex(b)->dimension();
+        MatX block = MatX::Zero(da, db);
+        edge->addHessianBlock(a, b, block.data());
+        H.block(ia->second, ib->second, da, db) += block;
+      }
+    }
+  }
+  const Eigen::LDLT<MatX> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Mat3::Constant(std::numeric_limits<double>::infinity());
+  // Joint covariance of (b_a, gravity direction): the two trade off (a tilt of gravity reads like a
+  // horizontal bias), so only their joint block says how well the world acceleration is known.
+  MatX unit = MatX::Zero(dim, 5);
+  unit.block<5, 5>(acc_at, 0).setIdentity();
+  const MatX columns = ldlt.solve(unit);
+  const Eigen::Matrix<double, 5, 5> covariance = columns.block<5, 5>(acc_at, 0);
+  // World acceleration of a prediction, a_w = R_w_b (f - b_a) + g_w: its error is
+  // -R_w_b db_a + dg_w/dtheta dtheta (body attitude of the newest keyframe; the bias is body-fixed),
+  // dg_w/dtheta by central differences on the manifold.
+  Eigen::Matrix<double, 3, 5> J;
+  J.block<3, 3>(0, 0) = -problem.T_w_b.back().rotationMatrix();
+  constexpr double kStep = 1e-6;
+  for (int i = 0; i < 2; ++i) {
+    Vec2 delta = Vec2::Zero();
+    delta[i] = kStep;
+    const Vec3 plus = imu::gravityFromRotation(init.gravity->plus(estimate.R_w_g, delta), problem.gravity_m_s2);
+    const Vec3 minus = imu::gravityFromRotation(init.gravity->plus(estimate.R_w_g, -delta), problem.gravity_m_s2);
+    J.col(3 + i) = (plus - minus) / (2.0 * kStep);
+  }
+  const Mat3 acceleration = J * covariance * J.transpose();
+  return 0.5 * (acceleration + acceleration.transpose());
+}
+
+double accelerationSigma(const Mat3& covariance_w) {
+  if (!covariance_w.allFinite()) return std::numeric_limits<double>::infinity();
+  const Eigen::SelfAdjointEigenSolver<Mat3> eigen(0.5 * (covariance_w + covariance_w.transpose()),
+                                                  Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff()));
 }
 
 }  // namespace ltlo::optim

@@ -5,11 +5,13 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 
 #include "common/analytic_trajectory.h"
 #include "ltlo/core/lie.h"
+#include "ltlo/imu/inertial_residual.h"
 #include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/optim/pose_graph.h"
 #include "ltlo/optim/pose_only_problem.h"
@@ -347,6 +349,66 @@ TEST(ImuInitialization, RecoversGravityDirectionAndBiasesFromKnownPoses) {
   EXPECT_LT((result.bias.b_a - true_bias.b_a).norm(), 0.01);
   for (int k = 0; k < kNumKeyFrames; ++k)
     EXPECT_LT((result.v_w_b[static_cast<size_t>(k)] - v_m_true[static_cast<size_t>(k)]).norm(), 0.01) << k;
+}
+
+// The posterior acceleration covariance of the inertial-only initialisation is consistent with its
+// real error: over independent noise draws the normalised squared error of the world acceleration a
+// prediction integrates (bias and gravity jointly) averages the 3 of a chi-square with 3 degrees of
+// freedom, and a longer window is much better known (the loss policy trusts the IMU accordingly).
+TEST(ImuInitialization, AccelerationCovarianceMatchesTheErrorOfTheEstimate) {
+  const imu::test::AnalyticTrajectory trajectory;
+  const imu::ImuBias true_bias{Vec3(0.002, -0.003, 0.001), Vec3(0.03, -0.02, 0.01)};
+  imu::ImuNoise noise;  // the simulator's calibration (calib.yaml)
+  noise.gyro_density = 1e-3;
+  noise.acc_density = 1e-2;
+  noise.gyro_walk_density = 1e-5;
+  noise.acc_walk_density = 2e-4;
+  const Vec3 g_true = imu::gravityFromRotation(Mat3::Identity());
+  auto run = [&](double span_s, std::mt19937& rng, Mat3* covariance) {
+    // Keyframes every 0.2 s (a whole number of 200 Hz samples), as before the initialisation.
+    constexpr double kSpacing_s = 0.2;
+    const int num_keyframes = static_cast<int>(std::lround(span_s / kSpacing_s)) + 1;
+    const double spacing_s = kSpacing_s;
+    ImuInitProblem problem;
+    for (int k = 0; k < num_keyframes; ++k) {
+      const double t = 0.5 + spacing_s * k;
+      const imu::NavState s = trajectory.state(t);
+      problem.T_w_b.emplace_back(s.R_w_b, s.p_w_b);
+      if (k > 0) {
+        auto pim = std::make_shared<imu::Preintegrated>(imu::ImuBias{}, noise);
+        pim->integrate(trajectory.samples(t - spacing_s, t, 200.0, true_bias, &noise, &rng));
+        problem.pims.push_back(pim);
+      }
+    }
+    const BiasPriorInformation prior = biasPriorInformation(noise, span_s, 1.0);
+    problem.gyro_bias_prior_information = prior.gyro;
+    problem.acc_bias_prior_information = prior.acc;
+    const ImuInitResult result = initializeImu(problem);
+    *covariance = result.acceleration_covariance_w;
+    // a_w = R_w_b (f - b_a) + g_w: the error of the world acceleration a prediction integrates.
+    return Vec3(-problem.T_w_b.back().rotationMatrix() * (result.bias.b_a - true_bias.b_a) + result.g_w - g_true);
+  };
+  std::mt19937 rng(21);
+  constexpr int kDraws = 30;
+  double nees = 0.0;
+  double sigma_short = 0.0;
+  for (int draw = 0; draw < kDraws; ++draw) {
+    Mat3 covariance;
+    const Vec3 error = run(1.8, rng, &covariance);
+    ASSERT_TRUE(covariance.allFinite());
+    nees += error.dot(covariance.ldlt().solve(error)) / kDraws;
+    sigma_short = accelerationSigma(covariance);
+  }
+  // Mean of 30 chi-square(3) draws: 3 with a standard deviation of sqrt(6 / 30) = 0.45.
+  EXPECT_GT(nees, 3.0 - 3.0 * 0.45);
+  EXPECT_LT(nees, 3.0 + 3.0 * 0.45);
+  Mat3 covariance_long;
+  run(5.4, rng, &covariance_long);
+  // Three times the window at the same keyframe rate: known better (2.3 times here; the joint
+  // bias / gravity block is limited by the attitudes the window visits, not only by its length).
+  EXPECT_LT(accelerationSigma(covariance_long), sigma_short / 2.0);
+  EXPECT_GT(sigma_short, 1e-3);
+  EXPECT_TRUE(std::isinf(accelerationSigma(Mat3::Constant(std::numeric_limits<double>::infinity()))));
 }
 
 TEST(LocalBundleAdjust, VisualOnlyRejectsCorruptedObservations) {

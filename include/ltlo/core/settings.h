@@ -121,10 +121,12 @@ struct TrackingOptions {
   /// keypoints do not match the map extends the map at the predicted pose instead of starting a
   /// new map (Tracking.MaxImuPositionSigma, [0.001, 10])
   double max_imu_position_sigma_m = 0.05;
-  /// Standard deviation of the map's accelerometer-bias estimate, m/s^2, which the tracker holds
-  /// fixed at each keyframe link and so leaves out of its covariance: an IMU-only stretch of t
-  /// seconds adds 0.5 sigma t^2 to the predicted position's standard deviation (search windows,
-  /// Tracking.MaxImuPositionSigma) (Tracking.AccBiasSigma, [0, 10])
+  /// Least standard deviation of the world acceleration the IMU prediction integrates (bias and
+  /// gravity, held fixed at each keyframe link and so left out of the tracker's covariance), m/s^2;
+  /// the (re)initialisation's own posterior sigma is used when larger. An IMU-only stretch of t
+  /// seconds adds 0.5 sigma t^2 to the predicted position's standard deviation (search windows;
+  /// for Tracking.MaxImuPositionSigma t runs from the last visually anchored frame, across
+  /// keyframes placed at the prediction) (Tracking.AccBiasSigma, [0, 10])
   double acc_bias_sigma_m_s2 = 0.03;
   /// Lost for at least this long (s, since the last tracked frame): a frame with enough static
   /// keypoints starts a new map (or, see Tracking.MaxImuPositionSigma, extends the map); a
@@ -272,6 +274,13 @@ struct ImuInitOptions {
   /// keyframes the refinement BA optimises at most (the latest of the IMU chain; observers of their
   /// points beyond are held), which bounds its cost (ImuInit.RefineMaxKeyFrames, [3, 10000])
   int refine_max_keyframes = 60;
+  /// Besides the refinements at +5 s and +15 s, refine again once the newest keyframe is this much
+  /// later (keyframe time) than the last estimate, while that estimate's posterior acceleration
+  /// sigma (optim::inertialAccelerationCovariance) is above Tracking.AccBiasSigma; an estimate
+  /// from a short window improves quickly as the window grows and turns, so a few refinements
+  /// suffice. s;
+  /// 0: only the scheduled refinements (ImuInit.RefineInterval, [0, 100])
+  double refine_interval_s = 1.0;
 
   static ImuInitOptions load(const SettingsFile& file);
 };

@@ -54,6 +54,12 @@ struct LocalMapperOptions {
   /// poses), at these keyframe-time delays after the first initialisation (s, increasing; ORB-SLAM3
   /// runs its VI-BA 1 and 2 at about 5 and 15 s).
   std::vector<double> imu_refinement_delays_s = {5.0, 15.0};
+  /// Besides those, the estimate is refined again every ImuInit.RefineInterval of keyframe time
+  /// while its acceleration sigma (ImuState::acceleration_covariance_w) is above this (m/s^2;
+  /// System sets Tracking.AccBiasSigma, the uncertainty tracking assumes at least): an
+  /// initialisation from the first MinTime seconds is refined as its window grows, until it is as
+  /// good as tracking assumes.
+  double refine_until_acceleration_sigma_m_s2 = 0.03;
 };
 
 /// The IMU state tracking needs once the IMU is initialised. g_w is expressed in the world frame
@@ -65,6 +71,9 @@ struct ImuState {
   bool initialised = false;
   imu::ImuBias bias;
   Vec3 g_w = Vec3(0.0, 0.0, -9.81);
+  /// Posterior covariance of the world acceleration the IMU integrates, from the last
+  /// (re)initialisation's window ((m/s^2)^2; optim::inertialAccelerationCovariance).
+  Mat3 acceleration_covariance_w = Mat3::Zero();
   std::uint64_t generation = 0;
 };
 

@@ -149,6 +149,8 @@ struct ImuInitResult {
   imu::ImuBias bias;
   std::vector<Vec3> v_w_b;  ///< per keyframe
   sparse_opt::Summary summary;
+  /// inertialAccelerationCovariance at the result ((m/s^2)^2, world frame; infinite if singular).
+  Mat3 acceleration_covariance_w = Mat3::Zero();
 };
 
 /// Linear first guess: velocities and g_w by least squares on the velocity and position equations
@@ -157,5 +159,17 @@ ImuInitResult linearImuInit(const ImuInitProblem& problem);
 
 /// The linear guess refined by the inertial-only optimisation (EdgeInertialGravity).
 ImuInitResult initializeImu(const ImuInitProblem& problem);
+
+/// Posterior covariance ((m/s^2)^2, world frame) of the acceleration an IMU prediction integrates,
+/// from the inertial-only problem's information at `estimate` (poses held): the joint (b_a, gravity
+/// direction) block of H^-1 mapped through -R_w_b(newest) db_a + dg_w/dtheta dtheta (a_w = R_w_b (f - b_a) + g_w). A tilt of
+/// gravity and a horizontal bias trade off, so only the joint block says how well the world
+/// acceleration is known; it shrinks as the window grows and turns (Campos et al. 2021 §V-B's
+/// problem, read as a Gaussian posterior). Infinite entries when the information is singular.
+Mat3 inertialAccelerationCovariance(const ImuInitProblem& problem, const ImuInitResult& estimate);
+
+/// Largest standard deviation of an acceleration covariance (m/s^2): sqrt of its largest
+/// eigenvalue; infinity when the covariance is not finite.
+double accelerationSigma(const Mat3& covariance_w);
 
 }  // namespace ltlo::optim
