@@ -14,6 +14,7 @@
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/mapping/local_mapper.h"
+#include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/system/segmentation_writer.h"
 #include "ltlo/tracking/dense_segmenter.h"
 #include "ltlo/tracking/frame_builder.h"
@@ -64,6 +65,10 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   tracking::TrackerOptions tracker_options;
   tracker_options.keyframe = settings_.keyframe;
   tracker_options.tracking = settings_.tracking;
+  if (use_imu_) {
+    tracker_options.imu_init_keyframe_interval_s =
+        settings_.imu_init.min_time_s / std::max(1, settings_.imu_init.min_keyframes - 1);
+  }
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
   tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks, &timing_));
@@ -76,6 +81,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   mapper_options.vocabulary = vocabulary_;
   mapper_options.imu_init = settings_.imu_init;
   mapper_options.use_imu = use_imu_;
+  mapper_options.refine_until_acceleration_sigma_m_s2 = settings_.tracking.acc_bias_sigma_m_s2;
   // Every RGB-D edge (tracking, local BA, fusion, loop and global BA): bf = fx * virtual baseline.
   mapper_options.bf_px_m = calib.camera.camera.fx() * settings_.tracking.virtual_baseline_m;
   mapper_ = std::make_unique<mapping::LocalMapper>(*atlas_, mapper_options, level_sigma2, &timing_);
@@ -141,7 +147,7 @@ void System::pollImuState() {
     log::info("IMU initialised: b_g = ", imu.bias.b_g.transpose(), ", b_a = ", imu.bias.b_a.transpose(),
               ", g_w = ", imu.g_w.transpose());
   }
-  tracker_->setImuInitialised(imu.bias, imu.g_w);
+  tracker_->setImuInitialised(imu.bias, imu.g_w, optim::accelerationSigma(imu.acceleration_covariance_w));
   imu_generation_ = imu.generation;
 }
 

@@ -114,10 +114,20 @@ TrackingState Tracker::track(map::Frame& frame) {
     return state_;
   }
   const map::Map& active = activeMap();
+  int anchored_inliers = 0;
   for (int i = 0; i < frame.numKeypoints(); ++i) {
     if (!isMatched(frame, i)) continue;
-    if (auto point = active.mapPoint(frame.map_points[static_cast<std::size_t>(i)])) point->increaseFound();
+    const map::MapPointId id = frame.map_points[static_cast<std::size_t>(i)];
+    if (id < carried_first_point_) ++anchored_inliers;
+    if (auto point = active.mapPoint(id)) point->increaseFound();
   }
+  // An open IMU-carried stretch closes when the frame matches the map from before it.
+  if (carried_first_point_.valid() && anchored_inliers >= minInliers()) {
+    log::info("IMU-carried stretch anchored at t = ", frame.t_s(), " s: ", anchored_inliers,
+              " inliers on points older than ", carried_first_point_, " after ", frame.t_s() - anchored_t_s_, " s");
+    carried_first_point_ = map::MapPointId();
+  }
+  if (!carried_first_point_.valid()) anchored_t_s_ = frame.t_s();
   // Overlap with the reference keyframe (ORB-SLAM's measure): pose inliers over the reference
   // keyframe's established points (seen by >= 2 keyframes, >= 3 once the map has more than 2);
   // fresh single-view points do not count, so a new keyframe does not lower it by itself.
@@ -186,23 +196,36 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
   log::debug("frame t = ", frame.t_s(), ": lost, ", stats_.inliers, " inliers, link ", stats_.inertial_link,
              ", sigma ", stats_.predicted_position_sigma_m, " m, p = ", frame.T_w_b().translation().transpose(),
              ", ref ", reference_kf_);
-  if (options_.tracking.new_map_after_s >= 0.0 && lost_for_s >= options_.tracking.new_map_after_s &&
-      staticKeypointsWithDepth(frame) >= options_.min_init_features) {
-    const double sigma_m =
-        imu_prediction_.link ? stats_.predicted_position_sigma_m : std::numeric_limits<double>::infinity();
+  const int static_with_depth = options_.tracking.new_map_after_s >= 0.0 && lost_for_s >= options_.tracking.new_map_after_s
+                                    ? staticKeypointsWithDepth(frame)
+                                    : 0;
+  // Extending the map needs fewer keypoints than a new map: the IMU holds the pose, and the
+  // keyframe only has to give the next frames Tracking.MinInliersImu matches (3x for the share a
+  // frame re-matches); a new map must stand on vision alone (min_init_features).
+  const bool can_extend = static_with_depth >= 3 * options_.tracking.min_inliers_imu;
+  if (can_extend || static_with_depth >= options_.min_init_features) {
+    const double sigma_m = imu_prediction_.link ? carried_position_sigma_m_ : std::numeric_limits<double>::infinity();
     const bool keyframe_in_map = last_kf_ptr_ && !last_kf_ptr_->isBad() && last_kf_ptr_->mapId() == activeMap().id();
-    if (sigma_m <= options_.tracking.max_imu_position_sigma_m && keyframe_in_map) {
+    if (can_extend && sigma_m <= options_.tracking.max_imu_position_sigma_m && keyframe_in_map) {
       // The IMU still knows where the camera is: what the frame sees is unmapped (revealed behind
       // an occluder, or new), so it extends the map at the predicted pose, linked by the IMU.
       log::warn("lost for ", lost_for_s, " s: keyframe at the IMU-predicted pose (position sigma ", sigma_m,
                 " m) extends map ", activeMap().id(), " at t = ", frame.t_s(), " s");
       extendMapAtPrediction(frame);
+      if (!carried_first_point_.valid()) {
+        // The stretch opens: every point from here on was placed by the IMU.
+        for (const map::MapPointId id : frame.map_points) {
+          if (id.valid() && (!carried_first_point_.valid() || id < carried_first_point_)) carried_first_point_ = id;
+        }
+      }
       stats_.map_extended = true;
       frame_tracked_ = true;
       state_ = TrackingState::kOk;
       recordFramePose(frame);
       return;
     }
+  }
+  if (static_with_depth >= options_.min_init_features) {
     // New map at the predicted pose: same world frame (gravity stays valid), old map kept.
     map::Map& created = atlas_.createNewMap();
     ++maps_created_;
@@ -214,8 +237,14 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
     local_keyframes_.clear();
     local_points_.clear();
     velocity_T_last_cur_.reset();
+    // After the loss the velocity is the IMU's dead-reckoned one, too uncertain to be held fixed at
+    // the new map's first keyframe: without a marginal the keyframe is not inertial, and the
+    // keyframe link re-estimates its velocity from the next frames' poses.
+    frame_information_ = StateInformation();
     state_ = initialise(frame);
     LTLO_ASSERT(state_ == TrackingState::kOk, "new map not initialised");
+    carried_first_point_ = map::MapPointId();
+    anchored_t_s_ = frame.t_s();
     stats_.new_map = true;
     frame_tracked_ = true;
     return;
@@ -399,7 +428,13 @@ bool Tracker::needNewKeyFrame() const {
   if (state_ != TrackingState::kOk || !last_frame_) return false;
   if (frames_since_keyframe_ < options_.min_frames_between_keyframes) return false;
   const KeyFrameOptions& kf = options_.keyframe;
-  const bool interval = last_frame_->t_s() - last_keyframe_t_s_ >= kf.max_interval_s;
+  // Before the IMU initialisation the interval shrinks to ImuInit.MinTime / (MinKeyFrames - 1), so
+  // the map can initialise the IMU as soon as MinTime of motion is covered.
+  double max_interval_s = kf.max_interval_s;
+  if (!imu_initialised_ && last_frame_->imu_from_last_frame && options_.imu_init_keyframe_interval_s > 0.0) {
+    max_interval_s = std::min(max_interval_s, options_.imu_init_keyframe_interval_s);
+  }
+  const bool interval = last_frame_->t_s() - last_keyframe_t_s_ >= max_interval_s;
   const bool low_overlap = stats_.overlap < kf.max_overlap;
   const bool weak = stats_.inliers < kf.min_tracked_points;
   // A keyframe needs enough inliers to be anchored in the map (a frame carried by the IMU with

@@ -39,8 +39,9 @@ std::optional<Mat15> Tracker::stateInformation() const {
   return prev_information_.information;
 }
 
-void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w) {
+void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2) {
   imu_initialised_ = true;
+  init_acceleration_sigma_m_s2_ = acceleration_sigma_m_s2;
   bias_ = bias;
   prev_bias_ = bias;
   g_w_ = g_w;
@@ -73,14 +74,22 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
       if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
         const Mat15 covariance = ldlt.solve(Mat15::Identity());
         const double sigma_r = largestSigma(covariance.block<3, 3>(0, 0));
-        // The keyframe's bias is held fixed by the links: its error (Tracking.AccBiasSigma) acts
-        // over the time since the last tracked frame, 0.5 sigma_b t^2, independent of the filter's.
+        // The keyframe's bias and gravity are held fixed by the links: the error of the world
+        // acceleration they give acts over the time since the last tracked frame, 0.5 sigma_a t^2,
+        // independent of the filter's. sigma_a is the (re)initialisation's own posterior
+        // uncertainty, at least Tracking.AccBiasSigma.
+        const double sigma_a =
+            std::max(options_.tracking.acc_bias_sigma_m_s2, init_acceleration_sigma_m_s2_);
         const double gap_s = frame.t_s() - last_tracked_t_s_;
-        const double bias_drift_m = 0.5 * options_.tracking.acc_bias_sigma_m_s2 * gap_s * gap_s;
+        const double bias_drift_m = 0.5 * sigma_a * gap_s * gap_s;
         const double sigma_p = largestSigma(covariance.block<3, 3>(3, 3));
+        const double lever_m = sigma_r * frame.T_b_c().translation().norm();
         stats_.predicted_rotation_sigma_rad = sigma_r;
-        stats_.predicted_position_sigma_m =
-            std::sqrt(sigma_p * sigma_p + bias_drift_m * bias_drift_m) + sigma_r * frame.T_b_c().translation().norm();
+        stats_.predicted_position_sigma_m = std::hypot(sigma_p, bias_drift_m) + lever_m;
+        // Over an IMU-carried stretch the acceleration error integrates since the last anchored
+        // frame: the keyframes placed at the prediction carry the error they were placed with.
+        const double carried_s = carried_first_point_.valid() ? frame.t_s() - anchored_t_s_ : gap_s;
+        carried_position_sigma_m_ = std::hypot(sigma_p, 0.5 * sigma_a * carried_s * carried_s) + lever_m;
       }
     }
     return imu_prediction_.state.T_w_b;

@@ -33,6 +33,7 @@
 /// predicted pose (same world frame; the old map is kept for merging).
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -69,6 +70,12 @@ struct TrackerOptions {
   int min_init_features = 100;
   /// fewest frames between keyframes (0: a keyframe may follow the previous one directly)
   int min_frames_between_keyframes = 0;
+  /// Longest keyframe interval while the IMU is used but not yet initialised, s (0: only
+  /// keyframe.max_interval_s). The initialisation waits for ImuInit.MinKeyFrames keyframes spanning
+  /// ImuInit.MinTime; System sets MinTime / (MinKeyFrames - 1) so the map can initialise when
+  /// MinTime has passed, not only after MinKeyFrames x KF.MaxInterval (an early occlusion would
+  /// otherwise meet a vision-only tracker).
+  double imu_init_keyframe_interval_s = 0.0;
   /// new map points: all unmatched static keypoints closer than this (m), else the closest
   /// min_new_points ones (ORB-SLAM's RGB-D insertion)
   double close_depth_m = 3.0;
@@ -173,7 +180,10 @@ class Tracker {
   /// imu_from_last_frame are predicted by preintegration (and pose-optimised with the inertial link
   /// when inertial_pose_optimisation). The world must be gravity-aligned (g_w) by then. May be
   /// called again with refined values (they replace the old ones).
-  void setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w);
+  /// `acceleration_sigma_m_s2` is the (re)initialisation's own uncertainty of the world
+  /// acceleration it integrates (optim::accelerationSigma); the prediction's position sigma uses
+  /// the larger of it and Tracking.AccBiasSigma.
+  void setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2 = 0.0);
   bool imuInitialised() const { return imu_initialised_; }
   /// The bias new frames are preintegrated at: the last optimised frame's (inertial optimisation),
   /// else the IMU initialisation's or the last keyframe's.
@@ -289,11 +299,22 @@ class Tracker {
   Vec3 prev_v_w_b_ = Vec3::Zero();
   double prev_t_s_ = 0.0;
   double last_tracked_t_s_ = 0.0;
+  /// IMU-carried stretch: keyframes placed at the IMU prediction (extendMapAtPrediction) are not a
+  /// visual fix, so the acceleration error keeps integrating from the last frame tracked against
+  /// the map as it was before the stretch (anchored_t_s_) until a frame matches at least
+  /// minInliers() points older than the stretch's first point (carried_first_point_; invalid when
+  /// no stretch is open). The loss policy's position sigma uses that time.
+  double anchored_t_s_ = 0.0;
+  map::MapPointId carried_first_point_;
+  /// The position sigma the loss policy compares with Tracking.MaxImuPositionSigma (m).
+  double carried_position_sigma_m_ = std::numeric_limits<double>::infinity();
   int num_keyframes_ = 0;
   std::vector<map::KeyFrameId> local_keyframes_;
   std::vector<map::MapPointId> local_points_;
 
   bool imu_initialised_ = false;
+  /// The last (re)initialisation's acceleration sigma (m/s^2, setImuInitialised).
+  double init_acceleration_sigma_m_s2_ = 0.0;
   imu::ImuBias bias_;
   Vec3 g_w_ = Vec3(0.0, 0.0, -9.81);
   /// IMU since the last keyframe (appended in place, O(1) per frame; shared with the inertial
