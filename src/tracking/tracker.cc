@@ -196,17 +196,11 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
   log::debug("frame t = ", frame.t_s(), ": lost, ", stats_.inliers, " inliers, link ", stats_.inertial_link,
              ", sigma ", stats_.predicted_position_sigma_m, " m, p = ", frame.T_w_b().translation().transpose(),
              ", ref ", reference_kf_);
-  const int static_with_depth = options_.tracking.new_map_after_s >= 0.0 && lost_for_s >= options_.tracking.new_map_after_s
-                                    ? staticKeypointsWithDepth(frame)
-                                    : 0;
-  // Extending the map needs fewer keypoints than a new map: the IMU holds the pose, and the
-  // keyframe only has to give the next frames Tracking.MinInliersImu matches (3x for the share a
-  // frame re-matches); a new map must stand on vision alone (min_init_features).
-  const bool can_extend = static_with_depth >= 3 * options_.tracking.min_inliers_imu;
-  if (can_extend || static_with_depth >= options_.min_init_features) {
+  if (options_.tracking.new_map_after_s >= 0.0 && lost_for_s >= options_.tracking.new_map_after_s &&
+      staticKeypointsWithDepth(frame) >= options_.min_init_features) {
     const double sigma_m = imu_prediction_.link ? carried_position_sigma_m_ : std::numeric_limits<double>::infinity();
     const bool keyframe_in_map = last_kf_ptr_ && !last_kf_ptr_->isBad() && last_kf_ptr_->mapId() == activeMap().id();
-    if (can_extend && sigma_m <= options_.tracking.max_imu_position_sigma_m && keyframe_in_map) {
+    if (sigma_m <= options_.tracking.max_imu_position_sigma_m && keyframe_in_map) {
       // The IMU still knows where the camera is: what the frame sees is unmapped (revealed behind
       // an occluder, or new), so it extends the map at the predicted pose, linked by the IMU.
       log::warn("lost for ", lost_for_s, " s: keyframe at the IMU-predicted pose (position sigma ", sigma_m,
@@ -224,8 +218,6 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
       recordFramePose(frame);
       return;
     }
-  }
-  if (static_with_depth >= options_.min_init_features) {
     // New map at the predicted pose: same world frame (gravity stays valid), old map kept.
     map::Map& created = atlas_.createNewMap();
     ++maps_created_;
