@@ -275,10 +275,11 @@ struct ImuInitOptions {
   /// points beyond are held), which bounds its cost (ImuInit.RefineMaxKeyFrames, [3, 10000])
   int refine_max_keyframes = 60;
   /// Besides the refinements at +5 s and +15 s, refine again once the newest keyframe is this much
-  /// later (keyframe time) than the last estimate, while that estimate's posterior acceleration
-  /// sigma (optim::inertialAccelerationCovariance) is above Tracking.AccBiasSigma; an estimate
-  /// from a short window improves quickly as the window grows and turns, so a few refinements
-  /// suffice. s;
+  /// later (keyframe time) than the last estimate: always until the +5 s refinement (the sigma
+  /// holds the poses exact, a lower bound for a short window), afterwards while the estimate's
+  /// posterior acceleration sigma (optim::inertialAccelerationCovariance) is above
+  /// Tracking.AccBiasSigma; an estimate from a short window improves quickly as the window grows
+  /// and turns, so a few refinements suffice. s;
   /// 0: only the scheduled refinements (ImuInit.RefineInterval, [0, 100])
   double refine_interval_s = 1.0;
 

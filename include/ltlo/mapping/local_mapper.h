@@ -54,8 +54,9 @@ struct LocalMapperOptions {
   /// poses), at these keyframe-time delays after the first initialisation (s, increasing; ORB-SLAM3
   /// runs its VI-BA 1 and 2 at about 5 and 15 s).
   std::vector<double> imu_refinement_delays_s = {5.0, 15.0};
-  /// Besides those, the estimate is refined again every ImuInit.RefineInterval of keyframe time
-  /// while its acceleration sigma (ImuState::acceleration_covariance_w) is above this (m/s^2;
+  /// Besides those, the estimate is refined again every ImuInit.RefineInterval of keyframe time,
+  /// until the first of them always, then while its acceleration sigma
+  /// (ImuState::acceleration_covariance_w) is above this (m/s^2;
   /// System sets Tracking.AccBiasSigma, the uncertainty tracking assumes at least): an
   /// initialisation from the first MinTime seconds is refined as its window grows, until it is as
   /// good as tracking assumes.
