@@ -10,11 +10,13 @@
 // longest such stretch and the mean dynamic fraction over those frames must stay near what was
 // measured when the tests were written (stated per test).
 //
-// Why VGA: at 320x240 the same schedules drift to 0.07-0.10 m ATE even with the ground-truth masks
-// (--oracle-masks), as the 30 % of the view left static holds too few well-localised features;
-// at 640x480 the same runs stay near 1 cm, as the 45 s runs do. 16 s at 15 Hz leaves the IMU time
+// Why VGA: at 320x240 the 16 s ltlo run drifts to 0.065-0.10 m ATE, 0.09 m even with the
+// ground-truth masks (--oracle-masks), while a static 320x240 run stays at 5.5 mm (presumably too
+// few and too coarse features on the third of the view left static; not investigated further).
+// At 640x480 the same run stays near 1 cm, as the 45 s runs do. 16 s at 15 Hz leaves the IMU time
 // to initialise (8 keyframes at 2 Hz, ~3.7 s) before the ltlo box arrives (4.3 s); a box that
-// arrives before it is the open failure of ltlo seeds 2 and 3 (notes/12.md), not tested here.
+// arrives before the initialisation is the open failure of ltlo seeds 2 and 3 at 45 s (issue 12),
+// not tested here.
 //
 // Runs are synchronous (local mapping and loop closing inside trackFrame): deterministic, so the
 // bounds do not depend on the machine's load. Measured when written (seeds 1-3, 16 s VGA 15 Hz):
