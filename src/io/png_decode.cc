@@ -18,12 +18,19 @@ namespace {
 constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
 // Larger images (filtered data beyond this many bytes) are left to cv::imread and its limits.
 constexpr std::size_t kMaxFilteredBytes = std::size_t{1} << 29;
+// Deflate expands at most 1032-fold: a header announcing more than that of its data is a lie
+// (declined before anything is allocated for it).
+constexpr std::size_t kMaxInflateRatio = 1032;
+// Per-thread buffers beyond this size are released after use (the sequences need about 1 MB).
+constexpr std::size_t kKeptBufferBytes = std::size_t{64} << 20;
 
 uint32_t bigEndian32(const unsigned char* p) {
   return (uint32_t{p[0]} << 24) | (uint32_t{p[1]} << 16) | (uint32_t{p[2]} << 8) | uint32_t{p[3]};
 }
 
-bool chunkIs(const unsigned char* type, const char* name) { return std::memcmp(type, name, 4) == 0; }
+bool chunkIs(const unsigned char* type, const char* name) {
+  return std::memcmp(type, name, 4) == 0;
+}
 
 // Chunks that do not change what cv::imread returns with IMREAD_UNCHANGED.
 bool harmlessAncillary(const unsigned char* type) {
@@ -43,6 +50,16 @@ struct ThreadBuffers {
   std::vector<unsigned char> compressed;  // IDAT data when split over several chunks
   std::vector<unsigned char> filtered;    // inflated: per row a filter byte and the row
 };
+
+void releaseIfLarge(std::vector<unsigned char>* buffer) {
+  if (buffer->capacity() > kKeptBufferBytes) std::vector<unsigned char>().swap(*buffer);
+}
+
+// The decoder's own buffers (not `file`, which may hold the data being decoded).
+void releaseLargeBuffers(ThreadBuffers* buffers) {
+  releaseIfLarge(&buffers->compressed);
+  releaseIfLarge(&buffers->filtered);
+}
 
 ThreadBuffers& threadBuffers() {
   thread_local ThreadBuffers buffers;
@@ -84,7 +101,8 @@ bool unfilterRow(int filter, const unsigned char* src, const unsigned char* prev
       if (bpp == 3) return unfilterSub<3>(src, dst, n), true;
       if (bpp == 4) return unfilterSub<4>(src, dst, n), true;
       for (std::size_t i = 0; i < bpp && i < n; ++i) dst[i] = src[i];
-      for (std::size_t i = bpp; i < n; ++i) dst[i] = static_cast<unsigned char>(src[i] + dst[i - bpp]);
+      for (std::size_t i = bpp; i < n; ++i)
+        dst[i] = static_cast<unsigned char>(src[i] + dst[i - bpp]);
       return true;
     case 2:
       if (prev == nullptr) {
@@ -143,7 +161,8 @@ bool decodePngFast(const unsigned char* data, std::size_t size, cv::Mat* out) {
       if (body[10] != 0 || body[11] != 0 || body[12] != 0) return false;  // interlaced, unknown
     } else if (chunkIs(type, "IDAT")) {
       if (idat_chunks == 1) buffers.compressed.assign(idat, idat + idat_size);
-      if (idat_chunks >= 1) buffers.compressed.insert(buffers.compressed.end(), body, body + length);
+      if (idat_chunks >= 1)
+        buffers.compressed.insert(buffers.compressed.end(), body, body + length);
       idat = body;
       idat_size = length;
       ++idat_chunks;
@@ -170,12 +189,16 @@ bool decodePngFast(const unsigned char* data, std::size_t size, cv::Mat* out) {
 
   const unsigned char* compressed = idat_chunks == 1 ? idat : buffers.compressed.data();
   const std::size_t compressed_size = idat_chunks == 1 ? idat_size : buffers.compressed.size();
+  if (filtered_bytes / kMaxInflateRatio > compressed_size) return false;
   buffers.filtered.resize(filtered_bytes);
   std::size_t inflated = 0;
-  if (libdeflate_zlib_decompress(buffers.decompressor.get(), compressed, compressed_size,
+  const bool inflated_all =
+      libdeflate_zlib_decompress(buffers.decompressor.get(), compressed, compressed_size,
                                  buffers.filtered.data(), filtered_bytes,
-                                 &inflated) != LIBDEFLATE_SUCCESS ||
-      inflated != filtered_bytes) {
+                                 &inflated) == LIBDEFLATE_SUCCESS &&
+      inflated == filtered_bytes;
+  if (!inflated_all) {
+    releaseLargeBuffers(&buffers);
     return false;
   }
 
@@ -193,7 +216,8 @@ bool decodePngFast(const unsigned char* data, std::size_t size, cv::Mat* out) {
   const std::size_t samples = static_cast<std::size_t>(width) * height * channels;
   if (bit_depth == 16) {
     uint16_t* s = image.ptr<uint16_t>();
-    for (std::size_t k = 0; k < samples; ++k) s[k] = static_cast<uint16_t>((s[k] >> 8) | (s[k] << 8));
+    for (std::size_t k = 0; k < samples; ++k)
+      s[k] = static_cast<uint16_t>((s[k] >> 8) | (s[k] << 8));
     if (channels >= 3) {
       for (std::size_t k = 0; k < samples; k += channels) std::swap(s[k], s[k + 2]);
     }
@@ -202,6 +226,7 @@ bool decodePngFast(const unsigned char* data, std::size_t size, cv::Mat* out) {
     for (std::size_t k = 0; k < samples; k += channels) std::swap(s[k], s[k + 2]);
   }
   *out = image;
+  releaseLargeBuffers(&buffers);
   return true;
 }
 
@@ -217,7 +242,9 @@ cv::Mat readImageUnchanged(const std::string& path) {
     }
     std::fclose(file);
     cv::Mat image;
-    if (read && decodePngFast(buffers.file.data(), buffers.file.size(), &image)) return image;
+    const bool decoded = read && decodePngFast(buffers.file.data(), buffers.file.size(), &image);
+    releaseIfLarge(&buffers.file);
+    if (decoded) return image;
   }
   return cv::imread(path, cv::IMREAD_UNCHANGED);
 }

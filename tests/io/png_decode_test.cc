@@ -1,7 +1,10 @@
 // The fast PNG path against cv::imread on PNGs written here with every filter type, bit depth and
 // colour type it handles, split and single IDAT chunks; damaged and unhandled files fall back.
+#include "png_decode.h"
+
 #include <gtest/gtest.h>
 #include <libdeflate.h>
+#include <sys/resource.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -11,13 +14,12 @@
 #include <string>
 #include <vector>
 
-#include "png_decode.h"
-
 namespace ltlo::io {
 namespace {
 
 void put32(std::vector<unsigned char>* out, uint32_t v) {
-  for (int shift = 24; shift >= 0; shift -= 8) out->push_back(static_cast<unsigned char>(v >> shift));
+  for (int shift = 24; shift >= 0; shift -= 8)
+    out->push_back(static_cast<unsigned char>(v >> shift));
 }
 
 void putChunk(std::vector<unsigned char>* out, const char* type,
@@ -37,9 +39,9 @@ int paethPredictor(int a, int b, int c) {
 
 // A PNG of `rows` (raw big-endian RGB(A)/grey bytes per row) with row y filtered by filter
 // (y + first_filter) % 5, the IDAT data split into `idat_chunks` chunks.
-std::vector<unsigned char> encodePng(const std::vector<std::vector<unsigned char>>& rows,
-                                     int width, int bit_depth, int colour_type, int bpp,
-                                     int first_filter, int idat_chunks) {
+std::vector<unsigned char> encodePng(const std::vector<std::vector<unsigned char>>& rows, int width,
+                                     int bit_depth, int colour_type, int bpp, int first_filter,
+                                     int idat_chunks) {
   std::vector<unsigned char> filtered;
   for (std::size_t y = 0; y < rows.size(); ++y) {
     const int filter = static_cast<int>((y + first_filter) % 5);
@@ -68,11 +70,18 @@ std::vector<unsigned char> encodePng(const std::vector<std::vector<unsigned char
   putChunk(&png, "IHDR", ihdr);
   putChunk(&png, "tEXt", {'a', 0, 'b'});
   for (int k = 0; k < idat_chunks; ++k) {
-    const std::size_t from = zlib.size() * k / idat_chunks, to = zlib.size() * (k + 1) / idat_chunks;
+    const std::size_t from = zlib.size() * k / idat_chunks,
+                      to = zlib.size() * (k + 1) / idat_chunks;
     putChunk(&png, "IDAT", std::vector<unsigned char>(zlib.begin() + from, zlib.begin() + to));
   }
   putChunk(&png, "IEND", {});
   return png;
+}
+
+long peakRssKb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss;
 }
 
 class PngDecodeTest : public ::testing::Test {
@@ -102,8 +111,8 @@ TEST_F(PngDecodeTest, EveryFilterDepthAndColourTypeDecodesLikeImread) {
   struct Format {
     int bit_depth, colour_type, channels;
   };
-  for (const Format& format : {Format{8, 0, 1}, Format{16, 0, 1}, Format{8, 2, 3},
-                               Format{16, 2, 3}, Format{8, 6, 4}, Format{16, 6, 4}}) {
+  for (const Format& format : {Format{8, 0, 1}, Format{16, 0, 1}, Format{8, 2, 3}, Format{16, 2, 3},
+                               Format{8, 6, 4}, Format{16, 6, 4}}) {
     const int bpp = format.channels * format.bit_depth / 8;
     std::vector<std::vector<unsigned char>> rows(height);
     for (int y = 0; y < height; ++y) {
@@ -155,12 +164,24 @@ TEST_F(PngDecodeTest, DamagedOrUnhandledFilesAreLeftToImread) {
   EXPECT_FALSE(decodePngFast(bad_crc.data(), bad_crc.size(), &out));
   const std::vector<unsigned char> truncated(good.begin(), good.end() - 20);
   EXPECT_FALSE(decodePngFast(truncated.data(), truncated.size(), &out));
-  // Interlaced and palette images: cv::imread's business.
-  std::vector<unsigned char> interlaced = encodePng(rows, 8, 8, 0, 1, 1, 1);
-  interlaced[8 + 8 + 12] = 1;  // IHDR's interlace method (Adam7), CRC updated
-  const uint32_t crc = libdeflate_crc32(0, &interlaced[8 + 4], 4 + 13);
-  for (int k = 0; k < 4; ++k) interlaced[8 + 8 + 13 + k] = static_cast<unsigned char>(crc >> (24 - 8 * k));
+  // IHDR edited with a valid CRC: interlaced (Adam7) is cv::imread's business; 60000 x 8000
+  // pixels over 20 bytes of data cannot be true (deflate expands at most 1032-fold) and must be
+  // declined before 480 MB are allocated for them.
+  auto editedHeader = [&](int offset, const std::vector<unsigned char>& bytes) {
+    std::vector<unsigned char> png = good;
+    std::copy(bytes.begin(), bytes.end(), png.begin() + 16 + offset);
+    const uint32_t crc = libdeflate_crc32(0, &png[12], 4 + 13);
+    for (int k = 0; k < 4; ++k) png[29 + k] = static_cast<unsigned char>(crc >> (24 - 8 * k));
+    return png;
+  };
+  const std::vector<unsigned char> interlaced = editedHeader(12, {1});
   EXPECT_FALSE(decodePngFast(interlaced.data(), interlaced.size(), &out));
+  const std::vector<unsigned char> huge = editedHeader(0, {0, 0, 0xea, 0x60, 0, 0, 0x1f, 0x40});
+  const long peak_before_kb = peakRssKb();
+  EXPECT_FALSE(decodePngFast(huge.data(), huge.size(), &out));
+  EXPECT_LT(peakRssKb() - peak_before_kb, 100 * 1024);
+  const std::vector<unsigned char> unchanged = editedHeader(12, {0});
+  EXPECT_TRUE(decodePngFast(unchanged.data(), unchanged.size(), &out));
   const std::vector<unsigned char> palette = encodePng(rows, 8, 8, 3, 1, 1, 1);
   EXPECT_FALSE(decodePngFast(palette.data(), palette.size(), &out));
 
