@@ -37,6 +37,7 @@
 #include <unordered_set>
 
 #include "bow/vocabulary.h"
+#include "end_to_end_suite.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/eval/mask_iou.h"
@@ -51,10 +52,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path sourceDir() {
-  const char* root = std::getenv("LTLO_SOURCE_DIR");
-  return root != nullptr ? fs::path(root) : fs::current_path();
-}
+using test_support::EndToEndSuite;
+using test_support::sourceDir;
 
 constexpr double kFps = 15.0;
 constexpr double kSeconds = 16.0;
@@ -112,23 +111,14 @@ struct RunResult {
   eval::MaskIouResult iou;           ///< the run's segmentation/ against masks/
 };
 
-class OcclusionEndToEnd : public ::testing::Test {
+class OcclusionEndToEnd : public EndToEndSuite {
  protected:
-  static void SetUpTestSuite() {
-    root_ = new fs::path(fs::temp_directory_path() / ("ltlo_occlusion_" + std::to_string(::getpid())));
-    fs::create_directories(*root_);
-    vocabulary_ = new std::shared_ptr<const bow::Vocabulary>(std::make_shared<const bow::Vocabulary>(
-        bow::Vocabulary::load((sourceDir() / "Vocabulary/ltlo_orb_k10_L5.bin").string())));
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*root_);
-    delete root_;
-    delete vocabulary_;
-  }
+  static void SetUpTestSuite() { createSuiteResources("ltlo_occlusion_"); }
+  static void TearDownTestSuite() { removeSuiteResources(); }
 
   /// The 16 s VGA sequence of `scenario` and `seed` at 15 Hz, with sensor noise.
   static std::string sequence(sim::Scenario scenario, std::uint64_t seed) {
-    const fs::path dir = *root_ / (sim::scenarioName(scenario) + "_seed" + std::to_string(seed));
+    const fs::path dir = root() / (sim::scenarioName(scenario) + "_seed" + std::to_string(seed));
     sim::SimOptions options;
     options.scenario = scenario;
     options.seed = seed;
@@ -159,7 +149,7 @@ class OcclusionEndToEnd : public ::testing::Test {
       options.use_imu = true;
       options.threaded = false;
       options.segmentation_dir = masks_dir.string();
-      System system(settingsFor(dir), *vocabulary_, options);
+      System system(settingsFor(dir), vocabulary(), options);
       while (std::optional<io::RgbdImuFrame> input = reader.next()) {
         system.trackFrame(*input);
         ++result.frames;
@@ -201,12 +191,8 @@ class OcclusionEndToEnd : public ::testing::Test {
     EXPECT_EQ(result.iou.num_frames, result.frames);  // one segmentation mask per frame
   }
 
-  static fs::path* root_;
-  static std::shared_ptr<const bow::Vocabulary>* vocabulary_;
 };
 
-fs::path* OcclusionEndToEnd::root_ = nullptr;
-std::shared_ptr<const bow::Vocabulary>* OcclusionEndToEnd::vocabulary_ = nullptr;
 
 // Long-term large occlusion, seed 1: two pushed boxes (one behind the other, both swaying) cover
 // more than 40 % of the view on 67.5 % of the frames, in one stretch of 10.8 s from t = 4.3 s to
