@@ -316,22 +316,7 @@ if [ ! -f "$RUN/DONE" ]; then
   touch "$RUN/DONE"
 fi
 # run_variant NAME [omit...]: a copy of RUN's files (segmentation/ linked unless omitted) in CASES/NAME.
-run_variant() {
-  local dir=$CASES/$1
-  shift
-  mkdir -p "$dir"
-  local f
-  for f in "$RUN"/*; do
-    local name
-    name=$(basename "$f")
-    [ "$name" = DONE ] && continue
-    local skip=0 o
-    for o in "$@"; do [ "$name" = "$o" ] && skip=1; done
-    [ $skip -eq 1 ] && continue
-    if [ -d "$f" ]; then ln -s "$f" "$dir/$name"; else cp "$f" "$dir/$name"; fi
-  done
-  echo "$dir"
-}
+run_variant() { VARIANT_OF=$RUN variant "$@"; }
 # A PLY header announcing more records than the file holds (a reader must not allocate for them).
 huge_ply() {  # huge_ply FILE HEADER_PROPERTIES...
   local file=$1

@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev          # linear algebra, fixed-size types
   libopencv-dev          # images, FAST/pyramids, FileStorage YAML settings
   libsuitesparse-dev     # CHOLMOD sparse Cholesky for Thirdparty/sparse_opt
+  libdeflate-dev         # fast inflate of the sequences' PNG images (src/io/png_decode.h)
   libosmesa6-dev         # headless OpenGL: simulator renderer and reconstruction snapshots
   libgtest-dev libgmock-dev  # unit and end-to-end tests
   libbenchmark-dev       # kernel and solver benchmarks

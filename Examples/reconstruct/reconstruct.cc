@@ -14,6 +14,8 @@
 // --snapshots-only renders the pictures of an existing OUT/surfels.ply again (no fusion).
 // Exit status: 0 done, 2 bad input (naming the file), 1 any other error.
 #include <CLI/CLI.hpp>
+#include <malloc.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -244,6 +246,12 @@ int run(const Arguments& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Every frame's images (about 3 MB decoded) are allocated by a loader thread and freed after
+  // fusion. With glibc's defaults such blocks are mmapped or trimmed back to the kernel and the
+  // next frame faults its pages in again (200 000 page faults, ~7 % of the CPU time on a 45 s VGA
+  // sequence). Keep them on the heap for reuse: the few frames in flight cost tens of MB at most.
+  mallopt(M_MMAP_THRESHOLD, 64 << 20);
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
   log::initFromEnvironment();
   CLI::App app{"Offline surfel reconstruction of the static background of a run, and snapshots"};
   Arguments args;

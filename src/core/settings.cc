@@ -111,6 +111,7 @@ void visitDense(O& o, V& v) {
   v.integer("Dense.IterationsPerLevel", o.iterations_per_level, 1, 100);
   v.integer("Dense.Alternations", o.alternations, 1, 20);
   v.integer("Dense.FinestLevel", o.finest_level, 0, 7);
+  v.real("Dense.StepTolerance", o.step_tolerance_px, 0.0, 10.0);
   v.real("Dense.DynamicCost", o.dynamic_cost, 0.0, 1000.0);
   v.real("Dense.LambdaD", o.lambda_d, 0.0, 1e6);
   v.real("Dense.OcclusionGap", o.occlusion_gap_m, 0.01, 10.0);

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
 #include "ltlo/core/assert.h"
@@ -11,6 +10,7 @@
 #include "ltlo/core/log.h"
 #include "ltlo/io/associate.h"
 #include "parsers.h"
+#include "png_decode.h"
 #include "text_parse.h"
 
 namespace ltlo::io {
@@ -128,7 +128,7 @@ cv::Mat loadImage(const std::string& image_path, int expected_type, const char* 
                   const std::string& list_path, int list_line) {
   cv::Mat image;
   try {
-    image = cv::imread(image_path, cv::IMREAD_UNCHANGED);
+    image = readImageUnchanged(image_path);
   } catch (const cv::Exception& e) {
     throw InputError(list_path, list_line, image_path + ": cannot decode image (" + e.msg + ")");
   }
@@ -159,7 +159,7 @@ void checkSize(const cv::Mat& image, int width, int height, const std::string& w
 cv::Mat SequenceReader::loadColorImage(const FrameFiles& files) const {
   cv::Mat image;
   try {
-    image = cv::imread(files.color_path, cv::IMREAD_UNCHANGED);
+    image = readImageUnchanged(files.color_path);
   } catch (const cv::Exception& e) {
     throw InputError(files.color_list_path, files.color_list_line,
                      files.color_path + ": cannot decode image (" + e.msg + ")");

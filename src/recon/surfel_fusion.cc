@@ -260,6 +260,26 @@ void SurfelFusion::Impl::fuseRow(int j, const Pose& pose, bool ring, int part) {
   const int index_width = index_camera.width();
   const int index_height = index_camera.height();
   FusionFrameStats& stats = stats_by_part[part];
+  // The surfels a row looks at lie scattered over the model, and their cache misses were half of
+  // the association's time: request them all first, so that the memory system fetches them in
+  // parallel, then do the arithmetic (a surfel may straddle two cache lines).
+  const int v_begin = ring ? std::max(0, 2 * j - 1) : 2 * j;
+  const int v_end = ring ? std::min(index_height, 2 * j + 3) : 2 * j + 2;
+  for (int i = 0; i < m.width; ++i) {
+    const std::size_t k = static_cast<std::size_t>(j) * m.width + i;
+    if (m.state[k] != PixelState::kFusable || (ring && !ring_pending[k])) continue;
+    const int u_begin = ring ? std::max(0, 2 * i - 1) : 2 * i;
+    const int u_end = ring ? std::min(index_width, 2 * i + 3) : 2 * i + 2;
+    for (int v = v_begin; v < v_end; ++v) {
+      for (int u = u_begin; u < u_end; ++u) {
+        const int32_t id = idAt(static_cast<std::size_t>(v) * index_width + u);
+        if (id < 0) continue;
+        const char* surfel = reinterpret_cast<const char*>(rendered[id]);
+        __builtin_prefetch(surfel);
+        __builtin_prefetch(surfel + sizeof(Surfel) - 1);
+      }
+    }
+  }
   for (int i = 0; i < m.width; ++i) {
     const std::size_t k = static_cast<std::size_t>(j) * m.width + i;
     if (m.state[k] != PixelState::kFusable || (ring && !ring_pending[k])) continue;

@@ -209,6 +209,7 @@ RunSeries loadSeries(const RunRecord& run, const std::string& cache_dir) {
   if (!est_masks.empty()) {
     const std::map<std::string, std::string> gt_masks = pngFiles(run.sequence_dir + "/masks");
     std::vector<double> occluded;
+    std::vector<std::pair<double, double>> t_iou;  // (t - t0 s, IoU); the map orders stems as text
     for (const auto& [stem, est_path] : est_masks) {
       auto gt = gt_masks.find(stem);
       if (gt == gt_masks.end()) continue;
@@ -219,11 +220,16 @@ RunSeries loadSeries(const RunRecord& run, const std::string& cache_dir) {
         throw InputError(est_path, 0, "not an 8-bit mask of the ground truth's size");
       }
       const double iou = eval::staticIou(g, e);
-      series.iou_t_s.push_back(std::stod(stem) - t0_s);
-      series.iou.push_back(iou);
+      t_iou.emplace_back(std::stod(stem) - t0_s, iou);
       if (static_cast<double>(cv::countNonZero(g >= 128)) / g.total() > kOccludedShare) {
         occluded.push_back(iou);
       }
+    }
+    // In time order for the plot ("10.0" sorts before "9.9" as text).
+    std::sort(t_iou.begin(), t_iou.end());
+    for (const auto& [t_s, iou] : t_iou) {
+      series.iou_t_s.push_back(t_s);
+      series.iou.push_back(iou);
     }
     if (!series.iou.empty()) series.mean_iou = mean(series.iou);
     if (!occluded.empty()) series.mean_iou_occluded = mean(occluded);

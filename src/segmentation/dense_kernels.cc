@@ -46,19 +46,21 @@ inline void bilinear(const float* lookup, int width, float u, float v, float out
 inline float cauchy(float s, float inv_c2, float half_c2) { return half_c2 * std::log1p(s * s * inv_c2); }
 inline float cauchyWeight(float s, float inv_c2) { return 1.0f / (1.0f + s * s * inv_c2); }
 
-/// Jacobian row of a residual whose gradient w.r.t. the warped point is g (previous camera frame):
-/// d/d eps of R (Exp(eps) p) = R [-[p]x, I], so the row is [p x h, h] with h = R^T g.
-inline void jacobianRow(const Warp& warp, float x, float y, float z, float gx, float gy, float gz, float J[6]) {
+/// Jacobian row `row` (into the columns J[0..5]) of a residual whose gradient w.r.t. the warped
+/// point is g (previous camera frame): d/d eps of R (Exp(eps) p) = R [-[p]x, I], so the row is
+/// [p x h, h] with h = R^T g.
+inline void writeRow(const Warp& warp, float x, float y, float z, float gx, float gy, float gz, std::size_t row,
+                     float* const J[6]) {
   const float* R = warp.R;
   const float hx = R[0] * gx + R[3] * gy + R[6] * gz;
   const float hy = R[1] * gx + R[4] * gy + R[7] * gz;
   const float hz = R[2] * gx + R[5] * gy + R[8] * gz;
-  J[0] = y * hz - z * hy;
-  J[1] = z * hx - x * hz;
-  J[2] = x * hy - y * hx;
-  J[3] = hx;
-  J[4] = hy;
-  J[5] = hz;
+  J[0][row] = y * hz - z * hy;
+  J[1][row] = z * hx - x * hz;
+  J[2][row] = x * hy - y * hx;
+  J[3][row] = hx;
+  J[4][row] = hy;
+  J[5][row] = hz;
 }
 
 constexpr int kLanes = 8;
@@ -117,12 +119,15 @@ void accumulateRows(const RowScratch& rows, std::size_t num_rows, ImageNormalEqu
 
 }  // namespace
 
-void RowScratch::reserve(std::size_t rows) {
-  for (std::vector<float>& column : J) {
-    if (column.size() < rows) column.resize(rows);
-  }
-  if (r.size() < rows) r.resize(rows);
-  if (w.size() < rows) w.resize(rows);
+void RowScratch::reserve(std::size_t pixels) {
+  auto grow = [](std::vector<float>& column, std::size_t size) {
+    if (column.size() < size) column.resize(size);
+  };
+  for (std::vector<float>* column : {&x, &y, &z, &X, &Y, &Z, &inv_Z, &I, &wI, &wD, &gamma}) grow(*column, pixels);
+  for (std::vector<float>& column : s) grow(column, pixels);
+  for (std::vector<float>& column : J) grow(column, 2 * pixels);
+  grow(r, 2 * pixels);
+  grow(w, 2 * pixels);
 }
 
 void ClusterEvidence::reset(int num_labels) {
@@ -137,54 +142,87 @@ void accumulateImageTerm(const DenseLevel& previous, const DenseLevel& current, 
                          ImageNormalEquations* out) {
   const LevelCamera& camera = previous.camera;
   const std::size_t n = current.pixel.size();
-  scratch->reserve(2 * n);
+  scratch->reserve(n);
   RowScratch& rows = *scratch;
-  const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
-  const float half_c2 = 0.5f * params.cauchy_c * params.cauchy_c;
   const float* lookup = previous.lookup.data();
-  std::size_t num_rows = 0;
-  double cost = 0.0;
+  // Gather: the pixels that take part (weight > 0, warped into the previous image, not hidden
+  // there), with their warped points and the previous frame's samples.
+  std::size_t m = 0;
+  int num_depth_rows = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const float gamma = gamma_of_label[current.label[i]];
     if (!(gamma > 0.0f)) continue;
     const float x = current.x_m[i], y = current.y_m[i], z = current.z_m[i];
     Warped p;
     if (!warpPoint(warp, camera, x, y, z, &p)) continue;
-    float s[kLookupChannels];
-    bilinear(lookup, camera.width, p.u, p.v, s);
-    const bool has_depth = s[kLookupValid] > kAllTapsValid;
-    if (has_depth && s[kLookupD] < p.Z - params.occlusion_gap_m) continue;  // hidden in the previous frame
-    float J[6];
-    // Intensity, Eq. 61: r_I = I_{i-1}(W(u, T)) - I_i(u).
+    float sample[kLookupChannels];
+    bilinear(lookup, camera.width, p.u, p.v, sample);
+    const bool has_depth = sample[kLookupValid] > kAllTapsValid;
+    if (has_depth && sample[kLookupD] < p.Z - params.occlusion_gap_m) continue;  // hidden in the previous frame
+    rows.x[m] = x;
+    rows.y[m] = y;
+    rows.z[m] = z;
+    rows.X[m] = p.X;
+    rows.Y[m] = p.Y;
+    rows.Z[m] = p.Z;
+    rows.inv_Z[m] = p.inv_Z;
+    for (int k = 0; k < kLookupValid; ++k) rows.s[k][m] = sample[k];
+    rows.s[kLookupValid][m] = has_depth ? 1.0f : 0.0f;
+    rows.I[m] = current.intensity_at[i];
+    rows.wI[m] = current.weight_I[i];
+    rows.wD[m] = current.weight_D[i];
+    rows.gamma[m] = gamma;
+    num_depth_rows += has_depth ? 1 : 0;
+    ++m;
+  }
+  // Rows, branch-free over the gathered pixels: intensity (Eq. 61, r_I = I_{i-1}(W(u, T)) - I_i(u))
+  // in [0, m), depth (Eq. 62, r_D = D_{i-1}(W(u, T)) - |T p|_z, weight 0 where the previous frame
+  // has no depth) in [m, 2m). d/d eps of a residual with gradient g at the warped point P is
+  // [p x h, h], h = R^T g (writeRow).
+  const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
+  const float alpha = params.alpha_intensity;
+  const float fx = camera.fx, fy = camera.fy;
+  float* const J[6] = {rows.J[0].data(), rows.J[1].data(), rows.J[2].data(),
+                        rows.J[3].data(), rows.J[4].data(), rows.J[5].data()};
+  float* r_out = rows.r.data();
+  float* w_out = rows.w.data();
+  const float *x = rows.x.data(), *y = rows.y.data(), *z = rows.z.data();
+  const float *X = rows.X.data(), *Y = rows.Y.data(), *Z = rows.Z.data(), *inv_Z = rows.inv_Z.data();
+  const float *sI = rows.s[kLookupI].data(), *sIu = rows.s[kLookupIu].data(), *sIv = rows.s[kLookupIv].data();
+  const float *sD = rows.s[kLookupD].data(), *sDu = rows.s[kLookupDu].data(), *sDv = rows.s[kLookupDv].data();
+  const float* valid = rows.s[kLookupValid].data();
+  const float *I = rows.I.data(), *wI = rows.wI.data(), *wD = rows.wD.data(), *gamma = rows.gamma.data();
+  // The row columns and the gathered columns are separate buffers: no iteration reads what another
+  // writes, which the compiler cannot prove through the many pointers (it would not vectorise).
+#pragma GCC ivdep
+  for (std::size_t j = 0; j < m; ++j) {
+    const float iz = inv_Z[j];
+    // intensity row
     {
-      const float r = s[kLookupI] - current.intensity_at[i];
-      const float aw = params.alpha_intensity * current.weight_I[i];
+      const float r = sI[j] - I[j];
+      const float aw = alpha * wI[j];
       const float scaled = aw * r;
-      const float gx = s[kLookupIu] * camera.fx * p.inv_Z, gy = s[kLookupIv] * camera.fy * p.inv_Z;
-      jacobianRow(warp, x, y, z, gx, gy, -(gx * p.X + gy * p.Y) * p.inv_Z, J);
-      for (int a = 0; a < 6; ++a) rows.J[a][num_rows] = J[a];
-      rows.r[num_rows] = r;
-      rows.w[num_rows] = gamma * cauchyWeight(scaled, inv_c2) * aw * aw;
-      ++num_rows;
-      cost += gamma * cauchy(scaled, inv_c2, half_c2);
+      const float gx = sIu[j] * fx * iz, gy = sIv[j] * fy * iz;
+      const float gz = -(gx * X[j] + gy * Y[j]) * iz;
+      writeRow(warp, x[j], y[j], z[j], gx, gy, gz, j, J);
+      r_out[j] = r;
+      w_out[j] = gamma[j] * cauchyWeight(scaled, inv_c2) * aw * aw;
     }
-    // Depth, Eq. 62: r_D = D_{i-1}(W(u, T)) - |T p|_z, where the previous frame has depth.
-    if (has_depth) {
-      const float r = s[kLookupD] - p.Z;
-      const float wd = current.weight_D[i];
+    // depth row
+    {
+      const std::size_t k = m + j;
+      const float r = sD[j] - Z[j];
+      const float wd = wD[j];
       const float scaled = wd * r;
-      const float gx = s[kLookupDu] * camera.fx * p.inv_Z, gy = s[kLookupDv] * camera.fy * p.inv_Z;
-      jacobianRow(warp, x, y, z, gx, gy, -(gx * p.X + gy * p.Y) * p.inv_Z - 1.0f, J);
-      for (int a = 0; a < 6; ++a) rows.J[a][num_rows] = J[a];
-      rows.r[num_rows] = r;
-      rows.w[num_rows] = gamma * cauchyWeight(scaled, inv_c2) * wd * wd;
-      ++num_rows;
-      cost += gamma * cauchy(scaled, inv_c2, half_c2);
+      const float gx = sDu[j] * fx * iz, gy = sDv[j] * fy * iz;
+      const float gz = -(gx * X[j] + gy * Y[j]) * iz - 1.0f;
+      writeRow(warp, x[j], y[j], z[j], gx, gy, gz, k, J);
+      r_out[k] = r;
+      w_out[k] = valid[j] * gamma[j] * cauchyWeight(scaled, inv_c2) * wd * wd;
     }
   }
-  accumulateRows(rows, num_rows, out);
-  out->cost += cost;
-  out->num_residuals += static_cast<int>(num_rows);
+  accumulateRows(rows, 2 * m, out);
+  out->num_residuals += static_cast<int>(m) + num_depth_rows;
 }
 
 void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,

@@ -30,19 +30,27 @@ struct ResidualParams {
 
 /// Gauss-Newton normal equations of the image term of Eq. 60 in the right perturbation eps =
 /// [phi; rho] of the current camera pose (T_w_c <- T_w_c Exp(eps)), Cauchy IRLS weights:
-///   H = sum gamma w J^T J, b = sum gamma w J^T r;  cost = sum gamma (F(alpha w_I r_I) + F(w_D r_D)).
+///   H = sum gamma w J^T J, b = sum gamma w J^T r.
+/// (The cost itself is not needed by the state step: the Gamma step has its own pass.)
 struct ImageNormalEquations {
   Mat6 H = Mat6::Zero();
   Vec6 b = Vec6::Zero();
-  double cost = 0.0;
   int num_residuals = 0;
 };
 
-/// Row buffers (structure of arrays) reused between calls.
+/// Buffers (structure of arrays) reused between calls: the warped and sampled pixels that take
+/// part (the gather pass), then the residual rows built from them (a branch-free pass the
+/// compiler vectorises), then the lane-wise accumulation.
 struct RowScratch {
+  /// per taking-part pixel: current point, warped point (X, Y, 1/Z), samples of the previous
+  /// frame at W(u, T) (I, dI/du, dI/dv, D, dD/du, dD/dv, depth valid 0/1), I_i(u), w_I, w_D, gamma
+  std::vector<float> x, y, z, X, Y, Z, inv_Z;
+  std::vector<float> s[kLookupValid + 1];
+  std::vector<float> I, wI, wD, gamma;
+  /// rows: the intensity rows first, then one depth row per pixel (weight 0 without depth)
   std::vector<float> J[6];
   std::vector<float> r, w;
-  void reserve(std::size_t rows);
+  void reserve(std::size_t pixels);
 };
 
 /// The image term at `warp` over the current level's pixels with depth; gamma_of_label[label]

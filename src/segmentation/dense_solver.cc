@@ -18,8 +18,13 @@ namespace {
 /// Below this many pixels with both residuals, a cluster's mean cost is shrunk towards "no
 /// evidence" (a_k = (sum - c^ n) / max(n, kMinEvidencePixels)): a few pixels say little.
 constexpr int kMinEvidencePixels = 8;
-/// Gauss-Newton stops on a level when the step is below this (rad and m).
-constexpr double kMinStep = 1e-6;
+/// Depth at which a step's image motion is measured for the convergence test, m: about the nearest
+/// an RGB-D sensor measures (0.3-0.5 m); farther points move less under the same translation.
+constexpr double kNearPointDepth_m = 0.5;
+/// Two Gamma steps whose state weights (gamma above the static threshold, else 0) differ by at most
+/// this everywhere pose the same state problem: after a converged state step, the next
+/// alternation would repeat it.
+constexpr float kSameStateWeight = 1e-3f;
 
 using Mat15 = Eigen::Matrix<double, 15, 15>;
 using Vec15 = Eigen::Matrix<double, 15, 1>;
@@ -98,6 +103,7 @@ DenseSolverOptions DenseSolverOptions::from(const SegmentationOptions& segmentat
   options.iterations_per_level = dense.iterations_per_level;
   options.alternations = dense.alternations;
   options.finest_level = dense.finest_level;
+  options.step_tolerance_px = dense.step_tolerance_px;
   options.max_prior_chi2 = dense.max_prior_chi2;
   return options;
 }
@@ -106,6 +112,7 @@ DenseSolver::DenseSolver(const DenseSolverOptions& options)
     : options_(options), buffers_(std::make_unique<detail::DenseSolverBuffers>()) {
   LTLO_ASSERT(options.iterations_per_level >= 1 && options.alternations >= 1,
               "iterations " << options.iterations_per_level << ", alternations " << options.alternations);
+  LTLO_ASSERT(options.step_tolerance_px >= 0.0, "step tolerance " << options.step_tolerance_px << " px");
   LTLO_ASSERT(options.cauchy_c > 0.0 && options.lambda_d >= 0.0, "cauchy_c " << options.cauchy_c << ", lambda_d "
                                                                              << options.lambda_d);
 }
@@ -167,14 +174,29 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
     for (int k = 0; k < K; ++k) gamma_of_label[static_cast<std::size_t>(k)] = static_cast<float>(gamma[static_cast<std::size_t>(k)]);
   };
 
-  // Gauss-Newton step on the state at `level` (Gamma fixed); returns the step size. Only clusters
-  // at or above the static threshold take part (weighted by gamma): a dynamic cluster, however
-  // large, cannot pull the state.
+  // The image motion of a body step delta = [phi; rho] at `level`, px: a point kNearPointDepth_m
+  // in front of the camera moves by at most about f (|eps_phi| + |eps_rho| / z) (eps: camera twist).
+  auto stepPx = [&](const Vec6& delta, int level) {
+    const Vec6 eps = A * delta;
+    return current.level(level).camera.fx * (eps.head<3>().norm() + eps.tail<3>().norm() / kNearPointDepth_m);
+  };
+
+  // Only clusters at or above the static threshold take part in the state step (weighted by gamma):
+  // a dynamic cluster, however large, cannot pull the state.
   std::array<float, 256> state_weight_of_label;
-  auto stateStep = [&](int level) {
+  auto updateStateWeights = [&]() {
+    float largest_change = 0.0f;
     for (std::size_t k = 0; k < state_weight_of_label.size(); ++k) {
-      state_weight_of_label[k] = gamma_of_label[k] >= options_.static_threshold ? gamma_of_label[k] : 0.0f;
+      const float weight = gamma_of_label[k] >= options_.static_threshold ? gamma_of_label[k] : 0.0f;
+      largest_change = std::max(largest_change, std::abs(weight - state_weight_of_label[k]));
+      state_weight_of_label[k] = weight;
     }
+    return largest_change;
+  };
+  state_weight_of_label.fill(0.0f);
+
+  // Gauss-Newton step on the state at `level` (Gamma fixed); returns the step's image motion, px.
+  auto stateStep = [&](int level) {
     detail::ImageNormalEquations image;
     detail::accumulateImageTerm(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
                                 state_weight_of_label.data(), params, &buffers.rows, &image);
@@ -203,7 +225,7 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
       state.v_w_b += delta.segment<3>(6);
       state.bias.b_g += delta.segment<3>(9);
       state.bias.b_a += delta.segment<3>(12);
-      return delta.head<6>().norm();
+      return stepPx(delta.head<6>(), level);
     }
     // Relative-pose prior r = Log(T_pred^-1 T) with d r / d delta ~ I near the prediction.
     const Vec6 r = (prior.T_w_b_pred.inverse() * state.T_w_b).log();
@@ -212,17 +234,29 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
     const Vec6 delta = -H.ldlt().solve(b);
     if (!delta.allFinite()) return 0.0;
     state.T_w_b = state.T_w_b * SE3::exp(delta);
-    return delta.norm();
+    return stepPx(delta, level);
   };
 
   const int coarsest = current.numLevels() - 1;
   const int finest = std::clamp(options_.finest_level, 0, coarsest);
   if (K > 0) {
+    // Gamma was last solved at the current state on the finest level (the final Gamma step would
+    // repeat it).
+    bool gamma_at_final_state = false;
     for (int level = coarsest; level >= finest; --level) {
+      bool converged = false;
       for (int alternation = 0; alternation < options_.alternations; ++alternation) {
         gammaStep(level, level == coarsest && alternation == 0);
-        for (int iteration = 0; iteration < options_.iterations_per_level; ++iteration) {
-          if (stateStep(level) < kMinStep) break;
+        const float weight_change = updateStateWeights();
+        if (converged && weight_change <= kSameStateWeight) {
+          // The state step converged and Gamma poses it the same problem: the remaining
+          // alternations of this level would repeat the same two steps.
+          gamma_at_final_state = level == finest;
+          break;
+        }
+        converged = false;
+        for (int iteration = 0; iteration < options_.iterations_per_level && !converged; ++iteration) {
+          converged = stateStep(level) <= options_.step_tolerance_px;
         }
       }
     }
@@ -234,8 +268,9 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
       state.v_w_b = prior.v_w_b_pred;
       state.bias = prior.bias_prev;
       result.prior_chi2 = priorChi2(prior, state, imu_information);
+      gamma_at_final_state = false;
     }
-    gammaStep(finest, false);
+    if (!gamma_at_final_state) gammaStep(finest, false);
   }
   result.state_refined = K > 0 && !result.prior_rejected;
   result.T_w_b = state.T_w_b;

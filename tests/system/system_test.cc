@@ -14,6 +14,7 @@
 #include <memory>
 
 #include "bow/vocabulary.h"
+#include "end_to_end_suite.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/settings.h"
@@ -30,9 +31,15 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path sourceDir() {
-  const char* root = std::getenv("LTLO_SOURCE_DIR");
-  return root != nullptr ? fs::path(root) : fs::current_path();
+using test_support::EndToEndSuite;
+using test_support::sourceDir;
+
+/// Options of a run with or without the IMU, threaded or synchronous; the rest at their defaults.
+SystemOptions systemOptions(bool use_imu, bool threaded) {
+  SystemOptions options;
+  options.use_imu = use_imu;
+  options.threaded = threaded;
+  return options;
 }
 
 /// Frame rate of the generated sequences: 15 Hz halves simulation and run time against 30 Hz and
@@ -49,24 +56,15 @@ struct RunResult {
 };
 
 /// Generated sequences shared by the tests of this file (written once, removed at exit).
-class SystemEndToEnd : public ::testing::Test {
+class SystemEndToEnd : public EndToEndSuite {
  protected:
-  static void SetUpTestSuite() {
-    root_ = new fs::path(fs::temp_directory_path() / ("ltlo_system_" + std::to_string(::getpid())));
-    fs::create_directories(*root_);
-    vocabulary_ = new std::shared_ptr<const bow::Vocabulary>(std::make_shared<const bow::Vocabulary>(
-        bow::Vocabulary::load((sourceDir() / "Vocabulary/ltlo_orb_k10_L5.bin").string())));
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*root_);
-    delete root_;
-    delete vocabulary_;
-  }
+  static void SetUpTestSuite() { createSuiteResources("ltlo_system_"); }
+  static void TearDownTestSuite() { removeSuiteResources(); }
 
   /// The sequence of `scenario`, `seconds` long at `fps`, written on first use.
   static std::string sequence(sim::Scenario scenario, double seconds, std::uint64_t seed, double fps = kFps,
                               double mean_speed_mps = sim::SimOptions().mean_speed_mps) {
-    const fs::path dir = *root_ / (sim::scenarioName(scenario) + "_" + std::to_string(static_cast<int>(seconds)) +
+    const fs::path dir = root() / (sim::scenarioName(scenario) + "_" + std::to_string(static_cast<int>(seconds)) +
                                    "s_seed" + std::to_string(seed) + "_" + std::to_string(static_cast<int>(fps)) + "hz");
     if (!fs::exists(dir / "groundtruth.txt")) {
       sim::SimOptions options;
@@ -98,7 +96,7 @@ class SystemEndToEnd : public ::testing::Test {
     io::SequenceReader reader = io::SequenceReader::open(dir);
     RunResult result;
     {
-      System system(settingsFor(dir, segment), *vocabulary_, options);
+      System system(settingsFor(dir, segment), vocabulary(), options);
       while (std::optional<io::RgbdImuFrame> input = reader.next()) {
         system.trackFrame(*input);
         ++result.frames;
@@ -133,19 +131,15 @@ class SystemEndToEnd : public ::testing::Test {
     }
   }
 
-  static fs::path* root_;
-  static std::shared_ptr<const bow::Vocabulary>* vocabulary_;
 };
 
-fs::path* SystemEndToEnd::root_ = nullptr;
-std::shared_ptr<const bow::Vocabulary>* SystemEndToEnd::vocabulary_ = nullptr;
 
 constexpr double kStaticSeconds = 8.0;
 constexpr std::uint64_t kStaticSeed = 2;
 
 TEST_F(SystemEndToEnd, RgbdInertialThreaded) {
   const std::string dir = sequence(sim::Scenario::kStatic, kStaticSeconds, kStaticSeed);
-  const RunResult result = run(dir, SystemOptions{true, true});
+  const RunResult result = run(dir, systemOptions(true, true));
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.025);
   EXPECT_LT(result.ate_max_m, 0.05);
@@ -155,7 +149,7 @@ TEST_F(SystemEndToEnd, RgbdInertialThreaded) {
   EXPECT_EQ(result.counts.maps, 1);
 
   // The outputs: written, re-read, one trajectory line per frame.
-  const fs::path out = *root_ / "run_rgbd_inertial";
+  const fs::path out = root() / "run_rgbd_inertial";
   io::SequenceReader reader = io::SequenceReader::open(dir);
   const WrittenOutputs written = writeRunOutputs(out.string(), result.report, reader.groundTruth(), 0.5);
   EXPECT_EQ(io::readTumTrajectory((out / "trajectory.txt").string()).size(), static_cast<std::size_t>(result.frames));
@@ -173,7 +167,7 @@ TEST_F(SystemEndToEnd, RgbdInertialThreaded) {
 TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
   const RunResult result =
       run(sequence(sim::Scenario::kStatic, 27.0, kStaticSeed, /*fps=*/12.0, /*mean_speed_mps=*/0.55),
-          SystemOptions{false, true});
+          systemOptions(false, true));
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.03);
   EXPECT_LT(result.ate_max_m, 0.06);
@@ -186,13 +180,13 @@ TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
 
 TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
   const std::string dir = sequence(sim::Scenario::kStatic, kStaticSeconds, kStaticSeed);
-  const RunResult result = run(dir, SystemOptions{true, false});
+  const RunResult result = run(dir, systemOptions(true, false));
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.02);
   EXPECT_TRUE(result.counts.imu_initialised);
   EXPECT_GE(result.counts.keyframes, 10);
   // Mapping and loop closing inside trackFrame: a second run gives the same trajectory.
-  const RunResult again = run(dir, SystemOptions{true, false});
+  const RunResult again = run(dir, systemOptions(true, false));
   ASSERT_EQ(again.trajectory.size(), result.trajectory.size());
   for (std::size_t i = 0; i < result.trajectory.size(); ++i) {
     ASSERT_EQ(again.trajectory[i].T_w_c.translation(), result.trajectory[i].T_w_c.translation()) << "frame " << i;
@@ -202,7 +196,7 @@ TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
 }
 
 TEST_F(SystemEndToEnd, LongTermOcclusionRunsWithAPoseForEveryFrame) {
-  const RunResult result = run(sequence(sim::Scenario::kLtlo, 4.0, 1), SystemOptions{true, true});
+  const RunResult result = run(sequence(sim::Scenario::kLtlo, 4.0, 1), systemOptions(true, true));
   // Boxes may cover the first frame; from the first initialisation on, every frame has a pose.
   EXPECT_EQ(result.counts.frames, result.frames);
   EXPECT_GE(result.counts.frames_with_pose, result.frames - 10);
@@ -215,8 +209,8 @@ TEST_F(SystemEndToEnd, LongTermOcclusionRunsWithAPoseForEveryFrame) {
 // masks the writer thread puts in segmentation/ match the sequence's masks/.
 TEST_F(SystemEndToEnd, LongTermOcclusionSegmentsTheBoxes) {
   const std::string dir = sequence(sim::Scenario::kLtlo, 4.0, 1);
-  const fs::path masks_dir = *root_ / "ltlo_segmentation";
-  SystemOptions options{true, true};
+  const fs::path masks_dir = root() / "ltlo_segmentation";
+  SystemOptions options = systemOptions(true, true);
   options.segmentation_dir = masks_dir.string();
   const RunResult result = run(dir, options, /*segment=*/true);
   EXPECT_GE(result.counts.frames_with_pose, result.frames - 10);
@@ -234,10 +228,10 @@ TEST_F(SystemEndToEnd, FrameOfTheWrongSizeIsBadInput) {
   sim::SimOptions camera;  // a 320x240 calibration, no sequence needed
   camera.width_px = 320;
   camera.height_px = 240;
-  const fs::path calib = *root_ / "calib_320x240.yaml";
+  const fs::path calib = root() / "calib_320x240.yaml";
   camera.sensorCalib().write(calib.string());
   const Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(), calib.string());
-  System system(settings, *vocabulary_, SystemOptions{true, false});
+  System system(settings, vocabulary(), systemOptions(true, false));
   io::RgbdImuFrame input;
   input.color_bgr = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
   input.depth_m = cv::Mat(480, 640, CV_32F, cv::Scalar(0.0f));

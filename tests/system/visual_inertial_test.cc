@@ -13,6 +13,7 @@
 #include <memory>
 
 #include "bow/vocabulary.h"
+#include "end_to_end_suite.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/eval/trajectory_metrics.h"
@@ -26,10 +27,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path sourceDir() {
-  const char* root = std::getenv("LTLO_SOURCE_DIR");
-  return root != nullptr ? fs::path(root) : fs::current_path();
-}
+using test_support::EndToEndSuite;
+using test_support::sourceDir;
 
 /// 15 Hz: half the simulation and run time of 30 Hz, twice the motion between frames.
 constexpr double kFps = 15.0;
@@ -42,23 +41,14 @@ struct RunResult {
   eval::AteResult ate;  ///< all frames with a pose
 };
 
-class VisualInertialEndToEnd : public ::testing::Test {
+class VisualInertialEndToEnd : public EndToEndSuite {
  public:
-  static void SetUpTestSuite() {
-    root_ = new fs::path(fs::temp_directory_path() / ("ltlo_vi_" + std::to_string(::getpid())));
-    fs::create_directories(*root_);
-    vocabulary_ = new std::shared_ptr<const bow::Vocabulary>(std::make_shared<const bow::Vocabulary>(
-        bow::Vocabulary::load((sourceDir() / "Vocabulary/ltlo_orb_k10_L5.bin").string())));
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*root_);
-    delete root_;
-    delete vocabulary_;
-  }
+  static void SetUpTestSuite() { createSuiteResources("ltlo_vi_"); }
+  static void TearDownTestSuite() { removeSuiteResources(); }
 
   static std::string sequence(const std::string& name, sim::Scenario scenario, double seconds, std::uint64_t seed,
                               std::vector<sim::SensorOutage> outages = {}) {
-    const fs::path dir = *root_ / name;
+    const fs::path dir = root() / name;
     if (!fs::exists(dir / "groundtruth.txt")) {
       sim::SimOptions options;
       options.width_px = 320;
@@ -93,7 +83,7 @@ class VisualInertialEndToEnd : public ::testing::Test {
       options.use_imu = use_imu;
       options.threaded = false;
       options.oracle_masks = oracle_masks;
-      System system(settingsFor(dir), *vocabulary_, options);
+      System system(settingsFor(dir), vocabulary(), options);
       while (std::optional<io::RgbdImuFrame> input = reader.next()) {
         system.trackFrame(*input);
         ++result.frames;
@@ -136,12 +126,8 @@ class VisualInertialEndToEnd : public ::testing::Test {
     return errors;
   }
 
-  static fs::path* root_;
-  static std::shared_ptr<const bow::Vocabulary>* vocabulary_;
 };
 
-fs::path* VisualInertialEndToEnd::root_ = nullptr;
-std::shared_ptr<const bow::Vocabulary>* VisualInertialEndToEnd::vocabulary_ = nullptr;
 
 /// The static 10 s RGB-D-inertial run, shared by the tests that need it.
 const RunResult& staticInertialRun() {
@@ -195,7 +181,7 @@ TEST_F(VisualInertialEndToEnd, BlackFramesAreBridgedByTheImu) {
 TEST_F(VisualInertialEndToEnd, SequenceWithoutMasksFolderGivesTheSameTrajectory) {
   const fs::path original = sequence("static_10s", sim::Scenario::kStatic, 10.0, 2);
   ASSERT_TRUE(fs::is_directory(original / "masks"));
-  const fs::path copy = *root_ / "static_10s_without_masks";
+  const fs::path copy = root() / "static_10s_without_masks";
   fs::create_directories(copy);
   for (const fs::directory_entry& entry : fs::directory_iterator(original)) {
     if (entry.path().filename() == "masks") continue;

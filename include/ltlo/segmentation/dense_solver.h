@@ -22,8 +22,11 @@
 /// pixels; 1 where nothing maps into the previous image.
 ///
 /// Solver: coarse to fine over the pyramid; on each level, Dense.Alternations times: Gamma step
-/// (state fixed, closed form, gamma_step.h), then Dense.IterationsPerLevel Gauss-Newton steps on the
-/// state (Gamma fixed); a last Gamma step at the finest level. The first Gamma step runs at the
+/// (state fixed, closed form, gamma_step.h), then up to Dense.IterationsPerLevel Gauss-Newton steps
+/// on the state (Gamma fixed), fewer once a step moves the image by less than Dense.StepTolerance;
+/// a last Gamma step at the finest level. An alternation whose Gamma step leaves the state weights
+/// as they were after a converged state step ends the level (the rest would repeat it), and the
+/// last Gamma step is skipped when it would see the same state again. The first Gamma step runs at the
 /// predicted state, so each cluster is judged by its residual under the IMU-predicted motion before
 /// any image alignment, and a dominant moving cluster starts the state step with a low weight.
 /// After the solve, a state whose motion-prior residual exceeds Dense.MaxPriorChi2 is rejected
@@ -68,6 +71,9 @@ struct DenseSolverOptions {
   int alternations = 2;
   /// finest pyramid level the state is solved on (Dense.FinestLevel; 0 = Dense.Resolution)
   int finest_level = 1;
+  /// Gauss-Newton stops on a level once a step moves the image by at most this, px of the level
+  /// (Dense.StepTolerance)
+  double step_tolerance_px = 0.005;
   /// prior residual (chi^2, whitened) above which the refined state is rejected (Dense.MaxPriorChi2)
   double max_prior_chi2 = 30.0;
 
