@@ -139,6 +139,7 @@ template <typename O, typename V>
 void visitImuInit(O& o, V& v) {
   v.real("ImuInit.MinTime", o.min_time_s, 0.1, 100.0);
   v.integer("ImuInit.MinKeyFrames", o.min_keyframes, 3, 1000);
+  v.boolean("ImuInit.EarlyKeyFrames", o.early_keyframes);
   v.integer("ImuInit.Iterations", o.iterations, 1, 1000);
   v.real("ImuInit.BiasPriorSamples", o.bias_prior_samples, 0.0, 1e6);
   v.boolean("ImuInit.VisualInertialRefinement", o.visual_inertial_refinement);

@@ -65,7 +65,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   tracking::TrackerOptions tracker_options;
   tracker_options.keyframe = settings_.keyframe;
   tracker_options.tracking = settings_.tracking;
-  if (use_imu_) {
+  if (use_imu_ && settings_.imu_init.early_keyframes) {
     tracker_options.imu_init_keyframe_interval_s =
         settings_.imu_init.min_time_s / std::max(1, settings_.imu_init.min_keyframes - 1);
   }

@@ -4,7 +4,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <utility>
+#include <vector>
 #include <opencv2/core.hpp>
 
 #include "ltlo/eval/trajectory_metrics.h"
@@ -212,6 +215,54 @@ TEST_F(TrackerOnSimulatedSequence, ImuHookPredictsWithPreintegrationAfterInitial
   EXPECT_EQ(ok, frames);
   EXPECT_EQ(imu_frames, frames - 10);
   EXPECT_LT(ate.error_m.rmse, 0.05);
+}
+
+/// Longest gap (s) between consecutive keyframes made before `imu_init_t_s` and after it, with
+/// TrackerOptions::imu_init_keyframe_interval_s = `interval_s` (the IMU set initialised at
+/// `imu_init_t_s`).
+std::pair<double, double> keyFrameGaps(const fs::path& dir, const OrbOptions& orb, double interval_s,
+                                       double imu_init_t_s) {
+  io::SequenceReader reader = io::SequenceReader::open(dir.string());
+  const FrameBuilder builder(orb, reader.calib());
+  map::Atlas atlas(1);
+  TrackerOptions options;
+  options.imu_init_keyframe_interval_s = interval_s;
+  Tracker tracker(atlas, options, builder.extractor().levelSigma2());
+  std::vector<double> keyframe_t_s;
+  tracker.setLocalMappingCallback(
+      [&](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { keyframe_t_s.push_back(kf->t_s()); });
+  int frames = 0;
+  while (auto input = reader.next()) {
+    if (!tracker.imuInitialised() && input->t_s >= imu_init_t_s) {
+      tracker.setImuInitialised(imu::ImuBias(), imu::gravityWorld());
+    }
+    map::Frame frame = builder.build(*input, tracker.bias());
+    if (frames++ == 0) frame.setPose_T_w_c(reader.groundTruth().front().T_w_x);
+    EXPECT_EQ(tracker.track(frame), TrackingState::kOk) << "t = " << frame.t_s();
+  }
+  double before_s = 0.0, after_s = 0.0;
+  for (std::size_t k = 1; k < keyframe_t_s.size(); ++k) {
+    double& gap = keyframe_t_s[k] <= imu_init_t_s ? before_s : after_s;
+    gap = std::max(gap, keyframe_t_s[k] - keyframe_t_s[k - 1]);
+  }
+  return {before_s, after_s};
+}
+
+// Before the IMU is initialised a keyframe comes at least every imu_init_keyframe_interval_s (System
+// sets ImuInit.MinTime / (MinKeyFrames - 1)), so the initialisation can run once MinTime is
+// covered; afterwards only the KF.* rules apply. Without the option, the same frames leave longer
+// gaps before the initialisation (the test can fail).
+TEST_F(TrackerOnSimulatedSequence, KeyFramesComeEveryImuInitIntervalUntilTheImuIsInitialised) {
+  constexpr double kInterval = 0.2, kImuInit = 2.5;
+  const double frame_s = 1.0 / 30.0;  // the simulator's default rate
+  const auto [plain_before_s, plain_after_s] = keyFrameGaps(*dir_, orbOptions(), 0.0, kImuInit);
+  const auto [early_before_s, early_after_s] = keyFrameGaps(*dir_, orbOptions(), kInterval, kImuInit);
+  std::printf("longest keyframe gap before / after the IMU initialisation: %.3f / %.3f s without, %.3f / %.3f s "
+              "with a %.2f s interval\n",
+              plain_before_s, plain_after_s, early_before_s, early_after_s, kInterval);
+  ASSERT_GT(plain_before_s, kInterval + 1.5 * frame_s);  // the KF.* rules alone leave longer gaps
+  EXPECT_LE(early_before_s, kInterval + 1.5 * frame_s);  // a keyframe the first frame past the interval
+  EXPECT_GT(early_after_s, kInterval + 1.5 * frame_s);   // after the initialisation: KF.* alone again
 }
 
 TEST_F(TrackerOnSimulatedSequence, ImuPredictsFromTheKeyFrameAfterLocalMappingUpdatedIt) {

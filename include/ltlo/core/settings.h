@@ -262,6 +262,11 @@ struct ImuInitOptions {
   double min_time_s = 2.0;
   /// keyframes needed for it (ImuInit.MinKeyFrames, [3, 1000])
   int min_keyframes = 10;
+  /// Before the initialisation, keyframes come at least every MinTime / (MinKeyFrames - 1) s, so the
+  /// IMU initialises as soon as MinTime of motion is covered (about 2 s) rather than after
+  /// MinKeyFrames keyframes at KF.MaxInterval; an occlusion in the first seconds then meets an
+  /// initialised IMU. 0: keyframes by KF.* alone (ImuInit.EarlyKeyFrames, 0/1)
+  bool early_keyframes = true;
   /// inertial-only optimisation iterations (ImuInit.Iterations, [1, 1000])
   int iterations = 10;
   /// Strength of the zero-mean priors on b_g and b_a, counted in IMU readings: each prior has the
