@@ -146,6 +146,7 @@ void visitImuInit(O& o, V& v) {
   v.integer("ImuInit.RefineIterations", o.refine_iterations, 1, 1000);
   v.integer("ImuInit.RefineMaxKeyFrames", o.refine_max_keyframes, 3, 10000);
   v.real("ImuInit.RefineInterval", o.refine_interval_s, 0.0, 100.0);
+  v.boolean("ImuInit.LooseEarlyBias", o.loose_early_bias);
 }
 
 template <typename O, typename V>

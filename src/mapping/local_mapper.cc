@@ -172,6 +172,15 @@ void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<m
   ba.inertial = options.use_imu && imu.initialised && kf->imuFromPrevious().has_value();
   ba.g_w = imu.g_w;
   ba.lambda_imu = options.local_mapping.lambda_imu;
+  if (ba.inertial && options.imu_init.loose_early_bias && imu_refinements == 0) {
+    // Before the +5 s refinement the estimate comes from the first seconds: the bias the held
+    // keyframes carry is known to its acceleration sigma at best, and the fixed-pose sigma of a
+    // short window is optimistic, so at least what tracking assumes (Tracking.AccBiasSigma).
+    // (10 m/s^2 bounds it where the covariance is singular: no accelerometer is biased further.)
+    ba.held_acc_bias_sigma_m_s2 =
+        std::clamp(optim::accelerationSigma(imu.acceleration_covariance_w),
+                   options.refine_until_acceleration_sigma_m_s2, 10.0);
+  }
   ba.huber_chi2 = options.local_mapping.huber_chi2;
   ba.robust = options.local_mapping.robust_beta;
   ba.alternations = options.local_mapping.alternations;

@@ -165,6 +165,7 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
   problem.model.bf_px_m = options.bf_px_m;
   problem.g_w = options.g_w;
   problem.lambda_imu = options.lambda_imu;
+  problem.held_acc_bias_sigma_m_s2 = options.held_acc_bias_sigma_m_s2;
   for (const WindowKeyFrame& entry : keyframes) {
     optim::BaKeyFrame ba;
     ba.id = baId(entry.kf->id());

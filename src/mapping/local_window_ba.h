@@ -40,6 +40,9 @@ struct WindowBaOptions {
   bool inertial = false;         ///< visual-inertial window (IMU initialised)
   Vec3 g_w = Vec3(0.0, 0.0, -9.81);
   double lambda_imu = 1.0;
+  /// optim::LocalBaProblem::held_acc_bias_sigma_m_s2: how well the held keyframes' accelerometer
+  /// bias is known (m/s^2; 0: exactly).
+  double held_acc_bias_sigma_m_s2 = 0.0;
   double huber_chi2 = 7.815;     ///< rho_H threshold on the whitened |r|^2 (3-D edges; 2-D: 5.991)
   /// The robust VIBA above (Mapping.RobustBeta); false: the plain VIBA.
   bool robust = true;

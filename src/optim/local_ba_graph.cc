@@ -146,8 +146,19 @@ LocalBaGraph::LocalBaGraph(const LocalBaProblem& problem, const LocalBaOptions& 
     walk->setVertex(1, vi.acc_bias);
     walk->setVertex(2, vj.gyro_bias);
     walk->setVertex(3, vj.acc_bias);
-    walk->setInformation(problem.inertial_information_scale *
-                         biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), 1e-3), problem.lambda_imu));
+    const double walk_s = std::max(link.pim->dt_s(), 1e-3);
+    Mat6 walk_information = biasWalkInformation(link.pim->noise(), walk_s, problem.lambda_imu);
+    if (problem.held_acc_bias_sigma_m_s2 > 0.0 && problem.lambda_imu > 0.0 &&
+        vi.acc_bias->fixed() != vj.acc_bias->fixed()) {
+      // One end held at an estimate known to held_acc_bias_sigma: its error adds to the walk's
+      // (covariance of the difference b_j - b_i; Eq. 58's weight applies to the walk part).
+      Mat6 covariance = link.pim->noise().biasWalkCovariance(walk_s) / problem.lambda_imu;
+      covariance.bottomRightCorner<3, 3>() +=
+          Mat3::Identity() * (problem.held_acc_bias_sigma_m_s2 * problem.held_acc_bias_sigma_m_s2);
+      walk_information = covariance.ldlt().solve(Mat6::Identity());
+      walk_information = 0.5 * (walk_information + walk_information.transpose());
+    }
+    walk->setInformation(problem.inertial_information_scale * walk_information);
     graph.addEdge(std::move(walk));
   }
 

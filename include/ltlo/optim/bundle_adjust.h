@@ -70,6 +70,11 @@ struct LocalBaProblem {
   /// refinement of the IMU initialisation. Needs inertial links.
   bool estimate_gravity = false;
   double lambda_imu = 1.0;  ///< bias random-walk weight (thesis Eq. 58)
+  /// Standard deviation (m/s^2) to which the accelerometer bias of a held keyframe is known: the
+  /// random-walk link from a held keyframe's bias to a free one's adds it (squared) to the walk's
+  /// covariance, so the window may move its biases as far as the estimate they were held at is
+  /// uncertain (an IMU initialisation from a short window). 0: held biases are exact (Eq. 58 alone).
+  double held_acc_bias_sigma_m_s2 = 0.0;
   std::vector<BaBiasPrior> bias_priors;  ///< keyframes must have an inertial link
   /// Multiplies the information of the inertial, bias random-walk and bias-prior edges
   /// (inertialInformationScale: the camera's variance factor), so camera and IMU count by their
