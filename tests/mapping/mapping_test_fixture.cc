@@ -97,6 +97,7 @@ LocalMapperOptions MappingOnSimulatedSequence::mapperOptions(bool use_imu) {
   options.imu_init.min_keyframes = 6;
   options.imu_init.min_time_s = 2.0;
   options.imu_refinement_delays_s = {1.5, 3.0};
+  options.imu_init.refine_interval_s = 0.0;  // the two scheduled refinements only (ImuInit.RefineInterval off)
   return options;
 }
 
