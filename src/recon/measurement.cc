@@ -206,7 +206,8 @@ void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
   resize(width, height, m);
   if (new_size) fillPixelConstants(fusion_camera, m);
   markDynamicBlocks(frame.dynamic_mask, options, m);
-  forRows(pool, height, [&](int begin, int end, int) { blockMeans(frame, options, begin, end, m); });
+  forRows(pool, height,
+          [&](int begin, int end, int) { blockMeans(frame, options, begin, end, m); });
 
   // Normals from an edge-aware 5 x 5 box smoothing of the depth (neighbours on the same surface
   // only), by central differences two pixels apart: raw differences of neighbouring fusion pixels

@@ -114,8 +114,8 @@ class SurfelFusion {
   const FusionTotals& totals() const;
   /// Heap bytes held by the model (surfel storage and cells), for the memory report.
   std::size_t modelBytes() const;
-  /// Time per stage and frame: recon.measurement (integrate(frame) only), recon.index_map, recon.associate_fuse,
-  /// recon.free_space, recon.clean_insert.
+  /// Time per stage and frame: recon.measurement (integrate(frame) only), recon.index_map,
+  /// recon.associate_fuse, recon.free_space, recon.clean_insert.
   const TimingStats& timing() const;
 
  private:
