@@ -116,21 +116,21 @@ ReconstructionResult reconstruct(const ReconstructionRequest& request,
     // fuses earlier ones.
     ParallelFrameLoader loader(reader, frames, with_colour, request.loader_threads,
                                kLookaheadPerThread * request.loader_threads, &fusion);
-    TimingStats wait_timing;
+    TimingStats loader_timing;
     for (std::size_t k = 0; k < frames.size(); ++k) {
-      ScopedTimer wait_timer(wait_timing, "recon.wait_frames");
+      ScopedTimer wait_timer(loader_timing, "recon.wait_frames");
       std::optional<LoadedFrame> loaded = loader.next();
       wait_timer.stop();
       LTLO_ASSERT(loaded && loaded->frame.index == frames[k], "loader out of order");
-      wait_timing.add("recon.measurement", loaded->prepare_s);
+      loader_timing.add("recon.measurement", loaded->prepare_s);
       fusion.integrate(toFusionFrame(loaded->frame, poses[k]), loaded->prepared);
       loader.recycle(std::move(loaded->prepared));
       result.fused_frames.push_back(frames[k]);
       progress.frameDone();
     }
     result.timing = fusion.timing().stages();
-    result.timing.push_back(wait_timing.stage("recon.measurement"));  // in the loader threads
-    result.timing.push_back(wait_timing.stage("recon.wait_frames"));
+    result.timing.push_back(loader_timing.stage("recon.measurement"));  // in the loader threads
+    result.timing.push_back(loader_timing.stage("recon.wait_frames"));
   }
   progress.finish();
   result.fusion_wall_s =
