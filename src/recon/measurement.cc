@@ -1,6 +1,7 @@
 #include "measurement.h"
 
 #include <cmath>
+#include <functional>
 #include <opencv2/imgproc.hpp>
 
 #include "ltlo/core/assert.h"
@@ -175,6 +176,15 @@ void smoothAlongColumns(const float* in, float* out, int width, int height, int 
   }
 }
 
+// Rows [0, n) split over `pool`'s threads, or all on the calling thread without a pool.
+void forRows(WorkerPool* pool, int n, const std::function<void(int, int, int)>& f) {
+  if (pool != nullptr) {
+    pool->parallelFor(n, f);
+  } else if (n > 0) {
+    f(0, n, 0);
+  }
+}
+
 }  // namespace
 
 void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
@@ -196,17 +206,17 @@ void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
   resize(width, height, m);
   if (new_size) fillPixelConstants(fusion_camera, m);
   markDynamicBlocks(frame.dynamic_mask, options, m);
-  pool->parallelFor(height,
-                    [&](int begin, int end, int) { blockMeans(frame, options, begin, end, m); });
+  forRows(pool, height,
+          [&](int begin, int end, int) { blockMeans(frame, options, begin, end, m); });
 
   // Normals from an edge-aware 5 x 5 box smoothing of the depth (neighbours on the same surface
   // only), by central differences two pixels apart: raw differences of neighbouring fusion pixels
   // are dominated by depth noise beyond 2 m (about 20 deg at 3 m on a VGA structured-light sensor).
   const float noise = static_cast<float>(options.depth_noise_m);
-  pool->parallelFor(height, [&](int begin, int end, int) {
+  forRows(pool, height, [&](int begin, int end, int) {
     smoothAlongRows(m->depth_m.data(), m->scratch_m.data(), width, begin, end, noise);
   });
-  pool->parallelFor(height, [&](int begin, int end, int) {
+  forRows(pool, height, [&](int begin, int end, int) {
     smoothAlongColumns(m->scratch_m.data(), m->smoothed_depth_m.data(), width, height, begin, end,
                        noise);
   });
@@ -220,8 +230,9 @@ void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
     return smooth[a] != 0.0f && smooth[b] != 0.0f && std::abs(smooth[a] - z) <= tol &&
            std::abs(smooth[b] - z) <= tol;
   };
-  std::vector<int> num_geometry(pool->parts(), 0), num_fusable(pool->parts(), 0);
-  pool->parallelFor(height - 2, [&](int row_begin, int row_end, int part) {
+  const int parts = pool != nullptr ? pool->parts() : 1;
+  std::vector<int> num_geometry(parts, 0), num_fusable(parts, 0);
+  forRows(pool, height - 2, [&](int row_begin, int row_end, int part) {
     for (int j = row_begin + 1; j < row_end + 1; ++j) {
       for (int i = 1; i + 1 < width; ++i) {
         const std::size_t k = static_cast<std::size_t>(j) * width + i;
@@ -265,7 +276,7 @@ void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
       }
     }
   });
-  for (int part = 0; part < pool->parts(); ++part) {
+  for (int part = 0; part < parts; ++part) {
     m->num_geometry += num_geometry[part];
     m->num_fusable += num_fusable[part];
   }

@@ -52,7 +52,7 @@ PinholeCamera fusionCamera(const PinholeCamera& camera, int downsample);
 
 /// Fills `out` from `frame` (sizes asserted against `camera`, the input camera). `fusion_camera`
 /// is fusionCamera(camera, options.downsample).
-/// Rows are split over `pool`'s threads.
+/// Rows are split over `pool`'s threads; pool = nullptr runs everything on the calling thread.
 void computeMeasurement(const FusionFrame& frame, const PinholeCamera& camera,
                         const PinholeCamera& fusion_camera, const ReconOptions& options,
                         WorkerPool* pool, Measurement* out);

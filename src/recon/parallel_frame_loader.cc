@@ -1,5 +1,6 @@
 #include "parallel_frame_loader.h"
 
+#include <chrono>
 #include <string>
 #include <utility>
 
@@ -8,13 +9,24 @@
 
 namespace ltlo::recon {
 
+FusionFrame toFusionFrame(const io::RgbdImuFrame& frame, const SE3& T_w_c) {
+  FusionFrame input;
+  input.t_s = frame.t_s;
+  input.T_w_c = T_w_c;
+  input.depth_m = frame.depth_m;
+  input.colour_bgr = frame.color_bgr;
+  input.dynamic_mask = frame.mask;
+  return input;
+}
+
 ParallelFrameLoader::ParallelFrameLoader(const io::SequenceReader& reader, std::vector<int> indices,
                                          std::vector<uint8_t> with_colour, int num_threads,
-                                         int lookahead)
+                                         int lookahead, const SurfelFusion* preparer)
     : reader_(reader),
       indices_(std::move(indices)),
       with_colour_(std::move(with_colour)),
-      lookahead_(static_cast<std::size_t>(lookahead)) {
+      lookahead_(static_cast<std::size_t>(lookahead)),
+      preparer_(preparer) {
   LTLO_ASSERT(num_threads >= 1 && lookahead >= 1,
               "loader threads " << num_threads << ", lookahead " << lookahead);
   for (int t = 0; t < num_threads; ++t) {
@@ -47,7 +59,22 @@ void ParallelFrameLoader::work() {
     }
     Result result;
     try {
-      result = reader_.load(indices_[job], with_colour_.empty() || with_colour_[job] != 0);
+      LoadedFrame loaded;
+      loaded.frame = reader_.load(indices_[job], with_colour_.empty() || with_colour_[job] != 0);
+      if (preparer_ != nullptr) {
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          if (!spare_.empty()) {
+            loaded.prepared = std::move(spare_.back());
+            spare_.pop_back();
+          }
+        }
+        const auto start = std::chrono::steady_clock::now();
+        preparer_->prepare(toFusionFrame(loaded.frame, SE3()), &loaded.prepared);
+        loaded.prepare_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      }
+      result = std::move(loaded);
     } catch (...) {
       result = std::current_exception();
     }
@@ -59,7 +86,7 @@ void ParallelFrameLoader::work() {
   }
 }
 
-std::optional<io::RgbdImuFrame> ParallelFrameLoader::next() {
+std::optional<LoadedFrame> ParallelFrameLoader::next() {
   Result result;
   {
     std::unique_lock<std::mutex> lock(mutex_);
@@ -72,7 +99,12 @@ std::optional<io::RgbdImuFrame> ParallelFrameLoader::next() {
   }
   may_load_.notify_all();
   if (auto* error = std::get_if<std::exception_ptr>(&result)) std::rethrow_exception(*error);
-  return std::move(std::get<io::RgbdImuFrame>(result));
+  return std::move(std::get<LoadedFrame>(result));
+}
+
+void ParallelFrameLoader::recycle(PreparedFrame&& prepared) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  spare_.push_back(std::move(prepared));
 }
 
 }  // namespace ltlo::recon

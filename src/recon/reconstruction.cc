@@ -112,26 +112,25 @@ ReconstructionResult reconstruct(const ReconstructionRequest& request,
   {
     std::vector<uint8_t> with_colour(frames.size());
     for (std::size_t k = 0; k < frames.size(); ++k) with_colour[k] = k % options.colour_every == 0;
+    // The loader threads decode and measure frames (SurfelFusion::prepare) while this thread
+    // fuses earlier ones.
     ParallelFrameLoader loader(reader, frames, with_colour, request.loader_threads,
-                               kLookaheadPerThread * request.loader_threads);
-    TimingStats wait_timing;
+                               kLookaheadPerThread * request.loader_threads, &fusion);
+    TimingStats loader_timing;
     for (std::size_t k = 0; k < frames.size(); ++k) {
-      ScopedTimer wait_timer(wait_timing, "recon.wait_frames");
-      std::optional<io::RgbdImuFrame> frame = loader.next();
+      ScopedTimer wait_timer(loader_timing, "recon.wait_frames");
+      std::optional<LoadedFrame> loaded = loader.next();
       wait_timer.stop();
-      LTLO_ASSERT(frame && frame->index == frames[k], "loader out of order");
-      FusionFrame input;
-      input.t_s = frame->t_s;
-      input.T_w_c = poses[k];
-      input.depth_m = frame->depth_m;
-      input.colour_bgr = frame->color_bgr;
-      input.dynamic_mask = frame->mask;
-      fusion.integrate(input);
+      LTLO_ASSERT(loaded && loaded->frame.index == frames[k], "loader out of order");
+      loader_timing.add("recon.measurement", loaded->prepare_s);
+      fusion.integrate(toFusionFrame(loaded->frame, poses[k]), loaded->prepared);
+      loader.recycle(std::move(loaded->prepared));
       result.fused_frames.push_back(frames[k]);
       progress.frameDone();
     }
     result.timing = fusion.timing().stages();
-    result.timing.push_back(wait_timing.stage("recon.wait_frames"));
+    result.timing.push_back(loader_timing.stage("recon.measurement"));  // in the loader threads
+    result.timing.push_back(loader_timing.stage("recon.wait_frames"));
   }
   progress.finish();
   result.fusion_wall_s =

@@ -73,7 +73,8 @@ struct SurfelFusion::Impl {
   double t0_s = 0.0;
 
   // Per-frame buffers, reused.
-  Measurement measurement;
+  Measurement own_measurement;        // integrate(frame) measures here
+  const Measurement* measurement = nullptr;  // the frame being fused
   std::unique_ptr<WorkerPool> pool;
   // Index map: per index pixel the nearest surfel as (camera depth bits << 32 | id), written with
   // an atomic minimum by the render threads (positive floats order like their bit patterns); id =
@@ -231,13 +232,13 @@ void SurfelFusion::Impl::renderIndexMap(const Eigen::Matrix3f& R_c_w,
 void SurfelFusion::Impl::associateAndFuse(const Eigen::Matrix3f& R_w_c,
                                           const Eigen::Vector3f& t_w_c, float t_rel_s,
                                           bool with_colour, FusionFrameStats* stats) {
-  const int height = measurement.height;
+  const int height = measurement->height;
   const int parts = pool->parts();
   for (int part = 0; part < parts; ++part) {
     created_by_part[part].clear();
     stats_by_part[part] = FusionFrameStats();
   }
-  ring_pending.assign(measurement.state.size(), 0);
+  ring_pending.assign(measurement->state.size(), 0);
   const Pose pose{R_w_c, t_w_c, t_rel_s, with_colour};
   pool->parallelFor(height, [&](int begin, int end, int part) {
     for (int j = begin; j < end; ++j) fuseRow(j, pose, /*ring=*/false, part);
@@ -256,7 +257,7 @@ void SurfelFusion::Impl::associateAndFuse(const Eigen::Matrix3f& R_w_c,
 }
 
 void SurfelFusion::Impl::fuseRow(int j, const Pose& pose, bool ring, int part) {
-  const Measurement& m = measurement;
+  const Measurement& m = *measurement;
   const int index_width = index_camera.width();
   const int index_height = index_camera.height();
   FusionFrameStats& stats = stats_by_part[part];
@@ -365,7 +366,7 @@ void SurfelFusion::Impl::removeFreeSpaceViolations(const Eigen::Matrix3f& R_c_w,
                                                    const Eigen::Vector3f& t_c_w,
                                                    FusionFrameStats* stats) {
   if (options.free_space_votes == 0) return;
-  const Measurement& m = measurement;
+  const Measurement& m = *measurement;
   const float stable = static_cast<float>(options.confidence_stable);
   const int index_width = index_camera.width();
   const int index_height = index_camera.height();
@@ -415,20 +416,48 @@ void SurfelFusion::Impl::cleanVisibleCells(float t_rel_s, FusionFrameStats* stat
   for (int n : removed) stats->removed_unstable += n;
 }
 
+PreparedFrame::PreparedFrame() : measurement_(std::make_unique<Measurement>()) {}
+PreparedFrame::~PreparedFrame() = default;
+PreparedFrame::PreparedFrame(PreparedFrame&&) noexcept = default;
+PreparedFrame& PreparedFrame::operator=(PreparedFrame&&) noexcept = default;
+
+void SurfelFusion::prepare(const FusionFrame& frame, PreparedFrame* out) const {
+  const Impl& im = *impl_;
+  LTLO_ASSERT(out != nullptr && out->measurement_ != nullptr, "prepare: no (or a moved-from) out");
+  computeMeasurement(frame, im.camera, im.fusion_camera, im.options, /*pool=*/nullptr,
+                     out->measurement_.get());
+}
+
 FusionFrameStats SurfelFusion::integrate(const FusionFrame& frame) {
   Impl& im = *impl_;
+  {
+    ScopedTimer timer(im.timing, "recon.measurement");
+    computeMeasurement(frame, im.camera, im.fusion_camera, im.options, im.pool.get(),
+                       &im.own_measurement);
+  }
+  return fuseMeasured(frame, im.own_measurement);
+}
+
+FusionFrameStats SurfelFusion::integrate(const FusionFrame& frame, const PreparedFrame& prepared) {
+  LTLO_ASSERT(prepared.measurement_ != nullptr && prepared.measurement_->width > 0,
+              "integrate: the frame was not prepared");
+  return fuseMeasured(frame, *prepared.measurement_);
+}
+
+FusionFrameStats SurfelFusion::fuseMeasured(const FusionFrame& frame, const Measurement& m) {
+  Impl& im = *impl_;
+  LTLO_ASSERT(m.width == im.fusion_camera.width() && m.height == im.fusion_camera.height(),
+              "measurement " << m.width << "x" << m.height << " vs fusion grid "
+                             << im.fusion_camera.width() << "x" << im.fusion_camera.height());
   if (!im.started) {
     im.started = true;
     im.t0_s = frame.t_s;
   }
   const float t_rel_s = static_cast<float>(frame.t_s - im.t0_s);
   FusionFrameStats stats;
-  ScopedTimer measurement_timer(im.timing, "recon.measurement");
-  computeMeasurement(frame, im.camera, im.fusion_camera, im.options, im.pool.get(),
-                     &im.measurement);
-  measurement_timer.stop();
-  stats.measured_pixels = im.measurement.num_geometry;
-  stats.fused_pixels = im.measurement.num_fusable;
+  im.measurement = &m;
+  stats.measured_pixels = m.num_geometry;
+  stats.fused_pixels = m.num_fusable;
 
   const Eigen::Matrix3f R_w_c = frame.T_w_c.rotationMatrix().cast<float>();
   const Eigen::Vector3f t_w_c = frame.T_w_c.translation().cast<float>();
@@ -461,6 +490,7 @@ FusionFrameStats SurfelFusion::integrate(const FusionFrame& frame) {
   im.totals.created += stats.created;
   im.totals.removed_unstable += stats.removed_unstable;
   im.totals.removed_free_space += stats.removed_free_space;
+  im.measurement = nullptr;
   return stats;
 }
 

@@ -56,7 +56,8 @@ void downsampleDepth(const cv::Mat& fine, int block, const DepthGap& gap, cv::Ma
 }
 
 // Central difference along one axis from the samples before (a) and after (b) the pixel (p);
-// depth: only samples with depth count, one-sided where one side has none.
+// depth: only samples with depth count, one-sided where one side has none. This is the |grad D|
+// of the weight w_D (Eq. 64): large across a depth discontinuity, which is what it detects.
 inline float depthDerivative(float a, float p, float b) {
   const bool has_a = validDepth(a), has_b = validDepth(b);
   if (has_a && has_b) return 0.5f * (b - a);
@@ -65,8 +66,39 @@ inline float depthDerivative(float a, float p, float b) {
   return 0.0f;
 }
 
+// The slope of the pixel's own surface along one axis: like depthDerivative, but a neighbour
+// farther than the gap from p lies on another surface and does not count (one-sided where one
+// neighbour does, 0 where neither does). This is the gradient of the depth residual's Jacobian
+// (Eq. 62): across a discontinuity the bilinear residual of a sample on either side does not
+// change with the warp, and a central difference across it (half the jump per pixel) would make
+// the Gauss-Newton model far stiffer than the cost, so the steps would shrink only slowly.
+inline float surfaceDerivative(float a, float p, float b, float gap_m) {
+  const bool has_a = validDepth(a) && std::abs(p - a) < gap_m, has_b = validDepth(b) && std::abs(b - p) < gap_m;
+  if (has_a && has_b) return 0.5f * (b - a);
+  if (has_b) return b - p;
+  if (has_a) return p - a;
+  return 0.0f;
+}
+
+// Whether the 2 x 2 cell with top-left (r, c) lies on one surface: all four depths valid and
+// within the gap of the nearest. A bilinear depth sample inside a cell that is not mixes two
+// surfaces: it is no measurement of either.
+inline bool smoothCell(const cv::Mat& depth_m, int r, int c, const DepthGap& gap) {
+  if (r + 1 >= depth_m.rows || c + 1 >= depth_m.cols) return false;
+  const float* top = depth_m.ptr<float>(r) + c;
+  const float* bottom = depth_m.ptr<float>(r + 1) + c;
+  const float z[4] = {top[0], top[1], bottom[0], bottom[1]};
+  float z_min = std::numeric_limits<float>::max(), z_max = 0.0f;
+  for (const float zk : z) {
+    if (!validDepth(zk)) return false;
+    z_min = std::min(z_min, zk);
+    z_max = std::max(z_max, zk);
+  }
+  return z_max - z_min < gap(z_min);
+}
+
 // Gradients, lookup table and the per-pixel arrays of one level (everything but the labels).
-void prepareLevel(const DenseFrameOptions& options, DenseLevel* level_out) {
+void prepareLevel(const DenseFrameOptions& options, const DepthGap& gap, DenseLevel* level_out) {
   DenseLevel& level = *level_out;
   const int w = level.camera.width, h = level.camera.height;
   const std::size_t n = static_cast<std::size_t>(w) * h;
@@ -96,20 +128,25 @@ void prepareLevel(const DenseFrameOptions& options, DenseLevel* level_out) {
       const float Iv = (I_down[c] - I_up[c]) * v_scale;
       const float z = D[c];
       const bool has_depth = validDepth(z);
-      float Du = 0.0f, Dv = 0.0f;
+      float Du = 0.0f, Dv = 0.0f, surface_Du = 0.0f, surface_Dv = 0.0f;
       if (has_depth) {
-        Du = depthDerivative(c > 0 ? D[c - 1] : 0.0f, z, c + 1 < w ? D[c + 1] : 0.0f);
-        Dv = depthDerivative(D_up != nullptr ? D_up[c] : 0.0f, z, D_down != nullptr ? D_down[c] : 0.0f);
+        const float left = c > 0 ? D[c - 1] : 0.0f, right = c + 1 < w ? D[c + 1] : 0.0f;
+        const float up = D_up != nullptr ? D_up[c] : 0.0f, down = D_down != nullptr ? D_down[c] : 0.0f;
+        Du = depthDerivative(left, z, right);
+        Dv = depthDerivative(up, z, down);
+        const float gap_m = gap(z);
+        surface_Du = surfaceDerivative(left, z, right, gap_m);
+        surface_Dv = surfaceDerivative(up, z, down, gap_m);
       }
       float* entry = &level.lookup[(static_cast<std::size_t>(r) * w + c) * kLookupChannels];
       entry[kLookupI] = I[c];
       entry[kLookupIu] = Iu;
       entry[kLookupIv] = Iv;
       entry[kLookupD] = has_depth ? z : 0.0f;
-      entry[kLookupDu] = Du;
-      entry[kLookupDv] = Dv;
+      entry[kLookupDu] = surface_Du;
+      entry[kLookupDv] = surface_Dv;
       entry[kLookupValid] = has_depth ? 1.0f : 0.0f;
-      entry[7] = 0.0f;
+      entry[kLookupSmoothCell] = smoothCell(level.depth_m, r, c, gap) ? 1.0f : 0.0f;
       if (!has_depth) continue;
       const float sigma_z = sigma_D * z * z;
       level.x_m.push_back((static_cast<float>(c) - level.camera.cx) * inv_fx * z);
@@ -197,7 +234,7 @@ void DenseFrame::build(const cv::Mat& color, const cv::Mat& depth_m, const Pinho
       downsampleDepth(finer.depth_m, 2, gap, &level.depth_m, &level.child);
     }
     if (l >= options.finest_solved_level) {
-      prepareLevel(options, &level);
+      prepareLevel(options, gap, &level);
     } else {
       level.lookup.clear();
       level.pixel.clear();

@@ -42,6 +42,12 @@ inline void bilinear(const float* lookup, int width, float u, float v, float out
   for (int k = 0; k < kLookupChannels; ++k) out[k] = w00 * p00[k] + w01 * p01[k] + w10 * p10[k] + w11 * p11[k];
 }
 
+/// Whether the cell holding (u, v) lies on one surface (kLookupSmoothCell of its top-left pixel).
+inline bool smoothCellAt(const float* lookup, int width, float u, float v) {
+  const std::size_t cell = static_cast<std::size_t>(static_cast<int>(v)) * width + static_cast<int>(u);
+  return lookup[cell * kLookupChannels + kLookupSmoothCell] > 0.5f;
+}
+
 /// Cauchy penalty F(s) = c^2/2 log(1 + (s/c)^2) (Eq. 27 / 64) and its IRLS weight F'(s)/s.
 inline float cauchy(float s, float inv_c2, float half_c2) { return half_c2 * std::log1p(s * s * inv_c2); }
 inline float cauchyWeight(float s, float inv_c2) { return 1.0f / (1.0f + s * s * inv_c2); }
@@ -166,13 +172,16 @@ void accumulateImageTerm(const DenseLevel& previous, const DenseLevel& current, 
     rows.Y[m] = p.Y;
     rows.Z[m] = p.Z;
     rows.inv_Z[m] = p.inv_Z;
+    // The depth row only where the sample's four taps lie on one surface: a sample mixing two
+    // surfaces measures neither, and its residual does not follow the linear model (Eq. 62).
+    const bool depth_row = has_depth && smoothCellAt(lookup, camera.width, p.u, p.v);
     for (int k = 0; k < kLookupValid; ++k) rows.s[k][m] = sample[k];
-    rows.s[kLookupValid][m] = has_depth ? 1.0f : 0.0f;
+    rows.s[kLookupValid][m] = depth_row ? 1.0f : 0.0f;
     rows.I[m] = current.intensity_at[i];
     rows.wI[m] = current.weight_I[i];
     rows.wD[m] = current.weight_D[i];
     rows.gamma[m] = gamma;
-    num_depth_rows += has_depth ? 1 : 0;
+    num_depth_rows += depth_row ? 1 : 0;
     ++m;
   }
   // Rows, branch-free over the gathered pixels: intensity (Eq. 61, r_I = I_{i-1}(W(u, T)) - I_i(u))

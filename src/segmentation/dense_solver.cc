@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Cholesky>
 
@@ -25,6 +26,10 @@ constexpr double kNearPointDepth_m = 0.5;
 /// this everywhere pose the same state problem: after a converged state step, the next
 /// alternation would repeat it.
 constexpr float kSameStateWeight = 1e-3f;
+
+/// Steps that shrink by less than this per step are not converging (fast enough) to bound what is
+/// left of them: the solve goes on.
+constexpr double kMaxContraction = 0.9;
 
 using Mat15 = Eigen::Matrix<double, 15, 15>;
 using Vec15 = Eigen::Matrix<double, 15, 1>;
@@ -52,6 +57,17 @@ imu::NavState navState(const SE3& T_w_b, const Vec3& v_w_b) {
   state.p_w_b = T_w_b.translation();
   state.v_w_b = v_w_b;
   return state;
+}
+
+/// The image motion still to come after a Gauss-Newton step of step_px, px, from the level's
+/// previous step (previous_px, < 0 for none): near a minimum the steps shrink geometrically by
+/// rho = step_px / previous_px, so the rest sums to step_px rho / (1 - rho). Without a previous
+/// step, or when the steps do not shrink, nothing bounds the rest (infinity).
+double remainingPx(double step_px, double previous_px) {
+  if (step_px == 0.0) return 0.0;
+  if (!(previous_px > 0.0) || !(step_px < kMaxContraction * previous_px)) return std::numeric_limits<double>::infinity();
+  const double rho = step_px / previous_px;
+  return step_px * rho / (1.0 - rho);
 }
 
 /// Information of the IMU term: the preintegration covariance widened by the previous velocity's
@@ -245,6 +261,7 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
     bool gamma_at_final_state = false;
     for (int level = coarsest; level >= finest; --level) {
       bool converged = false;
+      double previous_step_px = -1.0;  // the level's last step, px (< 0: none yet)
       for (int alternation = 0; alternation < options_.alternations; ++alternation) {
         gammaStep(level, level == coarsest && alternation == 0);
         const float weight_change = updateStateWeights();
@@ -256,7 +273,9 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
         }
         converged = false;
         for (int iteration = 0; iteration < options_.iterations_per_level && !converged; ++iteration) {
-          converged = stateStep(level) <= options_.step_tolerance_px;
+          const double step_px = stateStep(level);
+          converged = remainingPx(step_px, previous_step_px) <= options_.step_tolerance_px;
+          previous_step_px = step_px;
         }
       }
     }

@@ -243,33 +243,52 @@ TEST(SurfelFusion, UnstableSurfelsGoAfterTheWindow) {
   EXPECT_GT(fusion.stableSurfels().size(), 1000u);
 }
 
-TEST(SurfelFusion, ThreadsDoNotChangeTheResult) {
-  auto run = [](int threads) {
-    SurfelFusion fusion(testCamera(), ReconOptions(), threads);
-    Rect box{Vec3(0.2, 0, 2.0), Vec3(0, 0, -1), Vec3(1, 0, 0), 0.4, 0.3};
-    std::mt19937 rng(5);
-    double t_s = 0.0;
-    for (int k = 0; k < 20; ++k, t_s += 0.1) {
-      const SE3 pose = yawedPose(0.02 * k, -1.0 * k);
-      fusion.integrate(
-          renderFrame(k < 10 ? std::vector<Rect>{wallAt(3.0), box} : std::vector<Rect>{wallAt(3.0)},
-                      pose, t_s, 0.0015, &rng));
+// 20 frames of a wall with a box for the first 10, the camera yawing; `threads` split the
+// fusion, `prepared` measures each frame with prepare() (reusing one PreparedFrame) first.
+std::vector<Surfel> fuseYawingScene(int threads, bool prepared) {
+  SurfelFusion fusion(testCamera(), ReconOptions(), threads);
+  PreparedFrame measurement;
+  Rect box{Vec3(0.2, 0, 2.0), Vec3(0, 0, -1), Vec3(1, 0, 0), 0.4, 0.3};
+  std::mt19937 rng(5);
+  double t_s = 0.0;
+  for (int k = 0; k < 20; ++k, t_s += 0.1) {
+    const SE3 pose = yawedPose(0.02 * k, -1.0 * k);
+    const FusionFrame frame =
+        renderFrame(k < 10 ? std::vector<Rect>{wallAt(3.0), box} : std::vector<Rect>{wallAt(3.0)},
+                    pose, t_s, 0.0015, &rng);
+    if (prepared) {
+      fusion.prepare(frame, &measurement);
+      fusion.integrate(frame, measurement);
+    } else {
+      fusion.integrate(frame);
     }
-    std::vector<Surfel> surfels = fusion.allSurfels();
-    std::sort(surfels.begin(), surfels.end(), [](const Surfel& a, const Surfel& b) {
-      return std::make_tuple(a.position_w.x(), a.position_w.y(), a.position_w.z()) <
-             std::make_tuple(b.position_w.x(), b.position_w.y(), b.position_w.z());
-    });
-    return surfels;
-  };
-  const std::vector<Surfel> one = run(1);
-  const std::vector<Surfel> three = run(3);
-  ASSERT_GT(one.size(), 2000u);
-  ASSERT_EQ(one.size(), three.size());
-  for (std::size_t i = 0; i < one.size(); ++i) {
-    ASSERT_EQ(one[i].position_w, three[i].position_w) << i;
-    ASSERT_EQ(one[i].confidence, three[i].confidence) << i;
   }
+  std::vector<Surfel> surfels = fusion.allSurfels();
+  std::sort(surfels.begin(), surfels.end(), [](const Surfel& a, const Surfel& b) {
+    return std::make_tuple(a.position_w.x(), a.position_w.y(), a.position_w.z()) <
+           std::make_tuple(b.position_w.x(), b.position_w.y(), b.position_w.z());
+  });
+  return surfels;
+}
+
+void expectSameSurfels(const std::vector<Surfel>& a, const std::vector<Surfel>& b) {
+  ASSERT_GT(a.size(), 2000u);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].position_w, b[i].position_w) << i;
+    ASSERT_EQ(a[i].normal_w, b[i].normal_w) << i;
+    ASSERT_EQ(a[i].radius_m, b[i].radius_m) << i;
+    ASSERT_EQ(a[i].confidence, b[i].confidence) << i;
+  }
+}
+
+TEST(SurfelFusion, ThreadsDoNotChangeTheResult) {
+  expectSameSurfels(fuseYawingScene(1, false), fuseYawingScene(3, false));
+}
+
+TEST(SurfelFusion, PreparedFramesFuseLikeWholeFrames) {
+  // The loader threads' path (measure on one thread, fuse on two) against integrate(frame).
+  expectSameSurfels(fuseYawingScene(1, false), fuseYawingScene(2, true));
 }
 
 TEST(SurfelPly, RoundTripKeepsEveryProperty) {

@@ -8,6 +8,8 @@
 //                           attempt, one thread), which gives labels only.
 //   BM_DenseSolve           DenseSolver on a generated pushed-box pair (dense_solver_test.cc's scene)
 //                           with the default schedule (state on levels 2-1).
+//   BM_DenseSolveFullSchedule  reference: the same solve without the early stop (Dense.StepTolerance 0:
+//                           every level and alternation runs Dense.IterationsPerLevel steps).
 //   BM_DenseSolveQvga       reference: the same solve with the state also on level 0 (Dense.FinestLevel 0).
 //   BM_ImageTerm            the normal equations of the image term on level 1 (float lanes) ...
 //   BM_ImageTermNaive       ... against a direct Eigen double 6x6 accumulation per residual.
@@ -101,19 +103,25 @@ struct DensePair {
   }
 };
 
-void denseSolve(benchmark::State& state, int finest_level) {
+void denseSolve(benchmark::State& state, int finest_level, double step_tolerance_px) {
   const DensePair pair(finest_level);
   DenseOptions dense;
   dense.finest_level = finest_level;
+  dense.step_tolerance_px = step_tolerance_px;
   DenseSolver solver(DenseSolverOptions::from(SegmentationOptions(), dense, LocalMappingOptions()));
+  int steps = 0;
   for (auto _ : state) {
     const DenseResult result = solver.solve(pair.previous, pair.previous_gamma, pair.current, pair.clusters.edges, pair.prior);
+    steps = result.gauss_newton_steps;
     benchmark::DoNotOptimize(result.gamma.data());
   }
+  state.counters["gn_steps"] = steps;
 }
-void BM_DenseSolve(benchmark::State& state) { denseSolve(state, 1); }
-void BM_DenseSolveQvga(benchmark::State& state) { denseSolve(state, 0); }
+void BM_DenseSolve(benchmark::State& state) { denseSolve(state, 1, DenseOptions().step_tolerance_px); }
+void BM_DenseSolveFullSchedule(benchmark::State& state) { denseSolve(state, 1, 0.0); }
+void BM_DenseSolveQvga(benchmark::State& state) { denseSolve(state, 0, DenseOptions().step_tolerance_px); }
 BENCHMARK(BM_DenseSolve)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DenseSolveFullSchedule)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DenseSolveQvga)->Unit(benchmark::kMillisecond);
 
 const DensePair& levelOnePair() {

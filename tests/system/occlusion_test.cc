@@ -72,7 +72,8 @@ struct Occlusion {
   std::unordered_set<long long> occluded_us;  ///< timestamps (microseconds) of the occluded frames
 };
 
-Occlusion measureOcclusion(const std::string& dir) {
+/// Logged under `name` (the scenario), so a failing run's log says how occluded it was.
+Occlusion measureOcclusion(const std::string& dir, const std::string& name) {
   io::SequenceReaderOptions options;
   options.read_masks = true;  // only to find the mask files; no frame is decoded
   const io::SequenceReader reader = io::SequenceReader::open(dir, options);
@@ -99,6 +100,9 @@ Occlusion measureOcclusion(const std::string& dir) {
   occlusion.occluded_share = occlusion.frames > 0 ? static_cast<double>(occlusion.occluded_frames) / occlusion.frames : 0.0;
   occlusion.longest_occluded_s = longest / kFps;
   occlusion.mean_fraction_occluded = occlusion.occluded_frames > 0 ? fraction_sum / occlusion.occluded_frames : 0.0;
+  log::info("e2e occlusion ", name, ": ", occlusion.occluded_frames, "/", occlusion.frames, " frames occluded (",
+            occlusion.occluded_share, "), longest ", occlusion.longest_occluded_s, " s, mean dynamic fraction ",
+            occlusion.mean_fraction_occluded);
   return occlusion;
 }
 
@@ -200,10 +204,7 @@ class OcclusionEndToEnd : public EndToEndSuite {
 // the boxes (0.32 m ATE); with it, the static remainder and the IMU carry the trajectory.
 TEST_F(OcclusionEndToEnd, LongTermOcclusionKeepsTheTrajectoryAndSegmentsTheBoxes) {
   const std::string dir = sequence(sim::Scenario::kLtlo, 1);
-  const Occlusion occlusion = measureOcclusion(dir);
-  log::info("e2e occlusion ltlo: ", occlusion.occluded_frames, "/", occlusion.frames, " frames occluded (",
-            occlusion.occluded_share, "), longest ", occlusion.longest_occluded_s, " s, mean dynamic fraction ",
-            occlusion.mean_fraction_occluded);
+  const Occlusion occlusion = measureOcclusion(dir, "ltlo");
   ASSERT_GE(occlusion.occluded_share, 0.6);
   ASSERT_GE(occlusion.longest_occluded_s, 9.0);
   ASSERT_GE(occlusion.mean_fraction_occluded, 0.55);
@@ -222,10 +223,7 @@ TEST_F(OcclusionEndToEnd, LongTermOcclusionKeepsTheTrajectoryAndSegmentsTheBoxes
 // (1.13 m ATE with Seg.Enable off); the segmentation must call the box dynamic on its frames.
 TEST_F(OcclusionEndToEnd, CarriedBoxIsDynamicAndTheTrajectoryHolds) {
   const std::string dir = sequence(sim::Scenario::kCarried, 1);
-  const Occlusion occlusion = measureOcclusion(dir);
-  log::info("e2e occlusion carried: ", occlusion.occluded_frames, "/", occlusion.frames, " frames occluded (",
-            occlusion.occluded_share, "), longest ", occlusion.longest_occluded_s, " s, mean dynamic fraction ",
-            occlusion.mean_fraction_occluded);
+  const Occlusion occlusion = measureOcclusion(dir, "carried");
   ASSERT_GE(occlusion.occluded_share, 0.5);
   ASSERT_GE(occlusion.longest_occluded_s, 8.0);
   ASSERT_GE(occlusion.mean_fraction_occluded, 0.6);

@@ -1,8 +1,9 @@
 #pragma once
 /// Offline reconstruction of a finished run: fuses the static pixels of a sequence's frames, posed
-/// by the run's trajectory, into surfels (SurfelFusion). Frames are decoded ahead in loader
-/// threads (PNG decoding costs about as much as fusing); the fusion splits each frame over
-/// `fusion_threads` (the calling thread and workers of its own). Threads: the request's reader
+/// by the run's trajectory, into surfels (SurfelFusion). Frames are decoded and measured ahead in
+/// loader threads (PNG decoding costs about as much as fusing; the measurement does not depend on
+/// the model); the model's stages of each frame are split over `fusion_threads` (the calling
+/// thread and workers of its own). Threads: the request's reader
 /// and buffers are private to the call; nothing is shared with a running SLAM system.
 ///
 ///   ReconstructionRequest request;
@@ -54,8 +55,8 @@ struct ReconstructionResult {
   double fusion_wall_s = 0.0;   ///< wall time of the fusion loop
   double fps = 0.0;             ///< fused frames per second of wall time
   std::size_t model_bytes = 0;  ///< surfel storage at the end
-  /// Fusion stages (SurfelFusion::timing()) and recon.wait_frames, the fusion thread waiting for
-  /// decoded frames.
+  /// Fusion stages (SurfelFusion::timing()), recon.measurement (per frame, in a loader thread)
+  /// and recon.wait_frames, the fusion thread waiting for decoded and measured frames.
   std::vector<StageTiming> timing;
 };
 

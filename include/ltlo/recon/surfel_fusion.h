@@ -50,6 +50,24 @@ struct FusionFrame {
   cv::Mat dynamic_mask;  ///< CV_8UC1, 255 = dynamic (not fused); empty = every pixel static
 };
 
+struct Measurement;  // src/recon/measurement.h
+
+/// A frame's measurement on the fusion grid (vertices, normals, radii, which pixels fuse), made by
+/// SurfelFusion::prepare(). It does not depend on the model, so loader threads can prepare the
+/// next frames while one thread fuses an earlier one. Preparing the same object again reuses its
+/// buffers.
+class PreparedFrame {
+ public:
+  PreparedFrame();
+  ~PreparedFrame();
+  PreparedFrame(PreparedFrame&&) noexcept;
+  PreparedFrame& operator=(PreparedFrame&&) noexcept;
+
+ private:
+  friend class SurfelFusion;
+  std::unique_ptr<Measurement> measurement_;
+};
+
 /// What one integrate() call did.
 struct FusionFrameStats {
   int measured_pixels = 0;  ///< fusion pixels with valid depth and normal
@@ -82,6 +100,11 @@ class SurfelFusion {
 
   /// Fuses one frame; frames come in time order. Sizes must match the camera (asserted).
   FusionFrameStats integrate(const FusionFrame& frame);
+  /// Measures `frame` into `out` (step 1 above) on the calling thread alone. Const and
+  /// thread-safe: any number of threads may prepare frames while one thread integrates.
+  void prepare(const FusionFrame& frame, PreparedFrame* out) const;
+  /// Fuses `frame` measured by prepare(); the result is that of integrate(frame).
+  FusionFrameStats integrate(const FusionFrame& frame, const PreparedFrame& prepared);
 
   /// Surfels with confidence >= Recon.ConfidenceStable, in no particular order.
   std::vector<Surfel> stableSurfels() const;
@@ -91,11 +114,13 @@ class SurfelFusion {
   const FusionTotals& totals() const;
   /// Heap bytes held by the model (surfel storage and cells), for the memory report.
   std::size_t modelBytes() const;
-  /// Time per stage and frame: recon.measurement, recon.index_map, recon.associate_fuse,
-  /// recon.free_space, recon.clean_insert.
+  /// Time per stage and frame: recon.measurement (integrate(frame) only), recon.index_map,
+  /// recon.associate_fuse, recon.free_space, recon.clean_insert.
   const TimingStats& timing() const;
 
  private:
+  FusionFrameStats fuseMeasured(const FusionFrame& frame, const Measurement& measurement);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -32,9 +32,12 @@ enum LookupChannel : int {
   kLookupIu = 1,  ///< dI/du per level pixel
   kLookupIv = 2,  ///< dI/dv
   kLookupD = 3,   ///< depth, m (0 without)
-  kLookupDu = 4,  ///< dD/du, m per level pixel
-  kLookupDv = 5,  ///< dD/dv
+  kLookupDu = 4,  ///< dD/du of the pixel's own surface, m per level pixel (not across a discontinuity)
+  kLookupDv = 5,  ///< dD/dv, likewise
   kLookupValid = 6,  ///< 1 with depth, 0 without (bilinear: 1 only when all four taps have depth)
+  /// 1 when the 2 x 2 cell with this pixel at its top left lies on one surface (all four depths
+  /// within the depth gap), else 0; read at the cell, not interpolated
+  kLookupSmoothCell = 7,
   kLookupChannels = 8,
 };
 

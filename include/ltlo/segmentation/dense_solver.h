@@ -71,9 +71,9 @@ struct DenseSolverOptions {
   int alternations = 2;
   /// finest pyramid level the state is solved on (Dense.FinestLevel; 0 = Dense.Resolution)
   int finest_level = 1;
-  /// Gauss-Newton stops on a level once a step moves the image by at most this, px of the level
-  /// (Dense.StepTolerance)
-  double step_tolerance_px = 0.005;
+  /// Gauss-Newton stops on a level once the image motion still to come, estimated from the level's
+  /// last two steps, is at most this, px of the level (Dense.StepTolerance)
+  double step_tolerance_px = 0.01;
   /// prior residual (chi^2, whitened) above which the refined state is rejected (Dense.MaxPriorChi2)
   double max_prior_chi2 = 30.0;
 
