@@ -61,6 +61,8 @@ void visitKeyFrame(O& o, V& v) {
   v.real("KF.MaxOverlap", o.max_overlap, 0.05, 0.99);
   v.integer("KF.MinTrackedPoints", o.min_tracked_points, 0, 10000);
   v.real("KF.MaxInterval", o.max_interval_s, 0.01, 100.0);
+  v.integer("KF.MinInliers", o.min_inliers, 3, 10000);
+  v.integer("KF.MinInliersInertial", o.min_inliers_inertial, 3, 10000);
 }
 
 template <typename O, typename V>
@@ -76,6 +78,8 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.AccBiasSigma", o.acc_bias_sigma_m_s2, 0.0, 10.0);
   v.real("Tracking.NewMapAfter", o.new_map_after_s, -1.0, 1000.0);
   v.real("Tracking.MaxLostImuInterval", o.max_lost_imu_interval_s, 0.1, 1000.0);
+  v.boolean("Tracking.SmoothCarriedFrames", o.smooth_carried_frames);
+  v.real("Tracking.CarriedVelocitySigma", o.carried_velocity_sigma_m_s, 0.0, 10.0);
   v.real("RGBD.VirtualBaseline", o.virtual_baseline_m, 0.001, 100.0);
 }
 

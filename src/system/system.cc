@@ -15,6 +15,7 @@
 #include "ltlo/map/keyframe.h"
 #include "ltlo/mapping/local_mapper.h"
 #include "ltlo/optim/bundle_adjust.h"
+#include "ltlo/system/carried_stretch.h"
 #include "ltlo/system/segmentation_writer.h"
 #include "ltlo/tracking/dense_segmenter.h"
 #include "ltlo/tracking/frame_builder.h"
@@ -238,6 +239,20 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
       record.T_w_c = T_w_c;
     }
     if (record.tracked) ++frames_tracked_;
+    const std::optional<SE3> predicted_T_w_b = tracker_->imuPredicted_T_w_b();
+    record.carried = !record.tracked && predicted_T_w_b && record.reference;
+    if (record.tracked && carried_reference_ && predicted_T_w_b) {
+      // The first frame anchored after an IMU-carried stretch: where the dead reckoning put it,
+      // relative to the keyframe the stretch hung on (trajectory() spreads the difference).
+      record.stretch_reference = carried_reference_;
+      record.T_stretchrefb_c_predicted =
+          map::latestPose_T_w_b(*carried_reference_).inverse() * (*predicted_T_w_b * frame.T_b_c());
+    }
+    if (record.carried) {
+      if (!carried_reference_) carried_reference_ = record.reference;
+    } else {
+      carried_reference_.reset();
+    }
     const tracking::TrackingStats& stats = tracker_->stats();
     if (record.tracked && stats.inertial_link != 0 && stats.inliers < settings_.tracking.min_inliers) {
       ++frames_tracked_weak_imu_;
@@ -280,7 +295,7 @@ void System::shutdown() {
             " merges, ", atlas_->numMaps(), " map(s)");
 }
 
-std::vector<FramePose> System::trajectory() const {
+std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
   std::vector<FrameRecord> records;
   {
     std::lock_guard<std::mutex> lock(records_mutex_);
@@ -289,17 +304,34 @@ std::vector<FramePose> System::trajectory() const {
   // Keyframe poses are read outside records_mutex_ (it is a leaf lock).
   std::vector<FramePose> poses;
   poses.reserve(records.size());
+  std::vector<CarriedSample> samples;
+  samples.reserve(records.size());
   for (const FrameRecord& record : records) {
     FramePose pose;
     pose.t_s = record.t_s;
     pose.tracked = record.tracked;
+    CarriedSample sample;
     if (record.reference) {
       pose.T_w_c = map::latestPose_T_w_b(*record.reference) * record.T_refb_c;
       pose.map = record.reference->mapId();
+      // Comparable only while the stretch's keyframe and this frame's lie in one map (merged).
+      if (record.stretch_reference && record.stretch_reference->mapId() == pose.map) {
+        sample.T_w_c_dead_reckoned =
+            map::latestPose_T_w_b(*record.stretch_reference) * record.T_stretchrefb_c_predicted;
+      }
     } else {
       pose.T_w_c = record.T_w_c;
     }
+    sample.t_s = pose.t_s;
+    sample.T_w_c = pose.T_w_c;
+    sample.carried = record.carried;
     poses.push_back(pose);
+    samples.push_back(std::move(sample));
+  }
+  if (smooth_carried_frames) {
+    smoothCarriedStretches(samples, settings_.tracking.carried_velocity_sigma_m_s,
+                           settings_.tracking.acc_bias_sigma_m_s2);
+    for (std::size_t i = 0; i < poses.size(); ++i) poses[i].T_w_c = samples[i].T_w_c;
   }
   return poses;
 }

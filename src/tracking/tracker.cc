@@ -150,6 +150,7 @@ TrackingState Tracker::track(map::Frame& frame) {
   } else {
     velocity_T_last_cur_ = last_frame_->T_w_c().inverse() * T_w_c;
   }
+  if (was_lost) resumed_without_keyframe_ = true;
   last_frame_ = frame;
   last_tracked_t_s_ = frame.t_s();
   ++frames_since_keyframe_;
@@ -429,9 +430,14 @@ bool Tracker::needNewKeyFrame() const {
   const bool interval = last_frame_->t_s() - last_keyframe_t_s_ >= max_interval_s;
   const bool low_overlap = stats_.overlap < kf.max_overlap;
   const bool weak = stats_.inliers < kf.min_tracked_points;
-  // A keyframe needs enough inliers to be anchored in the map (a frame carried by the IMU with
-  // fewer is tracked but spawns none: local and global BA would hold it by a handful of points).
-  return (interval || low_overlap || weak) && stats_.inliers > 15;
+  // A keyframe needs enough inliers to be anchored in the map. When tracking resumes after a loss,
+  // a frame tracked with the inertial optimisation is anchored by its IMU link too and needs fewer:
+  // the view is then mostly unmapped, and without a keyframe its few matches run out and tracking
+  // is lost again. Elsewhere (e.g. beside an occluder) such weak keyframes would crowd the local
+  // window, so the vision-only rule holds.
+  const int anchor_inliers =
+      stats_.inertial_link != 0 && resumed_without_keyframe_ ? kf.min_inliers_inertial : kf.min_inliers;
+  return (interval || low_overlap || weak) && stats_.inliers >= anchor_inliers;
 }
 
 std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {
@@ -484,6 +490,7 @@ std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {
   frame.reference_keyframe = kf->id();
   last_keyframe_t_s_ = frame.t_s();
   frames_since_keyframe_ = 0;
+  resumed_without_keyframe_ = false;
   ++num_keyframes_;
   log::debug("keyframe ", kf->id(), " at t = ", frame.t_s(), " s: ", kf->numObservations(), " points (", created,
              " new)");

@@ -97,6 +97,16 @@ struct KeyFrameOptions {
   /// a keyframe at least this often, s; bounds IMU preintegration time (KF.MaxInterval, [0.01,
   /// 100])
   double max_interval_s = 1.0;
+  /// pose inliers a frame needs to become a keyframe when vision alone tracked it
+  /// (KF.MinInliers, [3, 10000]): it must be anchored in the map by points, local and global BA
+  /// would otherwise hold it by a handful
+  int min_inliers = 16;
+  /// pose inliers a frame tracked with the inertial optimisation needs to become a keyframe when
+  /// tracking has just resumed after a loss (no keyframe since) (KF.MinInliersInertial, [3,
+  /// 10000]): its IMU link anchors it too, so after an occlusion or a black-out a view that is
+  /// mostly unmapped extends the map as soon as it is tracked, instead of being lost again for want
+  /// of points (KF.MinInliers restores the vision-only rule)
+  int min_inliers_inertial = 10;
 
   static KeyFrameOptions load(const SettingsFile& file);
 };
@@ -136,6 +146,17 @@ struct TrackingOptions {
   /// beyond, it is re-anchored on the predicted state and the next keyframe starts a new IMU chain
   /// (Tracking.MaxLostImuInterval, [0.1, 1000])
   double max_lost_imu_interval_s = 5.0;
+  /// Trajectory output of IMU-carried stretches (frames posed by the IMU alone while vision
+  /// could not track): once vision anchors the frame after the stretch, the difference between its
+  /// dead-reckoned and its anchored pose is spread over the stretch in the IMU error model's shape
+  /// (system/carried_stretch.h; live tracking and the map are unchanged)
+  /// (Tracking.SmoothCarriedFrames, 0/1). 0: the stretch keeps the dead reckoning (an ablation).
+  bool smooth_carried_frames = true;
+  /// Standard deviation of the velocity of the last tracked frame before a carried stretch, m/s:
+  /// with Tracking.AccBiasSigma it sets how the end correction is split between a velocity error
+  /// (growing linearly) and an acceleration error (quadratically) (Tracking.CarriedVelocitySigma,
+  /// [0, 10]; 0.01: a frame tracked at 30 Hz with mm-level pose noise)
+  double carried_velocity_sigma_m_s = 0.01;
   /// Virtual stereo baseline of the RGB-D edges, m: bf = fx * b, so a keypoint with depth d and
   /// standard deviation sigma (px) has a depth standard deviation sigma d^2 / (fx b), that of a
   /// stereo rig of baseline b with the same disparity error. For a sensor with depth noise
@@ -271,7 +292,7 @@ struct ImuInitOptions {
   /// ltlo seed 1 lose 1.5-4 mm and the 1.5 s black-out CI test's seed misses its 0.05 m (the
   /// estimate from the first 2-5 s is worse than its fixed-pose sigma says). 0: keyframes by KF.*
   /// alone (ImuInit.EarlyKeyFrames, 0/1)
-  bool early_keyframes = false;
+  bool early_keyframes = true;
   /// inertial-only optimisation iterations (ImuInit.Iterations, [1, 1000])
   int iterations = 10;
   /// Strength of the zero-mean priors on b_g and b_a, counted in IMU readings: each prior has the

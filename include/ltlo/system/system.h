@@ -112,8 +112,11 @@ class System {
   void shutdown();
   bool isShutDown() const { return shut_down_; }
 
-  /// Every frame with a pose, in input order.
-  std::vector<FramePose> trajectory() const;
+  /// Every frame with a pose, in input order; IMU-carried stretches smoothed as
+  /// Tracking.SmoothCarriedFrames says (system/carried_stretch.h).
+  std::vector<FramePose> trajectory() const { return trajectory(settings_.tracking.smooth_carried_frames); }
+  /// The same, with carried stretches smoothed or as the IMU predicted them.
+  std::vector<FramePose> trajectory(bool smooth_carried_frames) const;
   /// Live keyframes of every map, by time.
   std::vector<KeyFrameRecord> keyFrames() const;
   /// Map points of the active map (the map tracking ended in; other maps have their own world
@@ -140,6 +143,12 @@ class System {
     SE3 T_refb_c;  ///< with a reference
     SE3 T_w_c;     ///< without one
     bool tracked = false;
+    /// posed by the IMU's prediction alone (not tracked; with a reference)
+    bool carried = false;
+    /// The first frame anchored by vision after a carried stretch: the keyframe the stretch hung
+    /// on and this frame's dead-reckoned pose relative to it (system/carried_stretch.h).
+    std::shared_ptr<const map::KeyFrame> stretch_reference;
+    SE3 T_stretchrefb_c_predicted;
   };
 
   void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
@@ -177,6 +186,8 @@ class System {
   int frames_imu_predicted_ = 0;
   int relocalisations_ = 0;
   int maps_extended_ = 0;
+  /// The keyframe the open IMU-carried stretch hangs on (null: no stretch open).
+  std::shared_ptr<const map::KeyFrame> carried_reference_;
 
   mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;

@@ -145,6 +145,11 @@ class Tracker {
   TrackingState state() const { return state_; }
   /// Whether the last frame was tracked / relocalised / started a map (false: predicted pose).
   bool frameTracked() const { return frame_tracked_; }
+  /// The IMU's prediction of the last frame's body pose, from the previous frame's state, before
+  /// vision refined it (absent when the IMU did not predict: no IMU, not initialised, no samples).
+  std::optional<SE3> imuPredicted_T_w_b() const {
+    return imu_prediction_.valid ? std::optional<SE3>(imu_prediction_.state.T_w_b) : std::nullopt;
+  }
   /// Camera pose of the last frame given to track() (tracked or predicted; identity before
   /// initialisation).
   SE3 T_w_c() const { return last_T_w_c_; }
@@ -276,6 +281,8 @@ class Tracker {
   SE3 last_T_w_c_;
   std::optional<SE3> velocity_T_last_cur_;  ///< constant-velocity model: T_c_last^-1 motion
   int frames_since_keyframe_ = 0;
+  /// tracked again after a loss, no keyframe since (KF.MinInliersInertial applies)
+  bool resumed_without_keyframe_ = false;
   double last_keyframe_t_s_ = 0.0;
   map::KeyFrameId reference_kf_;
   std::shared_ptr<map::KeyFrame> reference_kf_ptr_;
