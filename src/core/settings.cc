@@ -76,6 +76,12 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.AccBiasSigma", o.acc_bias_sigma_m_s2, 0.0, 10.0);
   v.real("Tracking.NewMapAfter", o.new_map_after_s, -1.0, 1000.0);
   v.real("Tracking.MaxLostImuInterval", o.max_lost_imu_interval_s, 0.1, 1000.0);
+  v.boolean("Tracking.Reacquire", o.reacquire);
+  v.real("Tracking.ReacquireGateSigmas", o.reacquire_gate_sigmas, 1.0, 20.0);
+  v.real("Tracking.ReacquireMinRotationGate", o.reacquire_min_rotation_gate_deg, 0.0, 180.0);
+  v.real("Tracking.ReacquireMaxRadius", o.reacquire_max_radius_px, 5.0, 2000.0);
+  v.integer("Tracking.ReacquireMinInliers", o.reacquire_min_inliers, 6, 10000);
+  v.boolean("Tracking.ReacquireCorrectGap", o.reacquire_correct_gap);
   v.real("RGBD.VirtualBaseline", o.virtual_baseline_m, 0.001, 100.0);
 }
 

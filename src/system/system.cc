@@ -139,6 +139,40 @@ void System::checkWorkers() const {
   if (loop_stopped_.load()) throw SystemError("the loop-closing thread stopped on an error");
 }
 
+void System::correctGap(double lost_since_s, double now_s, const SE3& T_w_c_pred, const SE3& T_w_c_now) {
+  // The untracked records of the gap (only this thread appends records_).
+  std::vector<std::size_t> gap;
+  std::vector<FrameRecord> copies;
+  {
+    std::lock_guard<std::mutex> lock(records_mutex_);
+    for (std::size_t i = records_.size(); i-- > 0;) {
+      const FrameRecord& record = records_[i];
+      if (record.tracked || record.t_s <= lost_since_s) break;
+      gap.push_back(i);
+      copies.push_back(record);
+    }
+  }
+  const double gap_s = std::max(1e-9, now_s - lost_since_s);
+  const Vec3 dp_w = T_w_c_now.translation() - T_w_c_pred.translation();
+  const Vec3 dphi_w = so3Log(T_w_c_now.quaternion() * T_w_c_pred.quaternion().conjugate());
+  // Keyframe poses are read outside records_mutex_ (a leaf lock).
+  for (FrameRecord& record : copies) {
+    const double tau = std::clamp((record.t_s - lost_since_s) / gap_s, 0.0, 1.0);
+    const SE3 T_w_b_ref = record.reference ? map::latestPose_T_w_b(*record.reference) : SE3();
+    const SE3 T_w_c = record.reference ? T_w_b_ref * record.T_refb_c : record.T_w_c;
+    const SE3 corrected(so3ExpQuat(tau * dphi_w) * T_w_c.quaternion(), T_w_c.translation() + tau * tau * dp_w);
+    if (record.reference) {
+      record.T_refb_c = T_w_b_ref.inverse() * corrected;
+    } else {
+      record.T_w_c = corrected;
+    }
+  }
+  log::info("system: re-acquisition correction ", dp_w.norm(), " m, ", dphi_w.norm() * 180.0 / M_PI,
+            " deg spread over the ", copies.size(), " predicted frames of the ", gap_s, " s gap");
+  std::lock_guard<std::mutex> lock(records_mutex_);
+  for (std::size_t k = 0; k < gap.size(); ++k) records_[gap[k]] = copies[k];
+}
+
 void System::pollImuState() {
   if (!use_imu_) return;
   const mapping::ImuState imu = mapper_->imuState();
@@ -245,6 +279,10 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     if (!record.tracked && stats.inertial_link != 0) ++frames_imu_predicted_;
     if (stats.relocalised) ++relocalisations_;
     if (stats.map_extended) ++maps_extended_;
+    if (stats.reacquired) {
+      ++reacquisitions_;
+      if (settings_.tracking.reacquire_correct_gap) correctGap(stats.lost_since_s, input.t_s, stats.reacquired_T_w_c_pred, T_w_c);
+    }
     std::lock_guard<std::mutex> lock(records_mutex_);
     records_.push_back(std::move(record));
   }
@@ -376,6 +414,7 @@ SystemCounts System::counts() const {
   counts.frames_imu_predicted = frames_imu_predicted_;
   counts.relocalisations = relocalisations_;
   counts.maps_extended = maps_extended_;
+  counts.reacquisitions = reacquisitions_;
   counts.loops = closer_->numLoops();
   counts.merges = closer_->numMerges();
   for (const map::MapId map_id : map_ids) {

@@ -136,6 +136,32 @@ struct TrackingOptions {
   /// beyond, it is re-anchored on the predicted state and the next keyframe starts a new IMU chain
   /// (Tracking.MaxLostImuInterval, [0.1, 1000])
   double max_lost_imu_interval_s = 5.0;
+  /// Guided re-acquisition of the active map by a lost frame with the IMU prediction
+  /// (Tracking.Reacquire, 0/1): the map points of the keyframes around the predicted pose are
+  /// projected with it, matched to the frame's static keypoints with depth in windows of
+  /// Tracking.ReacquireGateSigmas standard deviations of the predicted reprojection, and a 3-D-3-D
+  /// RANSAC pose is accepted only within that many sigmas of the prediction, then refined against
+  /// the local map. Tried before the BoW relocalisation and before a new map is started.
+  bool reacquire = true;
+  /// Gate of a re-acquired pose and half width of its search windows, in standard deviations of
+  /// the IMU-carried prediction (Tracking.ReacquireGateSigmas, [1, 20])
+  double reacquire_gate_sigmas = 3.0;
+  /// Least rotation gate of a re-acquired pose, degrees: the gyroscope bias error is held fixed
+  /// at the links and so is missing from the predicted rotation sigma
+  /// (Tracking.ReacquireMinRotationGate, [0, 180])
+  double reacquire_min_rotation_gate_deg = 3.0;
+  /// Largest search half window of the re-acquisition, px at level 0
+  /// (Tracking.ReacquireMaxRadius, [5, 2000])
+  double reacquire_max_radius_px = 160.0;
+  /// Pose inliers a re-acquired frame needs after the local-map search
+  /// (Tracking.ReacquireMinInliers, [6, 10000])
+  int reacquire_min_inliers = 25;
+  /// After a re-acquisition, the recorded poses of the frames of the gap (IMU-only predictions)
+  /// take the correction found at its end, spread as the IMU's drift grows: the position
+  /// correction times (tau / T)^2 (an accelerometer-bias error integrates twice), the rotation
+  /// correction times tau / T (a gyroscope-bias error integrates once), tau the time since the
+  /// last tracked frame and T the gap (Tracking.ReacquireCorrectGap, 0/1)
+  bool reacquire_correct_gap = true;
   /// Virtual stereo baseline of the RGB-D edges, m: bf = fx * b, so a keypoint with depth d and
   /// standard deviation sigma (px) has a depth standard deviation sigma d^2 / (fx b), that of a
   /// stereo rig of baseline b with the same disparity error. For a sensor with depth noise

@@ -145,6 +145,11 @@ class System {
   void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
   void processPendingKeyFrames();                                 // synchronous mode
   void pollImuState();
+  /// Tracking.ReacquireCorrectGap: the frames recorded after lost_since_s (untracked, IMU-predicted)
+  /// take the correction (T_w_c_pred -> T_w_c_now) of the frame re-acquired at now_s, the position
+  /// part times (tau / T)^2 and the rotation part times tau / T, tau = t - lost_since_s and
+  /// T = now_s - lost_since_s (tracking thread).
+  void correctGap(double lost_since_s, double now_s, const SE3& T_w_c_pred, const SE3& T_w_c_now);
   void checkWorkers() const;
 
   const Settings settings_;
@@ -177,6 +182,7 @@ class System {
   int frames_imu_predicted_ = 0;
   int relocalisations_ = 0;
   int maps_extended_ = 0;
+  int reacquisitions_ = 0;
 
   mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;

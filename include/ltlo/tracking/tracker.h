@@ -119,6 +119,13 @@ struct TrackingStats {
   /// the IMU prediction started from the last keyframe (local mapping had updated its state)
   bool imu_from_keyframe = false;
   bool relocalised = false;    ///< the frame was relocalised (BoW + RANSAC)
+  /// the lost frame re-acquired the active map by the IMU-guided search (Tracking.Reacquire; then
+  /// relocalised is set too)
+  bool reacquired = false;
+  /// With reacquired: the IMU-predicted camera pose of the frame (before the re-acquisition
+  /// corrected it) and the time of the last tracked frame before the gap (s).
+  SE3 reacquired_T_w_c_pred;
+  double lost_since_s = 0.0;
   bool new_map = false;        ///< the frame started a new map
   /// the frame extended the active map at its IMU-predicted pose (lost, Tracking.MaxImuPositionSigma)
   bool map_extended = false;
@@ -236,6 +243,13 @@ class Tracker {
   int trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred);
   /// Relocalisation in the active map; returns pose inliers (0 when not relocalised).
   int relocalise(map::Frame& frame);
+  /// Guided re-acquisition of the active map by a lost frame at the IMU prediction T_w_b_pred
+  /// (Tracking.Reacquire, tracker_reacquire.cc); returns pose inliers (0 when not re-acquired).
+  int reacquire(map::Frame& frame, const SE3& T_w_b_pred);
+  /// After a relocalisation or re-acquisition: the frame's state re-optimised with the IMU link to
+  /// the previous (predicted) frame, whose prior keeps velocity and biases only. Returns the
+  /// inliers of that optimisation (0 when there is no link).
+  int optimiseStateAfterGap(map::Frame& frame);
   /// Lost frame: the predicted state, then a new map or a keyframe at the prediction when due.
   void handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Vec3& v_w_b_pred);
   /// Bookkeeping of a frame that leaves track() with a pose (tracked or predicted).
