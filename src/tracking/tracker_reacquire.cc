@@ -29,6 +29,14 @@ namespace {
 /// share points with it; the nearest of them form the re-acquisition's map.
 constexpr double kMinAxisCosine = 0.5;
 
+/// Ratio test of the wide-window matching: a window of k sigma holds most of the frame's static
+/// keypoints, so the second best is the best of many random descriptors; the RANSAC and the gate
+/// remove what the looser test lets through.
+constexpr double kReacquireRatio = 0.9;
+/// RANSAC draws: with the looser ratio test a fifth of the matches may be right; 1000 draws of three
+/// find an all-inlier sample with probability 1 - (1 - 0.2^3)^1000 > 0.999.
+constexpr int kReacquireRansacIterations = 1000;
+
 /// Angle of the rotation between two camera poses (rad).
 double rotationAngle_rad(const SE3& a, const SE3& b) {
   return so3Log(a.quaternion().conjugate() * b.quaternion()).norm();
@@ -72,12 +80,13 @@ int Tracker::reacquire(map::Frame& frame, const SE3& T_w_b_pred) {
   const PinholeCamera& camera = frame.camera();
   std::vector<Candidate> best(static_cast<std::size_t>(frame.numKeypoints()));
   std::unordered_set<map::MapPointId> seen;
-  int projected = 0, with_candidate = 0, below_distance = 0;
+  int considered = 0, projected = 0, with_candidate = 0, below_distance = 0;
   for (const auto& [distance_kf_m, kf] : nearby) {
     for (const map::MapPointId id : kf->mapPoints()) {
       if (!id.valid() || !seen.insert(id).second) continue;
       const auto point = active.mapPoint(id);
       if (!point || point->isBad()) continue;
+      ++considered;
       const Vec3 p_w = point->p_w();
       const Vec3 p_c = T_c_w_pred * p_w;
       if (p_c.z() <= 0.1) continue;
@@ -107,12 +116,12 @@ int Tracker::reacquire(map::Frame& frame, const SE3& T_w_b_pred) {
           second_d = d;
         }
       }
-      // Wide windows: the tracker's projection threshold with the BoW relocalisation's ratio test.
+      // Wide windows: the tracker's projection threshold and a loose ratio test.
       if (best_i < 0) continue;
       ++with_candidate;
       if (best_d > options_.max_descriptor_distance) continue;
       ++below_distance;
-      if (best_d > options_.relocalisation.ratio * second_d) continue;
+      if (best_d > kReacquireRatio * second_d) continue;
       Candidate& slot = best[static_cast<std::size_t>(best_i)];
       if (best_d < slot.distance) slot = Candidate{best_i, id, p_w, best_d};
     }
@@ -129,13 +138,14 @@ int Tracker::reacquire(map::Frame& frame, const SE3& T_w_b_pred) {
     matched.emplace_back(c.keypoint, c.point);
   }
   log::debug("re-acquisition at t = ", frame.t_s(), " s: sigma ", sigma_p, " m / ", sigma_r, " rad, ",
-             nearby.size(), " keyframes, ", projected, " points projected (", with_candidate, " with a static keypoint in the window, ",
+             nearby.size(), " keyframes, ", projected, " of ", considered, " points projected (", with_candidate, " with a static keypoint in the window, ",
              below_distance, " within the distance), ", correspondences.size(), " matches of ",
              staticKeypointsWithDepth(frame), " static keypoints with depth");
   const int min_ransac = options_.relocalisation.min_ransac_inliers;
   if (static_cast<int>(correspondences.size()) < min_ransac) return 0;
   loop::Se3RansacOptions ransac_options;
   ransac_options.min_inliers = min_ransac;
+  ransac_options.max_iterations = kReacquireRansacIterations;
   ransac_options.seed = static_cast<std::uint32_t>(std::llround(frame.t_s() * 1000.0)) * 7919u + 29u;
   const loop::Se3RansacResult ransac = loop::estimateSe3Ransac(correspondences, ransac_options);
   if (!ransac.success) {
