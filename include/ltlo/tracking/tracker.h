@@ -26,7 +26,11 @@
 /// predicted state (with the IMU: the IMU-only prediction and its propagated information; else the
 /// constant-velocity model for up to max_prediction_s after the last tracked frame, then the last
 /// pose held). While lost, every frame first tries the motion model (doubled windows), then
-/// relocalisation in the active map (with a vocabulary). Lost for new_map_after_s and the frame has
+/// relocalisation in the active map (with a vocabulary); with the IMU's link and
+/// Tracking.Reacquire, the guided re-acquisition comes before the relocalisation: the keyframes
+/// around the IMU-predicted pose are projected with it, matched in windows of the predicted
+/// uncertainty and verified by a 3-D-3-D RANSAC pose gated by the prediction (tracker_reacquire.cc).
+/// Lost for new_map_after_s and the frame has
 /// enough static keypoints: with the IMU and the predicted position still within
 /// Tracking.MaxImuPositionSigma, a keyframe extends the active map at the predicted pose (the IMU
 /// chain continues); otherwise Atlas::createNewMap() and a new map is initialised at the frame's
