@@ -80,6 +80,11 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.MaxLostImuInterval", o.max_lost_imu_interval_s, 0.1, 1000.0);
   v.boolean("Tracking.SmoothCarriedFrames", o.smooth_carried_frames);
   v.real("Tracking.CarriedVelocitySigma", o.carried_velocity_sigma_m_s, 0.0, 10.0);
+  v.boolean("Tracking.Reacquire", o.reacquire);
+  v.real("Tracking.ReacquireGateSigmas", o.reacquire_gate_sigmas, 1.0, 20.0);
+  v.real("Tracking.ReacquireMinRotationGate", o.reacquire_min_rotation_gate_deg, 0.0, 180.0);
+  v.real("Tracking.ReacquireMaxRadius", o.reacquire_max_radius_px, 5.0, 2000.0);
+  v.integer("Tracking.ReacquireMinInliers", o.reacquire_min_inliers, 6, 10000);
   v.real("RGBD.VirtualBaseline", o.virtual_baseline_m, 0.001, 100.0);
 }
 

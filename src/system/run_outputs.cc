@@ -250,6 +250,7 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("frames_imu_predicted", c.frames_imu_predicted);
   metrics.set("relocalisations", c.relocalisations);
   metrics.set("maps_extended", c.maps_extended);
+  metrics.set("reacquisitions", c.reacquisitions);
   metrics.set("loops", c.loops);
   metrics.set("merges", c.merges);
   metrics.set("keyframes", c.keyframes);

@@ -260,6 +260,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     if (!record.tracked && stats.inertial_link != 0) ++frames_imu_predicted_;
     if (stats.relocalised) ++relocalisations_;
     if (stats.map_extended) ++maps_extended_;
+    if (stats.reacquired) ++reacquisitions_;
     std::lock_guard<std::mutex> lock(records_mutex_);
     records_.push_back(std::move(record));
   }
@@ -408,6 +409,7 @@ SystemCounts System::counts() const {
   counts.frames_imu_predicted = frames_imu_predicted_;
   counts.relocalisations = relocalisations_;
   counts.maps_extended = maps_extended_;
+  counts.reacquisitions = reacquisitions_;
   counts.loops = closer_->numLoops();
   counts.merges = closer_->numMerges();
   for (const map::MapId map_id : map_ids) {

@@ -100,7 +100,16 @@ TrackingState Tracker::track(map::Frame& frame) {
   const Vec3 v_w_b_pred = frame.v_w_b();
   frame.setPose_T_w_b(T_w_b_pred);
   int inliers = trackWithMotionModel(frame, T_w_b_pred);
-  if (inliers < minInliers() && vocabulary_ != nullptr) {
+  if (inliers < minInliers() && was_lost && options_.tracking.reacquire && imu_prediction_.link) {
+    // The IMU knows roughly where the camera is: look for the map there before anything else.
+    const int reacquired = reacquire(frame, imu_prediction_.state.T_w_b);
+    if (reacquired > 0) {
+      inliers = reacquired;
+      stats_.relocalised = true;
+      stats_.reacquired = true;
+    }
+  }
+  if (inliers < minInliers() && !stats_.reacquired && vocabulary_ != nullptr) {
     const int relocalised = relocalise(frame);
     if (relocalised > 0) {
       inliers = relocalised;
@@ -289,22 +298,7 @@ int Tracker::relocalise(map::Frame& frame) {
                 " inliers");
       stats_.predicted_position_sigma_m = sigma_p;
       stats_.predicted_rotation_sigma_rad = sigma_r;
-      if (imu_prediction_.link && frame.imu_from_last_frame && prev_information_.valid) {
-        // The state after the gap: the relocalised pose with the IMU link to the previous
-        // (predicted) frame, whose pose is not trusted: its prior keeps velocity and biases only.
-        optim::InertialLink link;
-        link.T_w_b_prev = prev_T_w_b_;
-        link.v_w_b_prev = prev_v_w_b_;
-        link.bias_prev = prev_bias_;
-        link.g_w = g_w_;
-        link.pim = std::make_shared<const imu::Preintegrated>(*frame.imu_from_last_frame);
-        link.prev_prior = optim::PreviousStatePrior{velocityAndBiasInformation(prev_information_.information)};
-        const int inertial_inliers = optimisePose(frame, frame.T_w_b(), false, &link);
-        log::debug("relocalised state with the IMU link: ", inertial_inliers, " inliers, v = ",
-                   frame.v_w_b().transpose());
-        inliers = std::max(inliers, inertial_inliers);
-      }
-      return inliers;
+      return std::max(inliers, optimiseStateAfterGap(frame));
     }
   }
   stats_.predicted_position_sigma_m = sigma_p;
@@ -313,6 +307,22 @@ int Tracker::relocalise(map::Frame& frame) {
   reference_kf_ptr_ = reference_ptr_before;
   clearMatches(frame);
   return 0;
+}
+
+int Tracker::optimiseStateAfterGap(map::Frame& frame) {
+  if (!imu_prediction_.link || !frame.imu_from_last_frame || !prev_information_.valid) return 0;
+  // The state after the gap: the relocalised pose with the IMU link to the previous (predicted)
+  // frame, whose pose is not trusted: its prior keeps velocity and biases only.
+  optim::InertialLink link;
+  link.T_w_b_prev = prev_T_w_b_;
+  link.v_w_b_prev = prev_v_w_b_;
+  link.bias_prev = prev_bias_;
+  link.g_w = g_w_;
+  link.pim = std::make_shared<const imu::Preintegrated>(*frame.imu_from_last_frame);
+  link.prev_prior = optim::PreviousStatePrior{velocityAndBiasInformation(prev_information_.information)};
+  const int inertial_inliers = optimisePose(frame, frame.T_w_b(), false, &link);
+  log::debug("relocalised state with the IMU link: ", inertial_inliers, " inliers, v = ", frame.v_w_b().transpose());
+  return inertial_inliers;
 }
 
 void Tracker::recordFramePose(const map::Frame& frame) {

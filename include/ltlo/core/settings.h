@@ -157,6 +157,26 @@ struct TrackingOptions {
   /// (growing linearly) and an acceleration error (quadratically) (Tracking.CarriedVelocitySigma,
   /// [0, 10]; 0.01: a frame tracked at 30 Hz with mm-level pose noise)
   double carried_velocity_sigma_m_s = 0.01;
+  /// Guided re-acquisition of the active map by a lost frame with the IMU prediction
+  /// (Tracking.Reacquire, 0/1): the map points of the keyframes around the predicted pose are
+  /// projected with it, matched to the frame's static keypoints with depth in windows of
+  /// Tracking.ReacquireGateSigmas standard deviations of the predicted reprojection, and a 3-D-3-D
+  /// RANSAC pose is accepted only within that many sigmas of the prediction, then refined against
+  /// the local map. Tried before the BoW relocalisation and before a new map is started.
+  bool reacquire = true;
+  /// Gate of a re-acquired pose and half width of its search windows, in standard deviations of
+  /// the IMU-carried prediction (Tracking.ReacquireGateSigmas, [1, 20])
+  double reacquire_gate_sigmas = 3.0;
+  /// Least rotation gate of a re-acquired pose, degrees: the gyroscope bias error is held fixed
+  /// at the links and so is missing from the predicted rotation sigma
+  /// (Tracking.ReacquireMinRotationGate, [0, 180])
+  double reacquire_min_rotation_gate_deg = 3.0;
+  /// Largest search half window of the re-acquisition, px at level 0
+  /// (Tracking.ReacquireMaxRadius, [5, 2000])
+  double reacquire_max_radius_px = 160.0;
+  /// Pose inliers a re-acquired frame needs after the local-map search
+  /// (Tracking.ReacquireMinInliers, [6, 10000])
+  int reacquire_min_inliers = 25;
   /// Virtual stereo baseline of the RGB-D edges, m: bf = fx * b, so a keypoint with depth d and
   /// standard deviation sigma (px) has a depth standard deviation sigma d^2 / (fx b), that of a
   /// stereo rig of baseline b with the same disparity error. For a sensor with depth noise

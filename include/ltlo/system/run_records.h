@@ -47,6 +47,7 @@ struct SystemCounts {
   int frames_imu_predicted = 0;  ///< untracked frames that got the IMU-only prediction
   int relocalisations = 0;       ///< frames relocalised against the keyframe database
   int maps_extended = 0;         ///< keyframes placed at the IMU prediction while lost
+  int reacquisitions = 0;        ///< lost frames that re-acquired the map by the IMU-guided search
   int loops = 0;              ///< same-map loops corrected
   int merges = 0;             ///< maps merged
   int keyframes = 0;          ///< keyframes of all maps

@@ -188,6 +188,7 @@ class System {
   int maps_extended_ = 0;
   /// The keyframe the open IMU-carried stretch hangs on (null: no stretch open).
   std::shared_ptr<const map::KeyFrame> carried_reference_;
+  int reacquisitions_ = 0;
 
   mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;

@@ -26,7 +26,11 @@
 /// predicted state (with the IMU: the IMU-only prediction and its propagated information; else the
 /// constant-velocity model for up to max_prediction_s after the last tracked frame, then the last
 /// pose held). While lost, every frame first tries the motion model (doubled windows), then
-/// relocalisation in the active map (with a vocabulary). Lost for new_map_after_s and the frame has
+/// relocalisation in the active map (with a vocabulary); with the IMU's link and
+/// Tracking.Reacquire, the guided re-acquisition comes before the relocalisation: the keyframes
+/// around the IMU-predicted pose are projected with it, matched in windows of the predicted
+/// uncertainty and verified by a 3-D-3-D RANSAC pose gated by the prediction (tracker_reacquire.cc).
+/// Lost for new_map_after_s and the frame has
 /// enough static keypoints: with the IMU and the predicted position still within
 /// Tracking.MaxImuPositionSigma, a keyframe extends the active map at the predicted pose (the IMU
 /// chain continues); otherwise Atlas::createNewMap() and a new map is initialised at the frame's
@@ -119,6 +123,9 @@ struct TrackingStats {
   /// the IMU prediction started from the last keyframe (local mapping had updated its state)
   bool imu_from_keyframe = false;
   bool relocalised = false;    ///< the frame was relocalised (BoW + RANSAC)
+  /// the lost frame re-acquired the active map by the IMU-guided search (Tracking.Reacquire; then
+  /// relocalised is set too)
+  bool reacquired = false;
   bool new_map = false;        ///< the frame started a new map
   /// the frame extended the active map at its IMU-predicted pose (lost, Tracking.MaxImuPositionSigma)
   bool map_extended = false;
@@ -241,6 +248,13 @@ class Tracker {
   int trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred);
   /// Relocalisation in the active map; returns pose inliers (0 when not relocalised).
   int relocalise(map::Frame& frame);
+  /// Guided re-acquisition of the active map by a lost frame at the IMU prediction T_w_b_pred
+  /// (Tracking.Reacquire, tracker_reacquire.cc); returns pose inliers (0 when not re-acquired).
+  int reacquire(map::Frame& frame, const SE3& T_w_b_pred);
+  /// After a relocalisation or re-acquisition: the frame's state re-optimised with the IMU link to
+  /// the previous (predicted) frame, whose prior keeps velocity and biases only. Returns the
+  /// inliers of that optimisation (0 when there is no link).
+  int optimiseStateAfterGap(map::Frame& frame);
   /// Lost frame: the predicted state, then a new map or a keyframe at the prediction when due.
   void handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Vec3& v_w_b_pred);
   /// Bookkeeping of a frame that leaves track() with a pose (tracked or predicted).
