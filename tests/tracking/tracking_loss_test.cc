@@ -155,6 +155,29 @@ class TrackingLossRuns : public TrackingLoss {
     }
     return run;
   }
+
+  /// One frame of an inertial run, recorded in run.records: built at the tracker's current bias
+  /// (the preintegration needs it); a black frame has no colour and, with black_depth, no depth.
+  const FrameRecord& stepInertial(TrackerRun& run, int k, bool black, bool black_depth = true) {
+    io::RgbdImuFrame input = (*inputs_)[static_cast<std::size_t>(k)];
+    if (black) {
+      input.color_bgr = input.color_bgr.clone();
+      input.color_bgr.setTo(cv::Scalar::all(0));
+      // A new buffer: assigning Mat::zeros would write into the shared input's own depth.
+      if (black_depth) input.depth_m = cv::Mat(input.depth_m.size(), input.depth_m.type(), cv::Scalar(0));
+    }
+    map::Frame frame = builder_.build(input, run.tracker->bias());
+    if (k == 0) frame.setPose_T_w_c(groundTruth(0));
+    run.tracker->track(frame);
+    FrameRecord r;
+    r.index = k;
+    r.has_pose = frame.hasPose();
+    r.tracked = run.tracker->frameTracked();
+    r.T_w_c = r.has_pose ? frame.T_w_c() : SE3();
+    r.stats = run.tracker->stats();
+    run.records.push_back(r);
+    return run.records.back();
+  }
   FrameRecord step(TrackerRun& run, int k, const std::function<void(io::RgbdImuFrame&)>& modify = {}) {
     io::RgbdImuFrame input = (*inputs_)[static_cast<std::size_t>(k)];
     if (modify) {
@@ -319,21 +342,7 @@ TEST_F(TrackingLossRuns, WithTheImuBlackFramesArePredictedByPreintegration) {
   imu::ImuBias bias;
   for (int k = 0; k < n; ++k) {
     if (k == 10) run->tracker->setImuInitialised(bias, imu::gravityWorld());
-    io::RgbdImuFrame input = (*inputs_)[static_cast<std::size_t>(k)];
-    if (k >= kBlackBegin && k < kBlackEnd) {
-      input.color_bgr = input.color_bgr.clone();
-      input.color_bgr.setTo(cv::Scalar::all(0));
-    }
-    map::Frame frame = builder_.build(input, run->tracker->bias());
-    if (k == 0) frame.setPose_T_w_c(groundTruth(0));
-    run->tracker->track(frame);
-    FrameRecord r;
-    r.index = k;
-    r.has_pose = frame.hasPose();
-    r.tracked = run->tracker->frameTracked();
-    r.T_w_c = r.has_pose ? frame.T_w_c() : SE3();
-    r.stats = run->tracker->stats();
-    run->records.push_back(r);
+    stepInertial(*run, k, k >= kBlackBegin && k < kBlackEnd, /*black_depth=*/false);
   }
   double max_predicted_error = 0.0;
   for (int k = kBlackBegin; k < kBlackEnd; ++k) {
@@ -365,23 +374,7 @@ TEST_F(TrackingLossRuns, WithTheTrueBiasesTheImuPredictionErrorFollowsTheNoise) 
   const int n = kBlackEnd + 15;
   for (int k = 0; k < n; ++k) {
     if (k == 10) run->tracker->setImuInitialised(*true_bias_, imu::gravityWorld());
-    io::RgbdImuFrame input = (*inputs_)[static_cast<std::size_t>(k)];
-    if (k >= kBlackBegin && k < kBlackEnd) {
-      input.color_bgr = input.color_bgr.clone();
-      input.color_bgr.setTo(cv::Scalar::all(0));
-      // A new buffer: assigning Mat::zeros would write into the shared input's own depth.
-      input.depth_m = cv::Mat(input.depth_m.size(), input.depth_m.type(), cv::Scalar(0));
-    }
-    map::Frame frame = builder_.build(input, run->tracker->bias());
-    if (k == 0) frame.setPose_T_w_c(groundTruth(0));
-    run->tracker->track(frame);
-    FrameRecord r;
-    r.index = k;
-    r.has_pose = frame.hasPose();
-    r.tracked = run->tracker->frameTracked();
-    r.T_w_c = r.has_pose ? frame.T_w_c() : SE3();
-    r.stats = run->tracker->stats();
-    run->records.push_back(r);
+    stepInertial(*run, k, k >= kBlackBegin && k < kBlackEnd);
   }
   double max_predicted_error = 0.0;
   for (int k = kBlackBegin; k < kBlackEnd; ++k) {
@@ -459,22 +452,7 @@ TEST_F(TrackingLossRuns, WithTheImuALongDriftIsReacquiredWithoutANewMap) {
     wrong_bias.b_a += Vec3(0.4, 0.0, 0.0);
     for (int k = 0; k <= kBlackEnd; ++k) {
       if (k == 10) run->tracker->setImuInitialised(wrong_bias, imu::gravityWorld());
-      io::RgbdImuFrame input = (*inputs_)[static_cast<std::size_t>(k)];
-      if (k >= kBlackBegin && k < kBlackEnd) {
-        input.color_bgr = input.color_bgr.clone();
-        input.color_bgr.setTo(cv::Scalar::all(0));
-        input.depth_m = cv::Mat(input.depth_m.size(), input.depth_m.type(), cv::Scalar(0));
-      }
-      map::Frame frame = builder_.build(input, run->tracker->bias());
-      if (k == 0) frame.setPose_T_w_c(groundTruth(0));
-      run->tracker->track(frame);
-      FrameRecord r;
-      r.index = k;
-      r.has_pose = frame.hasPose();
-      r.tracked = run->tracker->frameTracked();
-      r.T_w_c = r.has_pose ? frame.T_w_c() : SE3();
-      r.stats = run->tracker->stats();
-      run->records.push_back(r);
+      stepInertial(*run, k, k >= kBlackBegin && k < kBlackEnd);
     }
     return run;
   };
