@@ -168,6 +168,35 @@ Vec3 visiblePoint(std::mt19937& rng, const ProjectionModel& model, const SE3& T_
   return T_w_b * (model.T_c_x.inverse() * model.camera.backProject(Vec2(u(rng), v(rng)), depth(rng)));
 }
 
+/// 30 points in front of each keyframe (true poses T_true), started 2 cm (sigma) off the truth and
+/// observed with 1 px noise and RGB-D depth by every keyframe that sees them; returns the true points.
+std::vector<Vec3> addObservedPoints(LocalBaProblem& problem, const std::vector<SE3>& T_true,
+                                    const ProjectionModel& model, std::mt19937& rng,
+                                    std::normal_distribution<double>& normal) {
+  const int num_keyframes = static_cast<int>(T_true.size());
+  std::vector<Vec3> points_true;
+  for (int m = 0; m < 30 * num_keyframes; ++m) {
+    points_true.push_back(visiblePoint(rng, model, T_true[static_cast<size_t>(m / 30)]));
+    problem.points.push_back(BaPoint{m, points_true.back() + 0.02 * Vec3(normal(rng), normal(rng), normal(rng))});
+  }
+  for (int k = 0; k < num_keyframes; ++k) {
+    for (int m = 0; m < static_cast<int>(points_true.size()); ++m) {
+      const Vec3 p_c = model.T_c_x * (T_true[static_cast<size_t>(k)].inverse() * points_true[static_cast<size_t>(m)]);
+      if (p_c.z() < 0.3) continue;
+      const Vec2 uv = model.camera.project(p_c) + Vec2(normal(rng), normal(rng));
+      if (!model.camera.isInImage(uv)) continue;
+      BaObservation obs;
+      obs.keyframe_id = k;
+      obs.point_id = m;
+      obs.uv = uv;
+      const double u_r = model.projectRgbd(p_c).z() + normal(rng);
+      obs.depth_m = model.bf_px_m / (uv.x() - u_r);
+      problem.observations.push_back(obs);
+    }
+  }
+  return points_true;
+}
+
 TEST(ImuRefinement, VisualInertialBaImprovesGravityAndBiasesOverInertialOnly) {
   // A 5 s window of 21 keyframes on the analytic trajectory in a map frame m turned away from
   // gravity; IMU readings with the simulator's noise densities and a constant bias; keyframe poses
@@ -235,26 +264,7 @@ TEST(ImuRefinement, VisualInertialBaImprovesGravityAndBiasesOverInertialOnly) {
     if (k > 0) problem.inertial.push_back(BaInertialLink{k - 1, k, pims[static_cast<size_t>(k - 1)]});
   }
   problem.bias_priors.push_back(BaBiasPrior{0, imu::ImuBias(), prior.gyro, prior.acc});
-  std::vector<Vec3> points_true;
-  for (int m = 0; m < 30 * kNumKeyFrames; ++m) {
-    points_true.push_back(visiblePoint(rng, model, T_true[static_cast<size_t>(m / 30)]));
-    problem.points.push_back(BaPoint{m, points_true.back() + 0.02 * Vec3(normal(rng), normal(rng), normal(rng))});
-  }
-  for (int k = 0; k < kNumKeyFrames; ++k) {
-    for (int m = 0; m < static_cast<int>(points_true.size()); ++m) {
-      const Vec3 p_c = model.T_c_x * (T_true[static_cast<size_t>(k)].inverse() * points_true[static_cast<size_t>(m)]);
-      if (p_c.z() < 0.3) continue;
-      const Vec2 uv = model.camera.project(p_c) + Vec2(normal(rng), normal(rng));
-      if (!model.camera.isInImage(uv)) continue;
-      BaObservation obs;
-      obs.keyframe_id = k;
-      obs.point_id = m;
-      obs.uv = uv;
-      const double u_r = model.projectRgbd(p_c).z() + normal(rng);
-      obs.depth_m = model.bf_px_m / (uv.x() - u_r);
-      problem.observations.push_back(obs);
-    }
-  }
+  const std::vector<Vec3> points_true = addObservedPoints(problem, T_true, model, rng, normal);
   ASSERT_GT(problem.observations.size(), 3u * points_true.size());
   const LocalBaResult refined = localBundleAdjust(problem);
 
@@ -327,26 +337,7 @@ Vec3 windowAccBias(const imu::ImuBias& true_bias, const Vec3& held_offset, doubl
       problem.inertial.push_back(BaInertialLink{k - 1, k, pim});
     }
   }
-  std::vector<Vec3> points_true;
-  for (int m = 0; m < 30 * kNumKeyFrames; ++m) {
-    points_true.push_back(visiblePoint(rng, model, T_true[static_cast<size_t>(m / 30)]));
-    problem.points.push_back(BaPoint{m, points_true.back() + 0.02 * Vec3(normal(rng), normal(rng), normal(rng))});
-  }
-  for (int k = 0; k < kNumKeyFrames; ++k) {
-    for (int m = 0; m < static_cast<int>(points_true.size()); ++m) {
-      const Vec3 p_c = model.T_c_x * (T_true[static_cast<size_t>(k)].inverse() * points_true[static_cast<size_t>(m)]);
-      if (p_c.z() < 0.3) continue;
-      const Vec2 uv = model.camera.project(p_c) + Vec2(normal(rng), normal(rng));
-      if (!model.camera.isInImage(uv)) continue;
-      const double u_r = model.projectRgbd(p_c).z() + normal(rng);
-      problem.observations.push_back(BaObservation{});
-      BaObservation& obs = problem.observations.back();
-      obs.keyframe_id = k;
-      obs.point_id = m;
-      obs.uv = uv;
-      obs.depth_m = model.bf_px_m / (uv.x() - u_r);
-    }
-  }
+  addObservedPoints(problem, T_true, model, rng, normal);
   return localBundleAdjust(problem).keyframes.back().bias.b_a;
 }
 
