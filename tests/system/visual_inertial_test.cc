@@ -171,7 +171,7 @@ double constantVelocityError(const io::Trajectory& ground_truth, double t_begin_
   return max_m;
 }
 
-// 1.5 s of black frames (no colour, no depth) 2 s after the IMU initialisation, the IMU running:
+// 1.5 s of black frames (no colour, no depth) 4 s after the IMU initialisation, the IMU running:
 // every black frame gets the IMU-only prediction, and tracking resumes in the same map, without
 // relocalisation or a new map. The prediction's error is dominated by the accelerometer bias the
 // initialisation could not separate from gravity over a few seconds of motion: 0.5 |db| t^2 =
