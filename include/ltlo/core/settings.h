@@ -308,10 +308,8 @@ struct ImuInitOptions {
   /// Before the initialisation, keyframes come at least every MinTime / (MinKeyFrames - 1) s, so the
   /// IMU initialises as soon as MinTime of motion is covered (about 2 s) rather than after
   /// MinKeyFrames keyframes at KF.MaxInterval; an occlusion in the first seconds then meets an
-  /// initialised IMU. Off by default: on, ltlo seed 2 goes from 0.077 to 0.009-0.014 m, but mtlo /
-  /// ltlo seed 1 lose 1.5-4 mm and the 1.5 s black-out CI test's seed misses its 0.05 m (the
-  /// estimate from the first 2-5 s is worse than its fixed-pose sigma says). 0: keyframes by KF.*
-  /// alone (ImuInit.EarlyKeyFrames, 0/1)
+  /// initialised IMU (ltlo seed 2: 0.13 -> 0.01-0.03 m, seed 3: 2.2 -> 0.06-0.26 m threaded; static
+  /// seeds 1-3 0.3-0.6 mm better). 0: keyframes by KF.* alone (ImuInit.EarlyKeyFrames, 0/1)
   bool early_keyframes = true;
   /// inertial-only optimisation iterations (ImuInit.Iterations, [1, 1000])
   int iterations = 10;
