@@ -68,6 +68,7 @@ void setThreadName(const std::string& name) {
   if (static_cast<pid_t>(syscall(SYS_gettid)) != getpid()) {
     const std::string os_name = (std::string(kThreadNamePrefix) + name).substr(0, 15);
     pthread_setname_np(pthread_self(), os_name.c_str());
+    ltlo::detail::registerNamedThread(os_name);
   }
 #endif
 }

@@ -3,11 +3,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <condition_variable>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "common/log_capture.h"
+#include "ltlo/core/thread_names.h"
 
 namespace ltlo {
 namespace {
@@ -57,6 +61,41 @@ TEST(Log, CaptureRestoresPreviousSink) {
   }
   log::info("outer");
   EXPECT_EQ(outer.lines(), std::vector<std::string>{"[main] info outer"});
+}
+
+// A named thread is listed while it runs and never after its join() returned, for many threads in
+// a row (the kernel's task list may still show a joined thread for a moment: the list must not).
+TEST(ThreadNames, NamedThreadsAreListedUntilJoined) {
+  const auto listed = [](const std::string& os_name) {
+    const std::vector<std::string> names = runningNamedThreads();
+    return std::count(names.begin(), names.end(), os_name);
+  };
+  for (int i = 0; i < 200; ++i) {
+    std::mutex mutex;
+    std::condition_variable cv;
+    bool named = false, release = false;
+    std::thread worker([&] {
+      log::setThreadName("segmentation");
+      log::setThreadName("worker");  // renamed: listed once, under the new name
+      std::unique_lock<std::mutex> lock(mutex);
+      named = true;
+      cv.notify_all();
+      cv.wait(lock, [&] { return release; });
+    });
+    long while_running = 0, old_name = 0;
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      cv.wait(lock, [&] { return named; });
+      while_running = listed("ltlo.worker");
+      old_name = listed("ltlo.segmentati");
+      release = true;
+    }
+    cv.notify_all();
+    worker.join();
+    ASSERT_EQ(while_running, 1) << "run " << i;
+    ASSERT_EQ(old_name, 0) << "run " << i;
+    ASSERT_EQ(listed("ltlo.worker"), 0) << "run " << i;
+  }
 }
 
 }  // namespace
