@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <condition_variable>
 #include <exception>
 #include <mutex>
@@ -26,18 +27,30 @@ constexpr int kKeyFramesBetweenLoops = 10;
 /// A merge candidate not (yet) consistent is accepted when its verification has this many times
 /// Loop.MinInliers (a map started after tracking loss should rejoin the old one soon).
 constexpr int kStrongMergeInlierFactor = 2;
+/// Floor of the rejoin's position sigma: the new map's own drift from its origin (m).
+constexpr double kRejoinDriftSigma_m = 0.02;
+/// Sigmas of the rejoin's second search, around the first search's RANSAC pose (m, rad).
+constexpr double kRejoinRefineSigma_m = 0.02;
+constexpr double kRejoinRefineSigma_rad = 0.01;
+/// Descriptor distance of a vote for the world offset (ORB's strict match threshold).
+constexpr int kRejoinVoteDescriptorDistance = 50;
+/// Ancestors of a map's origin chain searched by the rejoin (the parent first).
+constexpr int kRejoinMaxAncestors = 4;
 /// Best covisibles forming a candidate's group (consistency) and setting the BoW score threshold.
 constexpr std::size_t kGroupSize = 10;
 
-/// Pauses local mapping for its lifetime (no-op functions when not wired).
+/// Pauses local mapping, then holds tracking between two frames, for its lifetime (no-op functions
+/// when not wired).
 class MappingPause {
  public:
   explicit MappingPause(const MappingControl& mapping) : mapping_(mapping) {
     if (mapping_.pause) mapping_.pause();
+    if (mapping_.hold_tracking) mapping_.hold_tracking();
   }
   MappingPause(const MappingPause&) = delete;
   MappingPause& operator=(const MappingPause&) = delete;
   ~MappingPause() {
+    if (mapping_.release_tracking) mapping_.release_tracking();
     if (mapping_.resume) mapping_.resume();
   }
 
@@ -76,6 +89,17 @@ struct LoopCloser::Impl {
   bool tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
   /// Merge detection against the other maps; true when kf's map was merged.
   bool tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// Loop.Rejoin: kf's map started at an IMU prediction in its parent's world (map::MapOrigin);
+  /// the parent's points around kf's pose, searched within the origin's uncertainty; true when
+  /// kf's map was merged into the parent.
+  bool tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// One rejoin search of kf (of `map`) in `target` with the given sigmas; merges on success.
+  bool rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map, map::Map& target, double sigma_position_m,
+                double sigma_rotation_rad);
+  /// The merge of kf's map into `accepted`'s, at `place` when given (else verified by BoW
+  /// matching), with local mapping paused, then the event, the detection reset and the full BA.
+  bool merge(const std::shared_ptr<map::KeyFrame>& kf, const std::shared_ptr<map::KeyFrame>& accepted,
+             std::optional<LoopClosure> place);
   /// Forgets the consistency state (a correction or a map change).
   void resetDetection();
   void recordEvent(const LoopEvent& event);
@@ -145,8 +169,10 @@ void LoopCloser::Impl::process(const std::shared_ptr<map::KeyFrame>& kf) {
     detection_map = map->id();
   }
   ++keyframes_since_correction;
-  if (options.loop.enabled && kf->hasBow()) {
-    if (!tryLoop(kf, *map)) tryMerge(kf, *map);
+  if (options.loop.enabled) {
+    const bool closed = kf->hasBow() && tryLoop(kf, *map);
+    const bool rejoined = !closed && options.loop.rejoin && tryRejoin(kf, *map);
+    if (!closed && !rejoined && kf->hasBow()) tryMerge(kf, *map);
   }
   // After the queries, so the keyframe does not find itself.
   if (kf->hasBow() && !kf->isBad()) atlas.keyFrameDatabase().add(kf);
@@ -233,7 +259,104 @@ bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::M
     if (target != nullptr && !best->isBad() && verifyLoop(*kf, *best, *target, strong)) accepted = best;
   }
   if (!accepted) return false;
+  return merge(kf, accepted, std::nullopt);
+}
 
+bool LoopCloser::Impl::tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map) {
+  const std::optional<map::MapOrigin> origin = map.origin();
+  if (!origin || !gravity()) return false;  // the shared world needs the IMU's gravity
+  // The chain of origins: a map started from a map that itself started at a prediction shares the
+  // world of every ancestor, within the accumulated sigma. A map merged away stands for the map
+  // it went into, moved by its own origin's error.
+  double sigma_m = std::hypot(origin->sigma_position_m, kRejoinDriftSigma_m);
+  double sigma_rad = origin->sigma_rotation_rad;
+  map::MapId ancestor = origin->parent;
+  std::vector<map::MapId> searched{map.id()};
+  for (int depth = 0; depth < kRejoinMaxAncestors; ++depth) {
+    map::Map* ancestor_map = atlas.map(ancestor);
+    if (ancestor_map == nullptr) break;
+    const std::optional<map::MapOrigin> ancestor_origin = ancestor_map->origin();
+    const map::MapId target_id = atlas.resolve(ancestor);
+    double target_sigma_m = sigma_m, target_sigma_rad = sigma_rad;
+    if (target_id != ancestor && ancestor_origin) {
+      target_sigma_m = std::hypot(sigma_m, ancestor_origin->sigma_position_m);
+      target_sigma_rad = std::hypot(sigma_rad, ancestor_origin->sigma_rotation_rad);
+    }
+    if (std::find(searched.begin(), searched.end(), target_id) == searched.end()) {
+      searched.push_back(target_id);
+      map::Map* target = atlas.map(target_id);
+      if (target != nullptr && target->numKeyFrames() > 0 &&
+          rejoinAt(kf, map, *target, target_sigma_m, target_sigma_rad)) {
+        return true;
+      }
+    }
+    if (!ancestor_origin) break;
+    sigma_m = std::hypot(sigma_m, ancestor_origin->sigma_position_m);
+    sigma_rad = std::hypot(sigma_rad, ancestor_origin->sigma_rotation_rad);
+    ancestor = ancestor_origin->parent;
+  }
+  return false;
+}
+
+bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map, map::Map& target,
+                                double sigma_position_m, double sigma_rotation_rad) {
+  GuidedPlaceMatchOptions search = options.rejoin_search;
+  search.sigma_position_m = sigma_position_m;
+  search.sigma_rotation_rad = sigma_rotation_rad;
+  search.seed = static_cast<std::uint32_t>(kf->id().value) * 7919u + 31u;
+  search.refine_pose = true;
+  search.bf_px_m = kf->camera().fx() * options.virtual_baseline_m;
+  const SE3 T_w_c = kf->T_w_c();
+  // First the offset of kf's world by voting (robust to the look-alikes a window of the origin's
+  // sigma holds), then the search around the offset pose; else the search in the wide windows.
+  const WorldOffsetVote vote = voteWorldOffset(*kf, target, T_w_c, search, kRejoinVoteDescriptorDistance);
+  GuidedPlaceMatch found;
+  if (vote.found) {
+    GuidedPlaceMatchOptions narrow = search;
+    narrow.sigma_position_m = kRejoinRefineSigma_m;
+    narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
+    found = guidedPlaceMatch(*kf, target, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), narrow);
+    if (found.success && !withinPredictionGate(found.T_w_c, T_w_c, search, &found.distance_m, &found.rotation_rad)) {
+      found = GuidedPlaceMatch();
+    }
+  }
+  log::debug("rejoin vote: ", kf->id(), " of ", map.id(), " against ", target.id(), ": ", vote.pairs, " pairs, ",
+             vote.support, " at the peak, offset ", vote.offset_w.transpose(), " m",
+             found.success ? ", found" : "");
+  if (!found.success) found = guidedPlaceMatch(*kf, target, T_w_c, search);
+  if (found.success) {
+    // The windows of the origin's sigma are wide (up to the cap) and the loose ratio test passes
+    // few right matches: search again around the found pose in the windows of its own accuracy,
+    // still gated against kf's pose.
+    GuidedPlaceMatchOptions refine = search;
+    refine.sigma_position_m = kRejoinRefineSigma_m;
+    refine.sigma_rotation_rad = kRejoinRefineSigma_rad;
+    GuidedPlaceMatch refined = guidedPlaceMatch(*kf, target, found.T_w_c, refine);
+    if (refined.success && refined.matches.size() > found.matches.size() &&
+        withinPredictionGate(refined.T_w_c, T_w_c, search, &refined.distance_m, &refined.rotation_rad)) {
+      found = std::move(refined);
+    }
+  }
+  const int inliers = static_cast<int>(found.matches.size());
+  log::debug("rejoin: ", kf->id(), " of ", map.id(), " against ", target.id(), " (sigma ", sigma_position_m,
+             " m): ", found.keyframes, " keyframes, ", found.projected, " points projected, ", found.correspondences,
+             " matches, ", found.ransac_inliers, " RANSAC inliers, ", found.refined_inliers, " refined, ",
+             found.distance_m, " m / ", found.rotation_rad * 180.0 / M_PI, " deg from its pose",
+             found.success ? "" : ": rejected");
+  if (!found.success || inliers < options.loop.min_inliers || !found.nearest_keyframe) return false;
+  LoopClosure place;
+  place.current = kf->id();
+  place.loop = found.nearest_keyframe->id();
+  place.T_w_b_current_corrected = found.T_w_c * kf->T_b_c().inverse();
+  for (const auto& [keypoint, point] : found.matches) place.matches.push_back(LoopMatch{keypoint, point});
+  log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", found.distance_m,
+            " m from its pose (sigma ", sigma_position_m, " m), ", inliers, " inliers near ", place.loop);
+  return merge(kf, found.nearest_keyframe, std::move(place));
+}
+
+bool LoopCloser::Impl::merge(const std::shared_ptr<map::KeyFrame>& kf, const std::shared_ptr<map::KeyFrame>& accepted,
+                             std::optional<LoopClosure> place) {
+  const bool rejoin = place.has_value();
   std::optional<ScopedTimer> timer;
   if (timing != nullptr) timer.emplace(*timing, "loop.correction");
   const SE3 T_w_b_before = kf->T_w_b();
@@ -250,20 +373,22 @@ bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::M
     merge_options.g_w = gravity();
     // Atlas::mergeMaps bumps both versions and makes the target active if the source was;
     // correctLoop and the welding BA bump the target's again.
-    merged = mergeAtPlace(atlas, *kf, *accepted, options.loop, merge_options);
+    merged = rejoin ? mergeWithPlace(atlas, *kf, *accepted, std::move(*place), merge_options)
+                    : mergeAtPlace(atlas, *kf, *accepted, options.loop, merge_options);
   }
   if (timer) timer->stop();
   if (!merged) return false;
   LoopEvent event;
   event.merge = true;
+  event.rejoin = rejoin;
   event.t_s = kf->t_s();
   event.current = kf->id();
   event.loop = accepted->id();
   event.map = merged->target;
   event.inliers = merged->inliers;
   event.correction_m = (kf->T_w_b().translation() - T_w_b_before.translation()).norm();
-  log::info("maps merged: ", merged->source, " into ", merged->target, " at ", kf->id(), " ~ ", accepted->id(), " (",
-            event.inliers, " inliers)");
+  log::info(rejoin ? "maps rejoined: " : "maps merged: ", merged->source, " into ", merged->target, " at ", kf->id(),
+            " ~ ", accepted->id(), " (", event.inliers, " inliers)");
   recordEvent(event);
   keyframes_since_correction = 0;
   resetDetection();

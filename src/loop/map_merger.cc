@@ -1,6 +1,7 @@
 #include "ltlo/loop/map_merger.h"
 
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "ltlo/core/log.h"
@@ -116,17 +117,28 @@ std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& 
 
   std::optional<LoopClosure> place = verifyLoop(current, candidate, *target_map, options);
   if (!place) return std::nullopt;
+  return mergeWithPlace(atlas, current, candidate, std::move(*place), merge);
+}
+
+std::optional<MergeResult> mergeWithPlace(map::Atlas& atlas, const map::KeyFrame& current,
+                                          const map::KeyFrame& candidate, LoopClosure place,
+                                          const MergeOptions& merge) {
+  const map::MapId source = current.mapId();
+  const map::MapId target = candidate.mapId();
+  if (source == target) return std::nullopt;
+  map::Map* target_map = atlas.map(target);
+  if (target_map == nullptr || atlas.map(source) == nullptr) return std::nullopt;
   MergeResult result;
   result.source = source;
   result.target = target;
-  result.inliers = static_cast<int>(place->matches.size());
+  result.inliers = static_cast<int>(place.matches.size());
   const SE3 T_w_b_current = current.T_w_b();
-  result.T_target_source = place->T_w_b_current_corrected * T_w_b_current.inverse();
+  result.T_target_source = place.T_w_b_current_corrected * T_w_b_current.inverse();
   if (merge.g_w) {
     // Both maps are in the run's gravity-aligned world: only yaw about gravity and translation
     // may differ (the current keyframe's position goes where the place match says).
     result.T_target_source = optim::fourDofCorrection(result.T_target_source, *merge.g_w, T_w_b_current.translation());
-    place->T_w_b_current_corrected = result.T_target_source * T_w_b_current;
+    place.T_w_b_current_corrected = result.T_target_source * T_w_b_current;
   }
   atlas.mergeMaps(source, target, result.T_target_source);
   log::info("merged ", source, " into ", target, " at kf ", current.id(), " ~ kf ", candidate.id(), " (",
@@ -135,7 +147,7 @@ std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& 
   // correction fuses the duplicated points and ties the two spanning trees with the loop edge.
   LoopCorrectionOptions correction;
   correction.g_w = merge.g_w;
-  result.correction = correctLoop(*target_map, *place, correction);
+  result.correction = correctLoop(*target_map, place, correction);
   if (merge.g_w) {
     result.welding = weldingBundleAdjust(*target_map, current, candidate, merge);
     log::info("welding at the seam: ", result.welding.fused_points, " duplicate points fused, ",

@@ -58,6 +58,12 @@ std::vector<MapId> Atlas::mapIds() const {
   return ids;
 }
 
+MapId Atlas::resolve(MapId id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (auto it = merged_into_.find(id); it != merged_into_.end(); it = merged_into_.find(id)) id = it->second;
+  return id;
+}
+
 void Atlas::mergeMaps(MapId source, MapId target, const SE3& T_target_source) {
   std::lock_guard<std::mutex> lock(mutex_);
   LTLO_ASSERT(source != target, "cannot merge map " << source << " into itself");
@@ -82,6 +88,7 @@ void Atlas::mergeMaps(MapId source, MapId target, const SE3& T_target_source) {
   source_map.bumpVersion();
   target_map.bumpVersion();
   merged_.push_back(source);
+  merged_into_[source] = target;
   if (active_ == source) active_ = target;
 }
 

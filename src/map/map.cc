@@ -58,6 +58,16 @@ std::vector<std::shared_ptr<MapPoint>> Map::mapPoints() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return sortedValues(points_);
 }
+void Map::setOrigin(const MapOrigin& origin) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  origin_ = origin;
+}
+
+std::optional<MapOrigin> Map::origin() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return origin_;
+}
+
 std::size_t Map::numKeyFrames() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return keyframes_.size();

@@ -89,6 +89,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
   loop::LoopCloserOptions closer_options;
   closer_options.loop = settings_.loop;
+  closer_options.rejoin_search = tracking::reacquireSearchOptions(tracker_options);
   closer_options.virtual_baseline_m = settings_.tracking.virtual_baseline_m;
   closer_options.min_point_beta = settings_.local_mapping.min_point_beta;
   closer_options.lambda_imu = settings_.local_mapping.lambda_imu;
@@ -98,6 +99,10 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
                                          const mapping::ImuState imu = mapper_->imuState();
                                          return imu.initialised ? std::optional<Vec3>(imu.g_w) : std::nullopt;
                                        }};
+  if (options_.threaded) {
+    mapping_control.hold_tracking = [this] { world_gate_.beginChange(); };
+    mapping_control.release_tracking = [this] { world_gate_.endChange(); };
+  }
   closer_ = std::make_unique<loop::LoopCloser>(*atlas_, closer_options, std::move(mapping_control), &timing_);
 
   if (!options_.segmentation_dir.empty()) {
@@ -158,11 +163,8 @@ void System::onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) {
     std::lock_guard<std::mutex> lock(records_mutex_);
     colours_[kf->id().value] = std::move(colours);
   }
-  if (!options_.threaded) {
-    pending_keyframes_.push_back(kf);
-  } else if (!mapping_stopped_.load()) {
-    mapper_->insertKeyFrame(kf);
-  }
+  // Handed on after the frame's tracking section (trackFrame).
+  pending_keyframes_.push_back(kf);
 }
 
 void System::processPendingKeyFrames() {
@@ -207,6 +209,9 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   // BoW is computed by the tracker only where it is used: keyframes and relocalisation.
 
   tracking::TrackingState state = tracking::TrackingState::kNotInitialised;
+  // From here until the record is stored, no correction or merge changes the world frame (the
+  // frame's pose and its reference keyframe's stay in the same one).
+  std::optional<TrackingSection> section(std::in_place, world_gate_);
   {
     ScopedTimer timer(timing_, "tracking.track");
     current_input_ = &input;
@@ -263,6 +268,14 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     if (stats.reacquired) ++reacquisitions_;
     std::lock_guard<std::mutex> lock(records_mutex_);
     records_.push_back(std::move(record));
+  }
+  section.reset();
+  if (options_.threaded) {
+    // Outside the section: a full queue may wait for local mapping, which a correction pauses.
+    for (std::shared_ptr<map::KeyFrame>& kf : pending_keyframes_) {
+      if (!mapping_stopped_.load()) mapper_->insertKeyFrame(std::move(kf));
+    }
+    pending_keyframes_.clear();
   }
   frame_timer.stop();
   frame_cpu_timer.stop();

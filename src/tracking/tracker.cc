@@ -229,9 +229,15 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
       return;
     }
     // New map at the predicted pose: same world frame (gravity stays valid), old map kept.
+    const map::MapId parent = activeMap().id();
     map::Map& created = atlas_.createNewMap();
     ++maps_created_;
     log::warn("lost for ", lost_for_s, " s: new map ", created.id(), " at t = ", frame.t_s(), " s");
+    if (imu_carries && imu_prediction_.link && std::isfinite(sigma_m)) {
+      // The dead reckoning placed it in the parent's world: the loop closer may rejoin the two by
+      // a search within this uncertainty (Loop.Rejoin).
+      created.setOrigin(map::MapOrigin{parent, sigma_m, stats_.predicted_rotation_sigma_rad, frame.t_s()});
+    }
     last_kf_ = map::KeyFrameId();
     last_kf_ptr_.reset();
     reference_kf_ = map::KeyFrameId();

@@ -168,8 +168,11 @@ TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
   const RunResult result =
       run(sequence(sim::Scenario::kStatic, 27.0, kStaticSeed, /*fps=*/12.0, /*mean_speed_mps=*/0.55),
           systemOptions(false, true));
+  std::printf("RGB-D only, threaded, one lap: ATE %.4f m, max %.4f m, %d loop(s)\n", result.ate_rmse_m,
+              result.ate_max_m, result.counts.loops);
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.03);
+  // A frame tracked while a correction lands would keep it (0.08 m) without the world gate.
   EXPECT_LT(result.ate_max_m, 0.06);
   EXPECT_FALSE(result.counts.imu_initialised);
   EXPECT_GE(result.counts.frames_tracked, result.frames - 5);

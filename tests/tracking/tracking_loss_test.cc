@@ -10,12 +10,14 @@
 #include <fstream>
 #include <sstream>
 #include <map>
+#include <optional>
 #include <opencv2/core.hpp>
 
 #include "bow/vocabulary.h"
 #include "ltlo/eval/trajectory_metrics.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/io/sequence_reader.h"
+#include "ltlo/loop/loop_closer.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/sim/simulator.h"
 #include "ltlo/tracking/frame_builder.h"
@@ -483,6 +485,85 @@ TEST_F(TrackingLossRuns, WithTheImuALongDriftIsReacquiredWithoutANewMap) {
   const FrameRecord& resumed_overconfident = overconfident->records[static_cast<std::size_t>(kBlackEnd)];
   EXPECT_FALSE(resumed_overconfident.stats.reacquired);
   EXPECT_TRUE(resumed_overconfident.stats.new_map);
+}
+
+// Loop.Rejoin: without the re-acquisition, the 0.63 m drift of the test above starts a new map at
+// the drifted prediction (its MapOrigin: the parent map and the prediction's sigma, 0.34 m). The
+// loop closer, given the new map's first keyframe, searches the parent's points around that
+// keyframe's pose within the origin's uncertainty (no vocabulary: BoW place recognition cannot find
+// it) and merges the new map back: one map, the keyframe within 2 cm of the truth. With the switch
+// off nothing is merged; with an origin claiming 0.05 m (3-sigma gate 0.15 m) the drift is outside
+// the gate and nothing is merged either.
+TEST_F(TrackingLossRuns, AMapStartedAfterALongDriftRejoinsTheMapItCameFrom) {
+  auto newMapRun = [&]() {
+    TrackerOptions options;
+    options.tracking.acc_bias_sigma_m_s2 = 0.3;
+    options.tracking.reacquire = false;
+    options.max_search_radius_px = 20.0;
+    std::unique_ptr<TrackerRun> run = makeRun(false, options);
+    imu::ImuBias wrong_bias = *true_bias_;
+    wrong_bias.b_a += Vec3(0.4, 0.0, 0.0);
+    for (int k = 0; k <= kBlackEnd; ++k) {
+      if (k == 10) run->tracker->setImuInitialised(wrong_bias, imu::gravityWorld());
+      stepInertial(*run, k, k >= kBlackBegin && k < kBlackEnd);
+    }
+    return run;
+  };
+  struct Outcome {
+    int merges = 0;
+    bool rejoin = false;
+    std::size_t maps = 0;
+    double start_error_m = 0.0;  ///< the new map's first keyframe before the closer
+    double error_m = 0.0;        ///< and after
+  };
+  auto closeWith = [&](bool rejoin, std::optional<double> origin_sigma_m = std::nullopt) {
+    const std::unique_ptr<TrackerRun> run = newMapRun();
+    EXPECT_EQ(run->tracker->numMapsCreated(), 1);
+    map::Map& created = run->atlas.activeMap();
+    const std::optional<map::MapOrigin> origin = created.origin();
+    EXPECT_TRUE(origin.has_value());
+    if (!origin) return Outcome();
+    EXPECT_GT(origin->sigma_position_m, 0.2);
+    if (origin_sigma_m) {
+      map::MapOrigin claimed = *origin;
+      claimed.sigma_position_m = *origin_sigma_m;
+      created.setOrigin(claimed);
+    }
+    const std::shared_ptr<map::KeyFrame> first = created.keyFrames().front();
+    const SE3 truth = groundTruth(kBlackEnd);
+    Outcome out;
+    out.start_error_m = translationError_m(first->T_w_c(), truth);
+    loop::LoopCloserOptions options;
+    options.loop.rejoin = rejoin;
+    options.run_global_ba = false;
+    options.rejoin_search = reacquireSearchOptions(TrackerOptions());
+    loop::MappingControl control;
+    control.gravity_w = [] { return std::optional<Vec3>(imu::gravityWorld()); };
+    loop::LoopCloser closer(run->atlas, options, control);
+    closer.processKeyFrame(first);
+    out.merges = closer.numMerges();
+    out.rejoin = !closer.events().empty() && closer.events().front().rejoin;
+    out.maps = run->atlas.numMaps();
+    out.error_m = translationError_m(first->T_w_c(), truth);
+    return out;
+  };
+  const Outcome with = closeWith(true);
+  std::printf("rejoin: %d merge(s), rejoin %d, %zu map(s), first keyframe of the new map %.4f m -> %.4f m from the "
+              "truth\n",
+              with.merges, with.rejoin, with.maps, with.start_error_m, with.error_m);
+  EXPECT_GT(with.start_error_m, 0.2);  // the premise: the new map starts far off
+  EXPECT_EQ(with.merges, 1);
+  EXPECT_TRUE(with.rejoin);
+  EXPECT_EQ(with.maps, 1u);
+  EXPECT_LT(with.error_m, 0.02);
+
+  const Outcome off = closeWith(false);
+  EXPECT_EQ(off.merges, 0);
+  EXPECT_EQ(off.maps, 2u);
+
+  const Outcome overconfident = closeWith(true, 0.05);
+  EXPECT_EQ(overconfident.merges, 0);
+  EXPECT_EQ(overconfident.maps, 2u);
 }
 
 TEST_F(TrackingLossRuns, FramesWithoutDepthForOneAndAHalfSecondsEachGetAPose) {

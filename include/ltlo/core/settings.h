@@ -240,6 +240,11 @@ struct LoopOptions {
   double inlier_threshold_m = 0.05;
   /// iterations of the vision-only full BA after a loop (Loop.FullBaIterations, [1, 1000])
   int full_ba_iterations = 10;
+  /// A map started at the IMU's prediction after tracking was lost (map::MapOrigin) rejoins the map
+  /// it came from when one of its keyframes matches that map's points around its pose within the
+  /// dead reckoning's uncertainty: a guided search, gated like Tracking.Reacquire, instead of
+  /// waiting for BoW place recognition (Loop.Rejoin, 0/1)
+  bool rejoin = true;
 
   static LoopOptions load(const SettingsFile& file);
 };

@@ -6,6 +6,8 @@
 /// mapping has initialised the IMU (MappingControl::gravity_w), corrections and merges are 4-DoF
 /// (yaw about gravity and translation), velocities turn with the poses, merges are welded by a
 /// visual-inertial BA and the full BA is visual-inertial; before that, SE3 and vision only.
+/// A map tracking started at the IMU's prediction after a loss (map::MapOrigin) also rejoins its
+/// parent by a guided search around its keyframes' poses (Loop.Rejoin, guided_place_match.h).
 /// The keyframe then enters the keyframe database.
 ///
 /// Threads: local mapping calls insertKeyFrame(); the loop thread runs run(); the full BA runs in a
@@ -24,6 +26,7 @@
 #include "ltlo/core/settings.h"
 #include "ltlo/core/timing.h"
 #include "ltlo/loop/global_ba.h"
+#include "ltlo/loop/guided_place_match.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
 
@@ -42,6 +45,9 @@ struct LoopCloserOptions {
   /// (LocalMapping.VisualVarianceEstimation).
   bool visual_variance_estimation = true;
   bool run_global_ba = true;       ///< full BA after each loop (in its own thread)
+  /// The rejoin's guided search (Loop.Rejoin): windows, gate, keyframes, descriptor distance (the
+  /// tracker's re-acquisition settings); its sigmas come from each map's MapOrigin.
+  GuidedPlaceMatchOptions rejoin_search;
   std::size_t queue_capacity = 64;
 };
 
@@ -53,11 +59,17 @@ struct MappingControl {
   /// Gravity in the run's world frame (m/s^2) once the IMU is initialised, nullopt before (or
   /// without an IMU, or not wired). Called from the loop thread; must be thread-safe.
   std::function<std::optional<Vec3>()> gravity_w = nullptr;
+  /// Around every change of the map's world frame (correction, merge, full-BA write-back), after
+  /// local mapping paused: keeps the frame being tracked out of it (System wires a ChangeGate,
+  /// core/change_gate.h). Empty: no tracking to hold (tests, single-threaded runs).
+  std::function<void()> hold_tracking = nullptr;
+  std::function<void()> release_tracking = nullptr;
 };
 
 /// One accepted loop or merge (for logs, metrics.json and tests).
 struct LoopEvent {
   bool merge = false;  ///< across maps
+  bool rejoin = false;  ///< a merge found by the guided search of Loop.Rejoin (not by BoW)
   double t_s = 0.0;    ///< time of the current keyframe
   map::KeyFrameId current;
   map::KeyFrameId loop;

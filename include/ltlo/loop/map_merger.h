@@ -55,6 +55,15 @@ struct MergeResult {
 std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& current, const map::KeyFrame& candidate,
                                         const LoopOptions& options, const MergeOptions& merge = MergeOptions());
 
+/// The merge itself, for a place already verified (`place`: current keyframe -> points of the
+/// candidate's map, with the current keyframe's pose in that map's world): move the current map into
+/// the candidate's frame (4-DoF with merge.g_w), correct across the seam and weld. mergeAtPlace
+/// verifies by BoW matching and calls it; the loop closer's rejoin (Loop.Rejoin) finds the place by a
+/// guided search. nullopt when both keyframes are in the same map.
+std::optional<MergeResult> mergeWithPlace(map::Atlas& atlas, const map::KeyFrame& current,
+                                          const map::KeyFrame& candidate, LoopClosure place,
+                                          const MergeOptions& merge = MergeOptions());
+
 /// The welding on its own (mergeAtPlace runs it with gravity): the points of the window around
 /// `candidate` are fused into the keyframes of the window around `current` by projection (both
 /// sides' duplicates of the same structure become one point), then the BA of both windows, the

@@ -38,6 +38,9 @@ class Atlas {
   void setActiveMap(MapId id);
   /// nullptr for an unknown id.
   Map* map(MapId id);
+  /// The map `id` was merged into (following a chain of merges), `id` itself when it was never
+  /// merged; an unknown id is returned as is.
+  MapId resolve(MapId id) const;
   /// Maps still holding content (merged-away maps excluded), by id.
   std::vector<MapId> mapIds() const;
   std::size_t numMaps() const { return mapIds().size(); }
@@ -57,9 +60,10 @@ class Atlas {
 
   const std::shared_ptr<IdSource> ids_;
   KeyFrameDatabase database_;
-  mutable std::mutex mutex_;  ///< guards maps_, merged_ and active_
+  mutable std::mutex mutex_;  ///< guards maps_, merged_, merged_into_ and active_
   std::unordered_map<MapId, std::unique_ptr<Map>> maps_;
   std::vector<MapId> merged_;
+  std::unordered_map<MapId, MapId> merged_into_;  ///< source -> target of each merge
   MapId active_;
 };
 

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <unordered_map>
 #include <vector>
 
@@ -15,6 +16,16 @@
 #include "ltlo/map/map_point.h"
 
 namespace ltlo::map {
+
+/// Where a map started after tracking was lost with the IMU initialised: at the IMU-predicted pose
+/// in the world of `parent`, so both share the gravity-aligned world frame up to the dead
+/// reckoning's error at the start (the loop closer's rejoin searches within it, Loop.Rejoin).
+struct MapOrigin {
+  MapId parent;
+  double sigma_position_m = 0.0;    ///< of the first keyframe's position in the parent's world
+  double sigma_rotation_rad = 0.0;  ///< of its rotation
+  double t_s = 0.0;                 ///< time of the first frame
+};
 
 /// Thread-safe. mutex_ guards the containers only and is never held while a KeyFrame or MapPoint
 /// method runs; topology_mutex_ serialises covisibility updates, erasures and fusions (taken
@@ -81,6 +92,10 @@ class Map {
   void setReferenceMapPoints(std::vector<MapPointId> points);
   std::vector<MapPointId> referenceMapPoints() const;
 
+  /// Set by tracking when it starts this map at an IMU prediction (see MapOrigin).
+  void setOrigin(const MapOrigin& origin);
+  std::optional<MapOrigin> origin() const;
+
   /// Bumped on changes that invalidate what tracking holds (loop correction, merge).
   std::uint64_t version() const { return version_.load(); }
   void bumpVersion() { version_.fetch_add(1); }
@@ -107,6 +122,7 @@ class Map {
   std::unordered_map<KeyFrameId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points_;
   std::vector<KeyFrameId> origins_;
+  std::optional<MapOrigin> origin_;
   bool created_keyframe_ = false;  ///< createKeyFrame() was called (its first keyframe is an origin)
   std::vector<MapPointId> reference_points_;
 };

@@ -10,7 +10,7 @@
 /// Keyframes flow tracking -> local mapping (Tracker callback -> LocalMapper::insertKeyFrame) ->
 /// loop closing (LocalMapper callback -> LoopCloser::insertKeyFrame), each through the receiver's
 /// bounded queue. Loop closing pauses local mapping around a correction (MappingControl ->
-/// LocalMapper::pause/resume). The IMU state flows back by polling: every frame the tracker reads
+/// LocalMapper::pause/resume) and holds tracking between two frames (world_gate_). The IMU state flows back by polling: every frame the tracker reads
 /// LocalMapper::imuState() and takes a new estimate when its generation changes.
 ///
 /// Ownership and locks: System owns the Atlas, the Tracker, the LocalMapper, the LoopCloser, the
@@ -18,6 +18,10 @@
 /// records_mutex_. The map structures follow the lock order of ltlo/map/atlas.h
 ///   Atlas::mutex_ -> Map::topology_mutex_ -> Map::mutex_ -> KeyFrame::mutex_ -> MapPoint::mutex_;
 /// records_mutex_ is a leaf: it is never held while calling into the map, a queue or another stage.
+/// world_gate_ (core/change_gate.h) is outermost: the tracking thread holds it from Tracker::track
+/// until the frame's record is stored, the loop closer while it changes a map's world frame (with
+/// local mapping paused first: LocalMapper::pause -> world_gate_). Nothing in the tracking section
+/// waits for another stage: its keyframes reach local mapping's queue after the section ends.
 /// Threads are started in the constructor (loop closing first, then local mapping) and joined in
 /// reverse data-flow order by shutdown(): local mapping first (it drains its queue and hands the
 /// last keyframes on), then loop closing (it drains, then waits for a running full BA).
@@ -39,6 +43,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "ltlo/core/change_gate.h"
 #include "ltlo/core/eigen_types.h"
 #include "ltlo/core/lie.h"
 #include "ltlo/core/settings.h"
@@ -168,6 +173,7 @@ class System {
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;
   std::unique_ptr<SegmentationWriter> segmentation_writer_;  // with SystemOptions::segmentation_dir
+  ChangeGate world_gate_;  ///< tracking of a frame vs world-frame changes by loop closing
   std::thread mapping_thread_;
   std::thread loop_thread_;
   std::atomic<bool> finishing_{false};        ///< shutdown() asked the workers to finish
@@ -177,7 +183,9 @@ class System {
 
   // Tracking-thread state.
   const io::RgbdImuFrame* current_input_ = nullptr;  ///< during trackFrame (keyframe colours)
-  std::vector<std::shared_ptr<map::KeyFrame>> pending_keyframes_;  ///< synchronous mode
+  /// Keyframes of the frame being tracked: handed to local mapping after the tracking section (threaded)
+  /// or processed after the frame (synchronous mode).
+  std::vector<std::shared_ptr<map::KeyFrame>> pending_keyframes_;
   std::uint64_t imu_generation_ = 0;
   int frames_ = 0;
   int frames_tracked_ = 0;

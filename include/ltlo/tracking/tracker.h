@@ -46,6 +46,7 @@
 #include "ltlo/core/settings.h"
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/imu/preintegration.h"
+#include "ltlo/loop/guided_place_match.h"
 #include "ltlo/map/frame.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/atlas.h"
@@ -111,6 +112,11 @@ struct TrackerOptions {
   int min_relocalisation_inliers = 50;
   RelocalisationOptions relocalisation;
 };
+
+/// The guided search of the re-acquisition (Tracking.Reacquire*, the local-map window floor and
+/// keyframes, the descriptor and RANSAC thresholds), without its sigmas and seed; the loop
+/// closer's rejoin (Loop.Rejoin) searches with the same settings.
+loop::GuidedPlaceMatchOptions reacquireSearchOptions(const TrackerOptions& options);
 
 /// Per-frame numbers for logs and tests.
 struct TrackingStats {

@@ -1,0 +1,95 @@
+#pragma once
+/// Place matching guided by a pose prediction (namespace ltlo::loop): the map points of the
+/// keyframes of a map around a predicted camera pose are projected with it and matched to the
+/// static keypoints with depth of a view (a Frame or a KeyFrame) in windows of the prediction's
+/// uncertainty; a 3-D-3-D RANSAC pose (depth on both sides) must then agree with the prediction
+/// within gate_sigmas of its standard deviation.
+///
+/// Used where the IMU knows roughly where the camera is but the pose is beyond the usual search
+/// windows: the tracker's re-acquisition of its map after an IMU-only stretch
+/// (Tracking.Reacquire), and the loop closer's rejoin of a map started after such a stretch with
+/// the map it came from (Loop.Rejoin), whose world frame it shares up to the dead-reckoning error.
+/// Reads the map only (thread-safe).
+#include <cstdint>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "ltlo/core/lie.h"
+#include "ltlo/map/map.h"
+
+namespace ltlo::loop {
+
+struct GuidedPlaceMatchOptions {
+  double sigma_position_m = 0.1;     ///< standard deviation of the predicted camera position
+  double sigma_rotation_rad = 0.01;  ///< standard deviation of the predicted rotation
+  double gate_sigmas = 3.0;          ///< windows and the pose gate, in standard deviations
+  double min_rotation_gate_deg = 3.0;
+  double min_radius_px = 15.0;       ///< window radius floor (at level 0)
+  double max_radius_px = 160.0;      ///< window radius cap (at level 0)
+  int max_keyframes = 20;            ///< nearest keyframes looking the same way
+  int max_descriptor_distance = 50;
+  /// Ratio test of the wide-window matching: a window of k sigma holds most of the view's static
+  /// keypoints, so the second best is the best of many random descriptors; the RANSAC and the gate
+  /// remove what the looser test lets through.
+  double ratio = 0.9;
+  int min_ransac_inliers = 15;
+  /// With the looser ratio test a fifth of the matches may be right; 1000 draws of three find an
+  /// all-inlier sample with probability 1 - (1 - 0.2^3)^1000 > 0.999.
+  int ransac_iterations = 1000;
+  std::uint32_t seed = 29;
+  /// Refine the RANSAC pose by a vision-only pose optimisation on its inliers (reprojection and
+  /// depth: the 3-D-3-D alignment of distant points trades rotation for translation), the
+  /// optimisation's inliers becoming the matches; bf of its RGB-D edges (px m).
+  bool refine_pose = false;
+  double bf_px_m = 40.0;
+};
+
+struct GuidedPlaceMatch {
+  bool success = false;  ///< enough RANSAC inliers and within the gate
+  SE3 T_w_c;             ///< the RANSAC pose, or its refinement (valid with success)
+  /// RANSAC inliers: keypoint of the view -> map point (with success).
+  std::vector<std::pair<int, map::MapPointId>> matches;
+  /// The searched keyframe nearest to the RANSAC pose (with success; for a loop edge).
+  std::shared_ptr<map::KeyFrame> nearest_keyframe;
+  int keyframes = 0;        ///< keyframes searched
+  int projected = 0;        ///< their points inside the image at the prediction
+  int correspondences = 0;  ///< matches given to the RANSAC
+  int ransac_inliers = 0;
+  int refined_inliers = 0;    ///< of the pose optimisation (refine_pose)
+  double distance_m = 0.0;    ///< of the RANSAC pose from the prediction
+  double rotation_rad = 0.0;  ///< likewise
+};
+
+/// `View` is map::Frame or map::KeyFrame (keypoints, descriptors, depths, static flags, camera).
+template <class View>
+GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const SE3& T_w_c_pred,
+                                  const GuidedPlaceMatchOptions& options);
+
+/// A translation of the view's world frame against the map's, found by voting.
+struct WorldOffsetVote {
+  bool found = false;
+  Vec3 offset_w = Vec3::Zero();  ///< add to the view's positions to reach the map's world (m)
+  int support = 0;               ///< votes around the peak
+  int pairs = 0;                 ///< votes cast
+};
+
+/// Hough voting for the offset between where the prediction puts the view's points and where the
+/// map has them: every static keypoint with depth, placed in the world by T_w_c_pred, votes for
+/// (map point - keypoint) with each point of the searched keyframes (as guidedPlaceMatch) within
+/// gate_sigmas of the position sigma whose descriptor is within `max_descriptor_distance`. Right
+/// pairs share one offset, wrong ones scatter, so the peak (bins of `bin_m`, summed over their 27
+/// neighbours) stands out even when a per-point window holds many look-alikes. found when the
+/// peak has at least min_ransac_inliers votes. The rotation is taken as predicted (its error
+/// spreads the peak by sigma_rotation_rad times the depth).
+template <class View>
+WorldOffsetVote voteWorldOffset(const View& view, const map::Map& map, const SE3& T_w_c_pred,
+                                const GuidedPlaceMatchOptions& options, int max_descriptor_distance,
+                                double bin_m = 0.05);
+
+/// The gate: `T_w_c` within gate_sigmas of the prediction (position, and rotation with the floor
+/// min_rotation_gate_deg); the distances are written when not null.
+bool withinPredictionGate(const SE3& T_w_c, const SE3& T_w_c_pred, const GuidedPlaceMatchOptions& options,
+                          double* distance_m = nullptr, double* rotation_rad = nullptr);
+
+}  // namespace ltlo::loop
