@@ -142,6 +142,9 @@ struct TrackerRun {
   std::vector<FrameRecord> records;
 };
 
+constexpr int kBlackBegin = 30;  // 1.0 s of tracking first
+constexpr int kBlackEnd = 75;    // 45 frames = 1.5 s of black images
+
 class TrackingLossRuns : public TrackingLoss {
  protected:
   std::unique_ptr<TrackerRun> makeRun(bool with_vocabulary, const TrackerOptions& options = TrackerOptions()) {
@@ -180,6 +183,24 @@ class TrackingLossRuns : public TrackingLoss {
     run.records.push_back(r);
     return run.records.back();
   }
+  /// The long drift of the re-acquisition and rejoin tests: frames [0, kBlackEnd], the IMU
+  /// initialised at frame 10 with an accelerometer bias 0.4 m/s^2 off the truth, the tracker told
+  /// Tracking.AccBiasSigma = acc_bias_sigma_m_s2, motion-model windows capped at 20 px, frames
+  /// [kBlackBegin, kBlackEnd) black.
+  std::unique_ptr<TrackerRun> runLongDrift(bool reacquire, double acc_bias_sigma_m_s2 = 0.3) {
+    TrackerOptions options;
+    options.tracking.acc_bias_sigma_m_s2 = acc_bias_sigma_m_s2;
+    options.tracking.reacquire = reacquire;
+    options.max_search_radius_px = 20.0;
+    std::unique_ptr<TrackerRun> run = makeRun(false, options);
+    imu::ImuBias wrong_bias = *true_bias_;
+    wrong_bias.b_a += Vec3(0.4, 0.0, 0.0);
+    for (int k = 0; k <= kBlackEnd; ++k) {
+      if (k == 10) run->tracker->setImuInitialised(wrong_bias, imu::gravityWorld());
+      stepInertial(*run, k, k >= kBlackBegin && k < kBlackEnd);
+    }
+    return run;
+  }
   FrameRecord step(TrackerRun& run, int k, const std::function<void(io::RgbdImuFrame&)>& modify = {}) {
     io::RgbdImuFrame input = (*inputs_)[static_cast<std::size_t>(k)];
     if (modify) {
@@ -211,9 +232,6 @@ class TrackingLossRuns : public TrackingLoss {
   }
   FrameBuilder builder_ = builder();
 };
-
-constexpr int kBlackBegin = 30;  // 1.0 s of tracking first
-constexpr int kBlackEnd = 75;    // 45 frames = 1.5 s of black images
 
 TEST_F(TrackingLossRuns, AfterBlackFramesTheConstantVelocityPredictionRecoversTheTrack) {
   // Default policy: constant velocity for 1 s, then held; the first real frame after 1.5 s is
@@ -445,18 +463,7 @@ TEST_F(TrackingLossRuns, WithTheImuAKidnappedFrameRelocalisesWithoutANewMap) {
 // re-acquire the map 0.6 m away: it starts a new map.
 TEST_F(TrackingLossRuns, WithTheImuALongDriftIsReacquiredWithoutANewMap) {
   auto runWith = [&](bool reacquire, double acc_bias_sigma_m_s2 = 0.3) {
-    TrackerOptions options;
-    options.tracking.acc_bias_sigma_m_s2 = acc_bias_sigma_m_s2;
-    options.tracking.reacquire = reacquire;
-    options.max_search_radius_px = 20.0;
-    std::unique_ptr<TrackerRun> run = makeRun(false, options);
-    imu::ImuBias wrong_bias = *true_bias_;
-    wrong_bias.b_a += Vec3(0.4, 0.0, 0.0);
-    for (int k = 0; k <= kBlackEnd; ++k) {
-      if (k == 10) run->tracker->setImuInitialised(wrong_bias, imu::gravityWorld());
-      stepInertial(*run, k, k >= kBlackBegin && k < kBlackEnd);
-    }
-    return run;
+    return runLongDrift(reacquire, acc_bias_sigma_m_s2);
   };
   const std::unique_ptr<TrackerRun> with = runWith(true);
   const FrameRecord& last_black = with->records[static_cast<std::size_t>(kBlackEnd - 1)];
@@ -495,20 +502,6 @@ TEST_F(TrackingLossRuns, WithTheImuALongDriftIsReacquiredWithoutANewMap) {
 // off nothing is merged; with an origin claiming 0.05 m (3-sigma gate 0.15 m) the drift is outside
 // the gate and nothing is merged either.
 TEST_F(TrackingLossRuns, AMapStartedAfterALongDriftRejoinsTheMapItCameFrom) {
-  auto newMapRun = [&]() {
-    TrackerOptions options;
-    options.tracking.acc_bias_sigma_m_s2 = 0.3;
-    options.tracking.reacquire = false;
-    options.max_search_radius_px = 20.0;
-    std::unique_ptr<TrackerRun> run = makeRun(false, options);
-    imu::ImuBias wrong_bias = *true_bias_;
-    wrong_bias.b_a += Vec3(0.4, 0.0, 0.0);
-    for (int k = 0; k <= kBlackEnd; ++k) {
-      if (k == 10) run->tracker->setImuInitialised(wrong_bias, imu::gravityWorld());
-      stepInertial(*run, k, k >= kBlackBegin && k < kBlackEnd);
-    }
-    return run;
-  };
   struct Outcome {
     int merges = 0;
     bool rejoin = false;
@@ -517,7 +510,7 @@ TEST_F(TrackingLossRuns, AMapStartedAfterALongDriftRejoinsTheMapItCameFrom) {
     double error_m = 0.0;        ///< and after
   };
   auto closeWith = [&](bool rejoin, std::optional<double> origin_sigma_m = std::nullopt) {
-    const std::unique_ptr<TrackerRun> run = newMapRun();
+    const std::unique_ptr<TrackerRun> run = runLongDrift(/*reacquire=*/false);
     EXPECT_EQ(run->tracker->numMapsCreated(), 1);
     map::Map& created = run->atlas.activeMap();
     const std::optional<map::MapOrigin> origin = created.origin();
