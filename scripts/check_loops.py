@@ -2,7 +2,7 @@
 """Checks every loop closure / map merge of a run against ground truth (no false loops).
 
 usage: check_loops.py RUN_DIR SEQUENCE_DIR LOG_FILE
-For each "loop closed: kfA ~ kfB" / "maps merged|rejoined: ... kfA ~ kfB" line of the run log, compares the
+For each "loop closed[ (proximity)]: kfA ~ kfB" / "maps merged|rejoined: ... kfA ~ kfB" line of the run log, compares the
 estimated relative pose of the two keyframes (keyframes.txt, final) with the ground-truth one and
 prints the error; a loop whose error exceeds 0.10 m or 3 deg is reported FALSE (exit 1)."""
 import re
@@ -28,7 +28,7 @@ gt=[(float(v[0]),([float(x) for x in v[1:4]],[float(x) for x in v[4:8]])) for v 
 def gtat(t): return min(gt,key=lambda r:abs(r[0]-t))[1]
 bad = 0
 for l in open(log):
-    m=re.search(r'(loop closed|maps merged|maps rejoined): .*?kf(\d+) ~ kf(\d+)',l)
+    m=re.search(r'(loop closed|loop closed \(proximity\)|maps merged|maps rejoined): .*?kf(\d+) ~ kf(\d+)',l)
     if not m: continue
     a,b=int(m.group(2)),int(m.group(3))
     if a not in kfs or b not in kfs: print(m.group(1),a,b,'keyframe culled'); continue

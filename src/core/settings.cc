@@ -112,6 +112,8 @@ void visitLoop(O& o, V& v) {
   v.real("Loop.InlierThreshold", o.inlier_threshold_m, 0.001, 10.0);
   v.integer("Loop.FullBaIterations", o.full_ba_iterations, 1, 1000);
   v.boolean("Loop.Rejoin", o.rejoin);
+  v.boolean("Loop.Proximity", o.proximity);
+  v.real("Loop.ProximitySigma", o.proximity_sigma_m, 0.005, 5.0);
 }
 
 template <typename O, typename V>

@@ -34,19 +34,23 @@ struct Candidate {
 };
 
 /// The keyframes of `map` looking the same way as the predicted camera, nearest first, at most
-/// `max_keyframes`, with their distances (m).
-std::vector<std::pair<double, std::shared_ptr<map::KeyFrame>>> keyFramesAround(const map::Map& map,
-                                                                              const SE3& T_w_c_pred,
-                                                                              int max_keyframes) {
+/// options.max_keyframes, with their distances (m); the options' distance, age and exclusions apply.
+std::vector<std::pair<double, std::shared_ptr<map::KeyFrame>>> keyFramesAround(
+    const map::Map& map, const SE3& T_w_c_pred, const GuidedPlaceMatchOptions& options) {
   const Vec3 centre_w = T_w_c_pred.translation();
   const Vec3 axis_w = T_w_c_pred.quaternion() * Vec3::UnitZ();
+  const std::vector<map::KeyFrameId>& excluded = options.excluded_keyframes;
   std::vector<std::pair<double, std::shared_ptr<map::KeyFrame>>> nearby;
   for (std::shared_ptr<map::KeyFrame>& kf : map.keyFrames()) {
-    if (!kf || kf->isBad()) continue;
+    if (!kf || kf->isBad() || kf->t_s() >= options.max_keyframe_t_s) continue;
+    if (std::find(excluded.begin(), excluded.end(), kf->id()) != excluded.end()) continue;
     const SE3 T_w_c = kf->T_w_c();
     if ((T_w_c.quaternion() * Vec3::UnitZ()).dot(axis_w) < kMinAxisCosine) continue;
-    nearby.emplace_back((T_w_c.translation() - centre_w).norm(), std::move(kf));
+    const double distance_m = (T_w_c.translation() - centre_w).norm();
+    if (distance_m > options.max_keyframe_distance_m) continue;
+    nearby.emplace_back(distance_m, std::move(kf));
   }
+  const int max_keyframes = options.max_keyframes;
   std::sort(nearby.begin(), nearby.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first < b.first : a.second->id() < b.second->id();
   });
@@ -88,7 +92,7 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
   const std::vector<char> usable = usableKeypoints(view);
 
   const std::vector<std::pair<double, std::shared_ptr<map::KeyFrame>>> nearby =
-      keyFramesAround(map, T_w_c_pred, options.max_keyframes);
+      keyFramesAround(map, T_w_c_pred, options);
   result.keyframes = static_cast<int>(nearby.size());
 
   // Projection of their points with the prediction; static keypoints with depth within the
@@ -156,7 +160,8 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
   result.ransac_inliers = ransac.num_inliers;
   if (!ransac.success) return result;
   result.T_w_c = ransac.T_a_b.inverse();  // T_a_b = T_c_w
-  if (!withinPredictionGate(result.T_w_c, T_w_c_pred, options, &result.distance_m, &result.rotation_rad)) {
+  if (!withinPredictionGate(result.T_w_c, T_w_c_pred, options, &result.distance_m, &result.rotation_rad) &&
+      options.apply_gate) {
     return result;
   }
   for (std::size_t k = 0; k < matched.size(); ++k) {
@@ -186,7 +191,8 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
       if (refined.inliers[k]) kept.push_back(result.matches[k]);
     }
     result.matches = std::move(kept);
-    if (!withinPredictionGate(result.T_w_c, T_w_c_pred, options, &result.distance_m, &result.rotation_rad)) {
+    if (!withinPredictionGate(result.T_w_c, T_w_c_pred, options, &result.distance_m, &result.rotation_rad) &&
+        options.apply_gate) {
       result.matches.clear();
       return result;
     }
@@ -214,7 +220,7 @@ WorldOffsetVote voteWorldOffset(const View& view, const map::Map& map, const SE3
   };
   std::vector<Point> points;
   std::unordered_set<map::MapPointId> seen;
-  for (const auto& [distance_kf_m, kf] : keyFramesAround(map, T_w_c_pred, options.max_keyframes)) {
+  for (const auto& [distance_kf_m, kf] : keyFramesAround(map, T_w_c_pred, options)) {
     for (const map::MapPointId id : kf->mapPoints()) {
       if (!id.valid() || !seen.insert(id).second) continue;
       const auto point = map.mapPoint(id);

@@ -34,6 +34,13 @@ constexpr double kRejoinRefineSigma_m = 0.02;
 constexpr double kRejoinRefineSigma_rad = 0.01;
 /// Descriptor distance of a vote for the world offset (ORB's strict match threshold).
 constexpr int kRejoinVoteDescriptorDistance = 50;
+/// The proximity loop search (Loop.Proximity): keyframes at least this old (s) and this near (m);
+/// its rotation sigma; a found pose closer to kf's than both minima is no loop to correct.
+constexpr double kProximityMinAge_s = 10.0;
+constexpr double kProximityMaxDistance_m = 2.0;
+constexpr double kProximitySigma_rad = 0.01;
+constexpr double kProximityMinCorrection_m = 0.01;
+constexpr double kProximityMinCorrection_rad = 0.005;
 /// Ancestors of a map's origin chain searched by the rejoin (the parent first).
 constexpr int kRejoinMaxAncestors = 4;
 /// Best covisibles forming a candidate's group (consistency) and setting the BoW score threshold.
@@ -87,6 +94,12 @@ struct LoopCloser::Impl {
   void process(const std::shared_ptr<map::KeyFrame>& kf);
   /// Detection, verification and correction in kf's map; true when a loop was closed.
   bool tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// Loop.Proximity: the guided search of kf's old, non-covisible neighbours in its own map
+  /// (gravity known); true when a loop was closed.
+  bool tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// The correction of an accepted loop (local mapping paused), the event, the full BA.
+  bool correct(const std::shared_ptr<map::KeyFrame>& kf, const std::shared_ptr<map::KeyFrame>& candidate,
+               const LoopClosure& loop, map::Map& map, bool proximity);
   /// Merge detection against the other maps; true when kf's map was merged.
   bool tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
   /// Loop.Rejoin: kf's map started at an IMU prediction in its parent's world (map::MapOrigin);
@@ -170,7 +183,8 @@ void LoopCloser::Impl::process(const std::shared_ptr<map::KeyFrame>& kf) {
   }
   ++keyframes_since_correction;
   if (options.loop.enabled) {
-    const bool closed = kf->hasBow() && tryLoop(kf, *map);
+    bool closed = kf->hasBow() && tryLoop(kf, *map);
+    if (!closed && options.loop.proximity) closed = tryProximityLoop(kf, *map);
     const bool rejoined = !closed && options.loop.rejoin && tryRejoin(kf, *map);
     if (!closed && !rejoined && kf->hasBow()) tryMerge(kf, *map);
   }
@@ -188,39 +202,90 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
     if (candidate->isBad()) continue;
     const std::optional<LoopClosure> loop = verifyLoop(*kf, *candidate, map, options.loop);
     if (!loop) continue;
-
-    std::optional<ScopedTimer> timer;
-    if (timing != nullptr) timer.emplace(*timing, "loop.correction");
-    LoopEvent event;
-    event.t_s = kf->t_s();
-    event.current = kf->id();
-    event.loop = candidate->id();
-    event.map = map.id();
-    event.inliers = static_cast<int>(loop->matches.size());
-    event.correction_m = (loop->T_w_b_current_corrected.translation() - kf->T_w_b().translation()).norm();
-    // The full BA works on a snapshot it writes back: abort it before the map changes under it.
-    abortGlobalBa();
-    LoopCorrectionResult correction;
-    LoopCorrectionOptions correction_options;
-    {
-      MappingPause pause(mapping);
-      // Local mapping may have culled either end since the verification.
-      if (kf->isBad() || candidate->isBad()) return false;
-      // Read with local mapping held, so no IMU refinement changes gravity meanwhile.
-      correction_options.g_w = gravity();
-      correction = correctLoop(map, *loop, correction_options);  // bumps the map's version (tracking refreshes)
-    }
-    if (timer) timer->stop();
-    log::info("loop closed: ", kf->id(), " ~ ", candidate->id(), " in ", map.id(), " (", event.inliers,
-              " inliers, correction ", event.correction_m, " m; window ", correction.window_size, ", fused ",
-              correction.fused_points, ", added ", correction.added_observations, ")");
-    recordEvent(event);
-    keyframes_since_correction = 0;
-    resetDetection();
-    if (options.run_global_ba) startGlobalBa(map, correction_options.g_w);
-    return true;
+    return correct(kf, candidate, *loop, map, false);
   }
   return false;
+}
+
+bool LoopCloser::Impl::tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map) {
+  if (keyframes_since_correction <= kKeyFramesBetweenLoops || !gravity()) return false;
+  GuidedPlaceMatchOptions search = options.rejoin_search;
+  search.sigma_position_m = options.loop.proximity_sigma_m;
+  search.sigma_rotation_rad = kProximitySigma_rad;
+  search.seed = static_cast<std::uint32_t>(kf->id().value) * 7919u + 37u;
+  search.refine_pose = true;
+  search.bf_px_m = kf->camera().fx() * options.virtual_baseline_m;
+  // Old keyframes only, outside kf's neighbourhood, in reach of kf's view.
+  search.max_keyframe_t_s = kf->t_s() - kProximityMinAge_s;
+  search.max_keyframe_distance_m = kProximityMaxDistance_m;
+  search.excluded_keyframes.push_back(kf->id());
+  for (const auto& [id, weight] : kf->covisibles()) search.excluded_keyframes.push_back(id);
+  const SE3 T_w_c = kf->T_w_c();
+  const WorldOffsetVote vote = voteWorldOffset(*kf, map, T_w_c, search, kRejoinVoteDescriptorDistance);
+  if (!vote.found) {
+    if (vote.pairs > 0) {
+      log::debug("proximity loop: ", kf->id(), " in ", map.id(), ": ", vote.pairs, " pairs, ", vote.support,
+                 " at the peak: no offset");
+    }
+    return false;
+  }
+  GuidedPlaceMatchOptions narrow = search;
+  narrow.sigma_position_m = kRejoinRefineSigma_m;
+  narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
+  narrow.apply_gate = false;  // gated below against kf's own pose
+  GuidedPlaceMatch found =
+      guidedPlaceMatch(*kf, map, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), narrow);
+  const bool gated =
+      found.success && withinPredictionGate(found.T_w_c, T_w_c, search, &found.distance_m, &found.rotation_rad);
+  log::debug("proximity loop: ", kf->id(), " in ", map.id(), ": ", vote.pairs, " pairs, ", vote.support,
+             " at the peak, ", found.matches.size(), " inliers, ", found.distance_m, " m / ",
+             found.rotation_rad * 180.0 / M_PI, " deg from its pose", gated ? "" : ": rejected");
+  if (!gated || static_cast<int>(found.matches.size()) < options.loop.min_inliers || !found.nearest_keyframe) {
+    return false;
+  }
+  // Tracking may already have matched the old points: nothing left to correct.
+  if (found.distance_m < kProximityMinCorrection_m && found.rotation_rad < kProximityMinCorrection_rad) return false;
+  LoopClosure loop;
+  loop.current = kf->id();
+  loop.loop = found.nearest_keyframe->id();
+  loop.T_w_b_current_corrected = found.T_w_c * kf->T_b_c().inverse();
+  for (const auto& [keypoint, point] : found.matches) loop.matches.push_back(LoopMatch{keypoint, point});
+  return correct(kf, found.nearest_keyframe, loop, map, true);
+}
+
+bool LoopCloser::Impl::correct(const std::shared_ptr<map::KeyFrame>& kf, const std::shared_ptr<map::KeyFrame>& candidate,
+                               const LoopClosure& loop, map::Map& map, bool proximity) {
+  std::optional<ScopedTimer> timer;
+  if (timing != nullptr) timer.emplace(*timing, "loop.correction");
+  LoopEvent event;
+  event.proximity = proximity;
+  event.t_s = kf->t_s();
+  event.current = kf->id();
+  event.loop = candidate->id();
+  event.map = map.id();
+  event.inliers = static_cast<int>(loop.matches.size());
+  event.correction_m = (loop.T_w_b_current_corrected.translation() - kf->T_w_b().translation()).norm();
+  // The full BA works on a snapshot it writes back: abort it before the map changes under it.
+  abortGlobalBa();
+  LoopCorrectionResult correction;
+  LoopCorrectionOptions correction_options;
+  {
+    MappingPause pause(mapping);
+    // Local mapping may have culled either end since the verification.
+    if (kf->isBad() || candidate->isBad()) return false;
+    // Read with local mapping held, so no IMU refinement changes gravity meanwhile.
+    correction_options.g_w = gravity();
+    correction = correctLoop(map, loop, correction_options);  // bumps the map's version (tracking refreshes)
+  }
+  if (timer) timer->stop();
+  log::info(proximity ? "loop closed (proximity): " : "loop closed: ", kf->id(), " ~ ", candidate->id(), " in ",
+            map.id(), " (", event.inliers, " inliers, correction ", event.correction_m, " m; window ",
+            correction.window_size, ", fused ", correction.fused_points, ", added ", correction.added_observations, ")");
+  recordEvent(event);
+  keyframes_since_correction = 0;
+  resetDetection();
+  if (options.run_global_ba) startGlobalBa(map, correction_options.g_w);
+  return true;
 }
 
 bool LoopCloser::Impl::tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map) {
@@ -315,6 +380,7 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
     GuidedPlaceMatchOptions narrow = search;
     narrow.sigma_position_m = kRejoinRefineSigma_m;
     narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
+    narrow.apply_gate = false;  // gated below against kf's own pose
     found = guidedPlaceMatch(*kf, target, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), narrow);
     if (found.success && !withinPredictionGate(found.T_w_c, T_w_c, search, &found.distance_m, &found.rotation_rad)) {
       found = GuidedPlaceMatch();
@@ -331,6 +397,7 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
     GuidedPlaceMatchOptions refine = search;
     refine.sigma_position_m = kRejoinRefineSigma_m;
     refine.sigma_rotation_rad = kRejoinRefineSigma_rad;
+    refine.apply_gate = false;  // gated below against kf's own pose
     GuidedPlaceMatch refined = guidedPlaceMatch(*kf, target, found.T_w_c, refine);
     if (refined.success && refined.matches.size() > found.matches.size() &&
         withinPredictionGate(refined.T_w_c, T_w_c, search, &refined.distance_m, &refined.rotation_rad)) {

@@ -498,7 +498,7 @@ TEST_F(TrackingLossRuns, WithTheImuALongDriftIsReacquiredWithoutANewMap) {
 // the drifted prediction (its MapOrigin: the parent map and the prediction's sigma, 0.34 m). The
 // loop closer, given the new map's first keyframe, searches the parent's points around that
 // keyframe's pose within the origin's uncertainty (no vocabulary: BoW place recognition cannot find
-// it) and merges the new map back: one map, the keyframe within 2 cm of the truth. With the switch
+// it) and merges the new map back: one map, the keyframe within 3 cm of the truth. With the switch
 // off nothing is merged; with an origin claiming 0.05 m (3-sigma gate 0.15 m) the drift is outside
 // the gate and nothing is merged either.
 TEST_F(TrackingLossRuns, AMapStartedAfterALongDriftRejoinsTheMapItCameFrom) {
@@ -548,7 +548,8 @@ TEST_F(TrackingLossRuns, AMapStartedAfterALongDriftRejoinsTheMapItCameFrom) {
   EXPECT_EQ(with.merges, 1);
   EXPECT_TRUE(with.rejoin);
   EXPECT_EQ(with.maps, 1u);
-  EXPECT_LT(with.error_m, 0.02);
+  // The parent's points are single-view depth at 3-4 m (0.03-0.05 m noise each): 1-2.5 cm.
+  EXPECT_LT(with.error_m, 0.03);
 
   const Outcome off = closeWith(false);
   EXPECT_EQ(off.merges, 0);

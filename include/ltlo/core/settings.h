@@ -245,6 +245,13 @@ struct LoopOptions {
   /// dead reckoning's uncertainty: a guided search, gated like Tracking.Reacquire, instead of
   /// waiting for BoW place recognition (Loop.Rejoin, 0/1)
   bool rejoin = true;
+  /// Once the IMU is initialised, a keyframe for which BoW finds no loop also searches the older
+  /// keyframes of its map near its own pose (not its covisibles), within the drift it may have
+  /// gathered since: the same guided search as the rejoin, so loops do not depend on the
+  /// vocabulary alone (Loop.Proximity, 0/1)
+  bool proximity = true;
+  /// standard deviation of that drift, m (Loop.ProximitySigma, [0.005, 5])
+  double proximity_sigma_m = 0.10;
 
   static LoopOptions load(const SettingsFile& file);
 };

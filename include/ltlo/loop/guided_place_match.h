@@ -11,6 +11,7 @@
 /// the map it came from (Loop.Rejoin), whose world frame it shares up to the dead-reckoning error.
 /// Reads the map only (thread-safe).
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -28,6 +29,12 @@ struct GuidedPlaceMatchOptions {
   double min_radius_px = 15.0;       ///< window radius floor (at level 0)
   double max_radius_px = 160.0;      ///< window radius cap (at level 0)
   int max_keyframes = 20;            ///< nearest keyframes looking the same way
+  /// Only keyframes within this distance of the predicted camera (m) and older than
+  /// max_keyframe_t_s, none of `excluded_keyframes` (a loop search leaves out the current
+  /// keyframe's own neighbourhood).
+  double max_keyframe_distance_m = std::numeric_limits<double>::infinity();
+  double max_keyframe_t_s = std::numeric_limits<double>::infinity();
+  std::vector<map::KeyFrameId> excluded_keyframes;
   int max_descriptor_distance = 50;
   /// Ratio test of the wide-window matching: a window of k sigma holds most of the view's static
   /// keypoints, so the second best is the best of many random descriptors; the RANSAC and the gate
@@ -38,6 +45,9 @@ struct GuidedPlaceMatchOptions {
   /// all-inlier sample with probability 1 - (1 - 0.2^3)^1000 > 0.999.
   int ransac_iterations = 1000;
   std::uint32_t seed = 29;
+  /// Reject a pose outside the gate around the prediction (else the caller gates it, e.g. against
+  /// another pose when the prediction is a hypothesis of its own).
+  bool apply_gate = true;
   /// Refine the RANSAC pose by a vision-only pose optimisation on its inliers (reprojection and
   /// depth: the 3-D-3-D alignment of distant points trades rotation for translation), the
   /// optimisation's inliers becoming the matches; bf of its RGB-D edges (px m).

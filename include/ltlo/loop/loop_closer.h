@@ -70,6 +70,7 @@ struct MappingControl {
 struct LoopEvent {
   bool merge = false;  ///< across maps
   bool rejoin = false;  ///< a merge found by the guided search of Loop.Rejoin (not by BoW)
+  bool proximity = false;  ///< a loop found by the guided search of Loop.Proximity (not by BoW)
   double t_s = 0.0;    ///< time of the current keyframe
   map::KeyFrameId current;
   map::KeyFrameId loop;
