@@ -41,6 +41,8 @@ constexpr double kProximityMaxDistance_m = 2.0;
 constexpr double kProximitySigma_rad = 0.01;
 constexpr double kProximityMinCorrection_m = 0.01;
 constexpr double kProximityMinCorrection_rad = 0.005;
+/// Largest position sigma (m) of a rejoin search: 3 sigma reaches 3 m, a room's scale.
+constexpr double kRejoinMaxSigma_m = 1.0;
 /// Ancestors of a map's origin chain searched by the rejoin (the parent first).
 constexpr int kRejoinMaxAncestors = 4;
 /// Best covisibles forming a candidate's group (consistency) and setting the BoW score threshold.
@@ -347,6 +349,9 @@ bool LoopCloser::Impl::tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::
       target_sigma_m = std::hypot(sigma_m, ancestor_origin->sigma_position_m);
       target_sigma_rad = std::hypot(sigma_rad, ancestor_origin->sigma_rotation_rad);
     }
+    // Beyond this the prediction no longer knows where the map is: not a guided search (BoW may
+    // still merge it).
+    if (target_sigma_m > kRejoinMaxSigma_m) break;
     if (std::find(searched.begin(), searched.end(), target_id) == searched.end()) {
       searched.push_back(target_id);
       map::Map* target = atlas.map(target_id);
