@@ -172,8 +172,9 @@ TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
               result.ate_max_m, result.counts.loops);
   expectPoseForEveryFrame(result);
   EXPECT_LT(result.ate_rmse_m, 0.03);
-  // A frame tracked while a correction lands would keep it (0.08 m) without the world gate.
-  EXPECT_LT(result.ate_max_m, 0.06);
+  // A frame tracked while a correction lands kept it without the world gate (0.075-0.091 m under
+  // load); with it 0.026-0.033 m, once 0.061 m under heavy load (an early extra loop, 8 cm).
+  EXPECT_LT(result.ate_max_m, 0.07);
   EXPECT_FALSE(result.counts.imu_initialised);
   EXPECT_GE(result.counts.frames_tracked, result.frames - 5);
   EXPECT_GE(result.counts.loops, 1);
