@@ -80,6 +80,32 @@ double minCovisibleScore(const map::KeyFrame& kf, const map::Map& map) {
   return have_covisible ? min_score : 0.0;
 }
 
+/// The search in narrow windows around `T_w_c_centre` (a hypothesis, e.g. kf's pose moved by a
+/// voted offset), gated against kf's own pose `T_w_c_gate` with `search`'s sigmas; not successful
+/// outside the gate (the distances from T_w_c_gate are kept).
+GuidedPlaceMatch searchNear(const map::KeyFrame& kf, const map::Map& map, const SE3& T_w_c_centre,
+                            const SE3& T_w_c_gate, const GuidedPlaceMatchOptions& search) {
+  GuidedPlaceMatchOptions narrow = search;
+  narrow.sigma_position_m = kRejoinRefineSigma_m;
+  narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
+  narrow.apply_gate = false;  // the centre is a hypothesis: gated against kf's own pose below
+  GuidedPlaceMatch found = guidedPlaceMatch(kf, map, T_w_c_centre, narrow);
+  if (found.success && !withinPredictionGate(found.T_w_c, T_w_c_gate, search, &found.distance_m, &found.rotation_rad)) {
+    found.success = false;
+  }
+  return found;
+}
+
+/// The loop (or merge place) a successful guided search gives: kf's corrected pose and its inliers.
+LoopClosure closureOf(const map::KeyFrame& kf, const GuidedPlaceMatch& found) {
+  LoopClosure closure;
+  closure.current = kf.id();
+  closure.loop = found.nearest_keyframe->id();
+  closure.T_w_b_current_corrected = found.T_w_c * kf.T_b_c().inverse();
+  for (const auto& [keypoint, point] : found.matches) closure.matches.push_back(LoopMatch{keypoint, point});
+  return closure;
+}
+
 }  // namespace
 
 struct LoopCloser::Impl {
@@ -108,6 +134,9 @@ struct LoopCloser::Impl {
   /// the parent's points around kf's pose, searched within the origin's uncertainty; true when
   /// kf's map was merged into the parent.
   bool tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// The guided search settings for kf (Loop.Rejoin's, refined pose) at the given sigmas.
+  GuidedPlaceMatchOptions guidedSearch(const map::KeyFrame& kf, double sigma_position_m, double sigma_rotation_rad,
+                                       std::uint32_t salt) const;
   /// One rejoin search of kf (of `map`) in `target` with the given sigmas; merges on success.
   bool rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map, map::Map& target, double sigma_position_m,
                 double sigma_rotation_rad);
@@ -209,14 +238,20 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
   return false;
 }
 
+GuidedPlaceMatchOptions LoopCloser::Impl::guidedSearch(const map::KeyFrame& kf, double sigma_position_m,
+                                                       double sigma_rotation_rad, std::uint32_t salt) const {
+  GuidedPlaceMatchOptions search = options.rejoin_search;
+  search.sigma_position_m = sigma_position_m;
+  search.sigma_rotation_rad = sigma_rotation_rad;
+  search.seed = static_cast<std::uint32_t>(kf.id().value) * 7919u + salt;
+  search.refine_pose = true;
+  search.bf_px_m = kf.camera().fx() * options.virtual_baseline_m;
+  return search;
+}
+
 bool LoopCloser::Impl::tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map) {
   if (keyframes_since_correction <= kKeyFramesBetweenLoops || !gravity()) return false;
-  GuidedPlaceMatchOptions search = options.rejoin_search;
-  search.sigma_position_m = options.loop.proximity_sigma_m;
-  search.sigma_rotation_rad = kProximitySigma_rad;
-  search.seed = static_cast<std::uint32_t>(kf->id().value) * 7919u + 37u;
-  search.refine_pose = true;
-  search.bf_px_m = kf->camera().fx() * options.virtual_baseline_m;
+  GuidedPlaceMatchOptions search = guidedSearch(*kf, options.loop.proximity_sigma_m, kProximitySigma_rad, 37u);
   // Old keyframes only, outside kf's neighbourhood, in reach of kf's view.
   search.max_keyframe_t_s = kf->t_s() - kProximityMinAge_s;
   search.max_keyframe_distance_m = kProximityMaxDistance_m;
@@ -231,28 +266,17 @@ bool LoopCloser::Impl::tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf
     }
     return false;
   }
-  GuidedPlaceMatchOptions narrow = search;
-  narrow.sigma_position_m = kRejoinRefineSigma_m;
-  narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
-  narrow.apply_gate = false;  // gated below against kf's own pose
-  GuidedPlaceMatch found =
-      guidedPlaceMatch(*kf, map, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), narrow);
-  const bool gated =
-      found.success && withinPredictionGate(found.T_w_c, T_w_c, search, &found.distance_m, &found.rotation_rad);
+  const GuidedPlaceMatch found =
+      searchNear(*kf, map, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), T_w_c, search);
   log::debug("proximity loop: ", kf->id(), " in ", map.id(), ": ", vote.pairs, " pairs, ", vote.support,
              " at the peak, ", found.matches.size(), " inliers, ", found.distance_m, " m / ",
-             found.rotation_rad * 180.0 / M_PI, " deg from its pose", gated ? "" : ": rejected");
-  if (!gated || static_cast<int>(found.matches.size()) < options.loop.min_inliers || !found.nearest_keyframe) {
+             found.rotation_rad * 180.0 / M_PI, " deg from its pose", found.success ? "" : ": rejected");
+  if (!found.success || static_cast<int>(found.matches.size()) < options.loop.min_inliers || !found.nearest_keyframe) {
     return false;
   }
   // Tracking may already have matched the old points: nothing left to correct.
   if (found.distance_m < kProximityMinCorrection_m && found.rotation_rad < kProximityMinCorrection_rad) return false;
-  LoopClosure loop;
-  loop.current = kf->id();
-  loop.loop = found.nearest_keyframe->id();
-  loop.T_w_b_current_corrected = found.T_w_c * kf->T_b_c().inverse();
-  for (const auto& [keypoint, point] : found.matches) loop.matches.push_back(LoopMatch{keypoint, point});
-  return correct(kf, found.nearest_keyframe, loop, map, true);
+  return correct(kf, found.nearest_keyframe, closureOf(*kf, found), map, true);
 }
 
 bool LoopCloser::Impl::correct(const std::shared_ptr<map::KeyFrame>& kf, const std::shared_ptr<map::KeyFrame>& candidate,
@@ -370,26 +394,14 @@ bool LoopCloser::Impl::tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::
 
 bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map, map::Map& target,
                                 double sigma_position_m, double sigma_rotation_rad) {
-  GuidedPlaceMatchOptions search = options.rejoin_search;
-  search.sigma_position_m = sigma_position_m;
-  search.sigma_rotation_rad = sigma_rotation_rad;
-  search.seed = static_cast<std::uint32_t>(kf->id().value) * 7919u + 31u;
-  search.refine_pose = true;
-  search.bf_px_m = kf->camera().fx() * options.virtual_baseline_m;
+  const GuidedPlaceMatchOptions search = guidedSearch(*kf, sigma_position_m, sigma_rotation_rad, 31u);
   const SE3 T_w_c = kf->T_w_c();
   // First the offset of kf's world by voting (robust to the look-alikes a window of the origin's
   // sigma holds), then the search around the offset pose; else the search in the wide windows.
   const WorldOffsetVote vote = voteWorldOffset(*kf, target, T_w_c, search, kRejoinVoteDescriptorDistance);
   GuidedPlaceMatch found;
   if (vote.found) {
-    GuidedPlaceMatchOptions narrow = search;
-    narrow.sigma_position_m = kRejoinRefineSigma_m;
-    narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
-    narrow.apply_gate = false;  // gated below against kf's own pose
-    found = guidedPlaceMatch(*kf, target, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), narrow);
-    if (found.success && !withinPredictionGate(found.T_w_c, T_w_c, search, &found.distance_m, &found.rotation_rad)) {
-      found = GuidedPlaceMatch();
-    }
+    found = searchNear(*kf, target, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), T_w_c, search);
   }
   log::debug("rejoin vote: ", kf->id(), " of ", map.id(), " against ", target.id(), ": ", vote.pairs, " pairs, ",
              vote.support, " at the peak, offset ", vote.offset_w.transpose(), " m",
@@ -399,15 +411,8 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
     // The windows of the origin's sigma are wide (up to the cap) and the loose ratio test passes
     // few right matches: search again around the found pose in the windows of its own accuracy,
     // still gated against kf's pose.
-    GuidedPlaceMatchOptions refine = search;
-    refine.sigma_position_m = kRejoinRefineSigma_m;
-    refine.sigma_rotation_rad = kRejoinRefineSigma_rad;
-    refine.apply_gate = false;  // gated below against kf's own pose
-    GuidedPlaceMatch refined = guidedPlaceMatch(*kf, target, found.T_w_c, refine);
-    if (refined.success && refined.matches.size() > found.matches.size() &&
-        withinPredictionGate(refined.T_w_c, T_w_c, search, &refined.distance_m, &refined.rotation_rad)) {
-      found = std::move(refined);
-    }
+    GuidedPlaceMatch refined = searchNear(*kf, target, found.T_w_c, T_w_c, search);
+    if (refined.success && refined.matches.size() > found.matches.size()) found = std::move(refined);
   }
   const int inliers = static_cast<int>(found.matches.size());
   log::debug("rejoin: ", kf->id(), " of ", map.id(), " against ", target.id(), " (sigma ", sigma_position_m,
@@ -416,11 +421,7 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
              found.distance_m, " m / ", found.rotation_rad * 180.0 / M_PI, " deg from its pose",
              found.success ? "" : ": rejected");
   if (!found.success || inliers < options.loop.min_inliers || !found.nearest_keyframe) return false;
-  LoopClosure place;
-  place.current = kf->id();
-  place.loop = found.nearest_keyframe->id();
-  place.T_w_b_current_corrected = found.T_w_c * kf->T_b_c().inverse();
-  for (const auto& [keypoint, point] : found.matches) place.matches.push_back(LoopMatch{keypoint, point});
+  LoopClosure place = closureOf(*kf, found);
   log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", found.distance_m,
             " m from its pose (sigma ", sigma_position_m, " m), ", inliers, " inliers near ", place.loop);
   return merge(kf, found.nearest_keyframe, std::move(place));
