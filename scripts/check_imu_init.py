@@ -68,7 +68,7 @@ def main():
     def bias_at(t):
         return min(biases, key=lambda r: abs(r[0] - t))
 
-    pattern = re.compile(r'IMU (initialised|refined) over (\d+) keyframes \(([\d.e+-]+) s\): g_w = \(([^)]*)\).*?'
+    pattern = re.compile(r'IMU (initialised|refined)(?: \([^)]*\))? over (\d+) keyframes \(([\d.e+-]+) s\): g_w = \(([^)]*)\).*?'
                          r'b_g = \(([^)]*)\).*?b_a = \(([^)]*)\)')
     found = 0
     first_span = None

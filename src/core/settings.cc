@@ -77,6 +77,7 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.MaxImuPositionSigma", o.max_imu_position_sigma_m, 0.001, 10.0);
   v.real("Tracking.AccBiasSigma", o.acc_bias_sigma_m_s2, 0.0, 10.0);
   v.real("Tracking.NewMapAfter", o.new_map_after_s, -1.0, 1000.0);
+  v.integer("Tracking.MinExtendFeatures", o.min_extend_features, 10, 10000);
   v.real("Tracking.MaxLostImuInterval", o.max_lost_imu_interval_s, 0.1, 1000.0);
   v.boolean("Tracking.SmoothCarriedFrames", o.smooth_carried_frames);
   v.real("Tracking.CarriedVelocitySigma", o.carried_velocity_sigma_m_s, 0.0, 10.0);

@@ -314,7 +314,7 @@ std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain,
     log::info("IMU visual-inertial BA at kf ", newest, ": ", stats.optimised_keyframes, " keyframes optimised, ",
               stats.fixed_keyframes, " held, ", stats.points, " points, ", stats.observations,
               " observations (camera noise ", stats.visual_sigma_scale, " x the model), chi2 ",
-              stats.initial_chi2, " -> ", stats.final_chi2, (refined ? "" : " (not finite, not applied)"));
+              stats.initial_chi2, " -> ", stats.final_chi2, (refined ? "" : " (not applied)"));
     return refined;
   };
   if (current && options.visual_inertial_refinement) return refine(current->g_w);

@@ -44,4 +44,22 @@ int smoothCarriedStretches(std::vector<CarriedSample>& samples, double velocity_
   return corrected;
 }
 
+std::unordered_map<map::MapId, map::MapId> floatingMapWorlds(const std::unordered_map<map::MapId, MapFrameSpan>& maps,
+                                                            double max_span_s, int max_depth) {
+  const auto floats = [&](map::MapId id) {
+    const auto it = maps.find(id);
+    return it != maps.end() && it->second.origin_parent && it->second.last_t_s - it->second.first_t_s <= max_span_s;
+  };
+  std::unordered_map<map::MapId, map::MapId> worlds;
+  for (const auto& [id, span] : maps) {
+    if (!floats(id)) continue;
+    map::MapId world = *span.origin_parent;
+    for (int depth = 1; depth < max_depth && floats(world) && world != id; ++depth) {
+      world = *maps.at(world).origin_parent;
+    }
+    if (world != id) worlds.emplace(id, world);
+  }
+  return worlds;
+}
+
 }  // namespace ltlo::system

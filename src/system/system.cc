@@ -309,12 +309,36 @@ void System::shutdown() {
             " merges, ", atlas_->numMaps(), " map(s)");
 }
 
+std::unordered_map<map::MapId, map::MapId> System::floatingMaps(const std::vector<FrameRecord>& records) const {
+  std::unordered_map<map::MapId, MapFrameSpan> maps;
+  for (const FrameRecord& record : records) {
+    if (!record.reference) continue;
+    const auto [it, inserted] = maps.try_emplace(record.reference->mapId());
+    if (inserted) it->second.first_t_s = record.t_s;
+    it->second.last_t_s = record.t_s;
+  }
+  for (auto& [id, span] : maps) {
+    map::Map* map = atlas_->map(id);
+    const std::optional<map::MapOrigin> origin = map != nullptr ? map->origin() : std::nullopt;
+    if (origin) span.origin_parent = atlas_->resolve(origin->parent);
+  }
+  return floatingMapWorlds(maps, kFloatingMapMaxSpan_s, kFloatingMapMaxDepth);
+}
+
 std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
   std::vector<FrameRecord> records;
   {
     std::lock_guard<std::mutex> lock(records_mutex_);
     records = records_;
   }
+  // Short maps started at the IMU's prediction and never merged: their coordinates are their
+  // parent's world as the dead reckoning placed them, so their frames belong to the carried
+  // stretch around them, and a frame anchored after it in that world ends it.
+  const std::unordered_map<map::MapId, map::MapId> floating = floatingMaps(records);
+  auto world_of = [&floating](map::MapId id) {
+    const auto it = floating.find(id);
+    return it == floating.end() ? id : it->second;
+  };
   // Keyframe poses are read outside records_mutex_ (it is a leaf lock).
   std::vector<FramePose> poses;
   poses.reserve(records.size());
@@ -328,8 +352,10 @@ std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
     if (record.reference) {
       pose.T_w_c = map::latestPose_T_w_b(*record.reference) * record.T_refb_c;
       pose.map = record.reference->mapId();
-      // Comparable only while the stretch's keyframe and this frame's lie in one map (merged).
-      if (record.stretch_reference && record.stretch_reference->mapId() == pose.map) {
+      // Comparable only while the stretch's keyframe and this frame's lie in one world (one map
+      // after merges, or a floating map of this frame's map).
+      if (record.stretch_reference && floating.count(pose.map) == 0 &&
+          world_of(record.stretch_reference->mapId()) == pose.map) {
         sample.T_w_c_dead_reckoned =
             map::latestPose_T_w_b(*record.stretch_reference) * record.T_stretchrefb_c_predicted;
       }
@@ -338,7 +364,7 @@ std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
     }
     sample.t_s = pose.t_s;
     sample.T_w_c = pose.T_w_c;
-    sample.carried = record.carried;
+    sample.carried = record.carried || (record.reference && floating.count(pose.map) > 0);
     poses.push_back(pose);
     samples.push_back(std::move(sample));
   }

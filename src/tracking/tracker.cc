@@ -136,7 +136,15 @@ TrackingState Tracker::track(map::Frame& frame) {
               " inliers on points older than ", carried_first_point_, " after ", frame.t_s() - anchored_t_s_, " s");
     carried_first_point_ = map::MapPointId();
   }
-  if (!carried_first_point_.valid()) anchored_t_s_ = frame.t_s();
+  if (std::isnan(tracked_run_start_s_)) tracked_run_start_s_ = frame.t_s();
+  if (!carried_first_point_.valid()) {
+    anchored_t_s_ = frame.t_s();
+    carried_fix_t_s_ = frame.t_s();
+    carried_fix_sigma_m_ = 0.0;
+  } else if (frame.t_s() - tracked_run_start_s_ >= kCarriedFixSeconds) {
+    carried_fix_t_s_ = frame.t_s();
+    carried_fix_sigma_m_ = carried_placement_sigma_m_;
+  }
   // Overlap with the reference keyframe (ORB-SLAM's measure): pose inliers over the reference
   // keyframe's established points (seen by >= 2 keyframes, >= 3 once the map has more than 2);
   // fresh single-view points do not count, so a new keyframe does not lower it by itself.
@@ -184,6 +192,7 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
               " needed), ", frame.numKeypoints(), " keypoints");
   }
   state_ = TrackingState::kLost;
+  tracked_run_start_s_ = std::numeric_limits<double>::quiet_NaN();
   clearMatches(frame);
   // The predicted state; with the inertial optimisation it carries the propagated information (the
   // next frame's prior), so a frame after the gap is matched in windows of its real uncertainty.
@@ -206,16 +215,22 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
   log::debug("frame t = ", frame.t_s(), ": lost, ", stats_.inliers, " inliers, link ", stats_.inertial_link,
              ", sigma ", stats_.predicted_position_sigma_m, " m, p = ", frame.T_w_b().translation().transpose(),
              ", ref ", reference_kf_);
+  const int static_with_depth =
+      lost_for_s >= options_.tracking.new_map_after_s ? staticKeypointsWithDepth(frame) : 0;
+  const double sigma_m = imu_prediction_.link ? carried_position_sigma_m_ : std::numeric_limits<double>::infinity();
+  const bool keyframe_in_map = last_kf_ptr_ && !last_kf_ptr_->isBad() && last_kf_ptr_->mapId() == activeMap().id();
+  const bool can_extend = sigma_m <= options_.tracking.max_imu_position_sigma_m && keyframe_in_map &&
+                          static_with_depth >= options_.tracking.min_extend_features;
   if (options_.tracking.new_map_after_s >= 0.0 && lost_for_s >= options_.tracking.new_map_after_s &&
-      staticKeypointsWithDepth(frame) >= options_.min_init_features) {
-    const double sigma_m = imu_prediction_.link ? carried_position_sigma_m_ : std::numeric_limits<double>::infinity();
-    const bool keyframe_in_map = last_kf_ptr_ && !last_kf_ptr_->isBad() && last_kf_ptr_->mapId() == activeMap().id();
-    if (sigma_m <= options_.tracking.max_imu_position_sigma_m && keyframe_in_map) {
+      (can_extend || static_with_depth >= options_.min_init_features)) {
+    if (can_extend) {
       // The IMU still knows where the camera is: what the frame sees is unmapped (revealed behind
       // an occluder, or new), so it extends the map at the predicted pose, linked by the IMU.
       log::warn("lost for ", lost_for_s, " s: keyframe at the IMU-predicted pose (position sigma ", sigma_m,
                 " m) extends map ", activeMap().id(), " at t = ", frame.t_s(), " s");
       extendMapAtPrediction(frame);
+      // The new points carry the prediction's error: the fix once frames hold them (track()).
+      carried_placement_sigma_m_ = sigma_m;
       if (!carried_first_point_.valid()) {
         // The stretch opens: every point from here on was placed by the IMU.
         for (const map::MapPointId id : frame.map_points) {
@@ -252,6 +267,8 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
     state_ = initialise(frame);
     LTLO_ASSERT(state_ == TrackingState::kOk, "new map not initialised");
     carried_first_point_ = map::MapPointId();
+    carried_fix_sigma_m_ = 0.0;
+    carried_fix_t_s_ = frame.t_s();
     anchored_t_s_ = frame.t_s();
     stats_.new_map = true;
     frame_tracked_ = true;

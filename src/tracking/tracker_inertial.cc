@@ -86,10 +86,16 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
         const double lever_m = sigma_r * frame.T_b_c().translation().norm();
         stats_.predicted_rotation_sigma_rad = sigma_r;
         stats_.predicted_position_sigma_m = std::hypot(sigma_p, bias_drift_m) + lever_m;
-        // Over an IMU-carried stretch the acceleration error integrates since the last anchored
-        // frame: the keyframes placed at the prediction carry the error they were placed with.
-        const double carried_s = carried_first_point_.valid() ? frame.t_s() - anchored_t_s_ : gap_s;
-        carried_position_sigma_m_ = std::hypot(sigma_p, 0.5 * sigma_a * carried_s * carried_s) + lever_m;
+        // Over an IMU-carried stretch the acceleration error integrates from the last visual fix
+        // (the anchored frame, or points placed at the prediction that tracking then held), on
+        // top of that fix's own error (tracker.h, carried_fix_t_s_).
+        if (carried_first_point_.valid()) {
+          const double drift_s = frame.t_s() - carried_fix_t_s_;
+          carried_position_sigma_m_ =
+              std::hypot(carried_fix_sigma_m_, std::hypot(sigma_p, 0.5 * sigma_a * drift_s * drift_s)) + lever_m;
+        } else {
+          carried_position_sigma_m_ = std::hypot(sigma_p, bias_drift_m) + lever_m;
+        }
       }
     }
     return imu_prediction_.state.T_w_b;

@@ -3,7 +3,9 @@
 //     error: quadratic) and runs from 0 at the last tracked frame to 1 at the anchored one;
 //   - a stretch dead-reckoned with a wrong velocity and a wrong acceleration is brought back to
 //     the true trajectory exactly when the error model matches, and much closer otherwise;
-//   - stretches without an anchored end, or at the start, stay as they were.
+//   - stretches without an anchored end, or at the start, stay as they were;
+//   - floating maps (short, started at the IMU's prediction, never merged) stand in for their
+//     parent's world, up a chain of such maps; long or merged maps do not.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -120,6 +122,52 @@ TEST(CarriedStretch, StretchesWithoutAnAnchoredEndStayAsTheyAre) {
   edges[3].carried = true;
   EXPECT_EQ(smoothCarriedStretches(edges, 0.01, 0.03), 0);
   EXPECT_EQ(edges[0].T_w_c.translation(), Vec3::Zero());
+}
+
+TEST(CarriedStretch, ShortMapsStartedAtThePredictionFloatInTheirParentsWorld) {
+  const map::MapId main(0), short_child(1), grandchild(2), long_child(3), unrooted(4);
+  std::unordered_map<map::MapId, MapFrameSpan> maps;
+  maps[main] = MapFrameSpan{0.0, 45.0, std::nullopt};
+  maps[short_child] = MapFrameSpan{9.8, 10.1, main};        // lost again right after it started
+  maps[grandchild] = MapFrameSpan{11.0, 12.0, short_child};  // started from the short one
+  maps[long_child] = MapFrameSpan{20.0, 30.0, main};        // tracked for 10 s: its own world
+  maps[unrooted] = MapFrameSpan{31.0, 32.0, std::nullopt};  // no prediction placed it
+  const auto worlds = floatingMapWorlds(maps, 5.0, 4);
+  ASSERT_EQ(worlds.size(), 2u);
+  EXPECT_EQ(worlds.at(short_child), main);
+  EXPECT_EQ(worlds.at(grandchild), main);
+  EXPECT_EQ(worlds.count(long_child), 0u);
+  EXPECT_EQ(worlds.count(unrooted), 0u);
+  // The chain is followed at most max_depth steps: one step leaves the grandchild at its parent.
+  EXPECT_EQ(floatingMapWorlds(maps, 5.0, 1).at(grandchild), short_child);
+  // A map whose frames span exactly the limit still floats; beyond it does not.
+  maps[short_child].last_t_s = 9.8 + 5.0;
+  EXPECT_EQ(floatingMapWorlds(maps, 5.0, 4).count(short_child), 1u);
+  maps[short_child].last_t_s = 9.8 + 5.01;
+  const auto beyond = floatingMapWorlds(maps, 5.0, 4);
+  EXPECT_EQ(beyond.count(short_child), 0u);
+  EXPECT_EQ(beyond.at(grandchild), short_child);  // its parent no longer floats: its own world
+}
+
+TEST(CarriedStretch, AStretchThroughAFloatingMapIsCorrectedAsOne) {
+  // Frames of [1, 3) s: carried, except a few in the middle tracked in a floating map, which
+  // System::trajectory() marks carried as well: one stretch, corrected by the anchor at 3 s.
+  std::vector<CarriedSample> samples = stretchWithDrift(Vec3(0.02, -0.01, 0.0), Vec3(0.04, 0.03, 0.0), Vec3::Zero());
+  const double before_m = maxPositionError(samples);
+  ASSERT_GT(before_m, 0.1);
+  EXPECT_EQ(smoothCarriedStretches(samples, 0.01, 0.03), 1);
+  EXPECT_LT(maxPositionError(samples), 0.25 * before_m);
+  // Had the floating frames ended the stretch (tracked, not carried), the frames before them
+  // would keep their drift: the first part has no anchored end of its own.
+  std::vector<CarriedSample> split = stretchWithDrift(Vec3(0.02, -0.01, 0.0), Vec3(0.04, 0.03, 0.0), Vec3::Zero());
+  for (int i = 55; i < 60; ++i) split[static_cast<std::size_t>(i)].carried = false;
+  smoothCarriedStretches(split, 0.01, 0.03);
+  double first_part_m = 0.0;
+  for (int i = 30; i < 55; ++i) {
+    const CarriedSample& s = split[static_cast<std::size_t>(i)];
+    first_part_m = std::max(first_part_m, (s.T_w_c.translation() - truePose(s.t_s).translation()).norm());
+  }
+  EXPECT_GT(first_part_m, 0.02);
 }
 
 }  // namespace

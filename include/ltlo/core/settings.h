@@ -135,13 +135,19 @@ struct TrackingOptions {
   /// gravity, held fixed at each keyframe link and so left out of the tracker's covariance), m/s^2;
   /// the (re)initialisation's own posterior sigma is used when larger. An IMU-only stretch of t
   /// seconds adds 0.5 sigma t^2 to the predicted position's standard deviation (search windows;
-  /// for Tracking.MaxImuPositionSigma t runs from the last visually anchored frame, across
-  /// keyframes placed at the prediction) (Tracking.AccBiasSigma, [0, 10])
+  /// for Tracking.MaxImuPositionSigma t runs from the last visual fix: the last anchored frame, or
+  /// a keyframe placed at the prediction whose points tracking then held for 0.5 s, whose own sigma
+  /// adds in quadrature) (Tracking.AccBiasSigma, [0, 10])
   double acc_bias_sigma_m_s2 = 0.03;
   /// Lost for at least this long (s, since the last tracked frame): a frame with enough static
   /// keypoints starts a new map (or, see Tracking.MaxImuPositionSigma, extends the map); a
   /// negative value never does (Tracking.NewMapAfter, [-1, 1000])
   double new_map_after_s = 1.0;
+  /// Static keypoints with depth a lost frame needs to extend the map at the IMU-predicted pose
+  /// (Tracking.MaxImuPositionSigma); fewer than a new map needs (100): the IMU fixes the pose, the
+  /// points only have to be tracked by the next frames, and under a large occluder the static
+  /// part of the view holds few keypoints (Tracking.MinExtendFeatures, [10, 10000])
+  int min_extend_features = 40;
   /// While lost, the IMU preintegration from the last keyframe is kept at most this long (s);
   /// beyond, it is re-anchored on the predicted state and the next keyframe starts a new IMU chain
   /// (Tracking.MaxLostImuInterval, [0.1, 1000])

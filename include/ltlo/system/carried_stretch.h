@@ -6,9 +6,11 @@
 /// stretch's frames in the shape the IMU's error model predicts (trajectory output only: the live
 /// tracking and the map are unchanged).
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "ltlo/core/lie.h"
+#include "ltlo/map/ids.h"
 
 namespace ltlo::system {
 
@@ -38,5 +40,22 @@ double carriedCorrectionShare(double tau, double duration_s, double velocity_sig
 /// with the stretch running from the last sample before it to the anchored one. Returns the number
 /// of stretches corrected.
 int smoothCarriedStretches(std::vector<CarriedSample>& samples, double velocity_sigma_m_s, double acc_sigma_m_s2);
+
+/// A map holding frames at the end of a run: its frames' time span and, when it was started at the
+/// IMU's prediction (map::MapOrigin) and never merged, its origin's parent (resolved through
+/// merges).
+struct MapFrameSpan {
+  double first_t_s = 0.0;
+  double last_t_s = 0.0;
+  std::optional<map::MapId> origin_parent;
+};
+
+/// Floating maps: started at the IMU's prediction, never merged, frames spanning at most
+/// max_span_s. Their coordinates are the parent's world as the dead reckoning placed them, so their
+/// frames belong to the IMU-carried stretch around them, and a frame anchored after it in the
+/// parent's map ends that stretch. A floating map's parent that floats itself stands for its own
+/// parent (at most max_depth steps). Returns floating map -> the map whose world it stands in.
+std::unordered_map<map::MapId, map::MapId> floatingMapWorlds(const std::unordered_map<map::MapId, MapFrameSpan>& maps,
+                                                            double max_span_s, int max_depth);
 
 }  // namespace ltlo::system

@@ -156,6 +156,13 @@ class System {
     SE3 T_stretchrefb_c_predicted;
   };
 
+  /// The floating maps of the run's records (system/carried_stretch.h, floatingMapWorlds): floating
+  /// map -> the map whose world it stands in. A longer map than kFloatingMapMaxSpan_s has tracked
+  /// long enough for its own error to differ from the dead reckoning's shape.
+  std::unordered_map<map::MapId, map::MapId> floatingMaps(const std::vector<FrameRecord>& records) const;
+  static constexpr double kFloatingMapMaxSpan_s = 5.0;
+  static constexpr int kFloatingMapMaxDepth = 4;
+
   void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
   void processPendingKeyFrames();                                 // synchronous mode
   void pollImuState();

@@ -327,14 +327,25 @@ class Tracker {
   double prev_t_s_ = 0.0;
   double last_tracked_t_s_ = 0.0;
   /// IMU-carried stretch: keyframes placed at the IMU prediction (extendMapAtPrediction) are not a
-  /// visual fix, so the acceleration error keeps integrating from the last frame tracked against
-  /// the map as it was before the stretch (anchored_t_s_) until a frame matches at least
-  /// minInliers() points older than the stretch's first point (carried_first_point_; invalid when
-  /// no stretch is open). The loss policy's position sigma uses that time.
+  /// fix in the map's world: the stretch lasts from the last frame tracked against the map as it
+  /// was before it (anchored_t_s_) until a frame matches at least minInliers() points older than
+  /// the stretch's first point (carried_first_point_; invalid when no stretch is open).
   double anchored_t_s_ = 0.0;
   map::MapPointId carried_first_point_;
   /// The position sigma the loss policy compares with Tracking.MaxImuPositionSigma (m).
   double carried_position_sigma_m_ = std::numeric_limits<double>::infinity();
+  /// Over an open stretch, the loss policy's sigma integrates the acceleration error from the last
+  /// visual fix (carried_fix_t_s_, sigma carried_fix_sigma_m_): at first the last anchored frame;
+  /// once frames have tracked the points of a keyframe placed at the prediction for
+  /// kCarriedFixSeconds in a row, vision observes the velocity again and that keyframe's placement
+  /// sigma (carried_placement_sigma_m_) becomes the fix, renewed by every further tracked frame.
+  /// Points placed and lost again within a few frames do not stop the drift.
+  static constexpr double kCarriedFixSeconds = 0.5;
+  double carried_placement_sigma_m_ = 0.0;
+  double carried_fix_sigma_m_ = 0.0;
+  double carried_fix_t_s_ = 0.0;
+  /// first frame of the current run of tracked frames (NaN after a lost frame)
+  double tracked_run_start_s_ = std::numeric_limits<double>::quiet_NaN();
   int num_keyframes_ = 0;
   std::vector<map::KeyFrameId> local_keyframes_;
   std::vector<map::MapPointId> local_points_;
