@@ -186,6 +186,15 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
     result.refined_inliers = refined.num_inliers;
     if (refined.num_inliers < options.min_ransac_inliers) return result;
     result.T_w_c = refined.T_w_b * view.T_b_c();
+    const Eigen::LDLT<Mat6> ldlt(refined.pose_information);
+    if (ldlt.info() == Eigen::Success && ldlt.isPositive() && refined.pose_information.diagonal().minCoeff() > 0.0) {
+      // [dphi; drho] perturbs the body rotation on the right: the world-frame rotation covariance
+      // is R_w_b Sigma R_w_b^T.
+      const Mat3 covariance_b = ldlt.solve(Mat6::Identity()).topLeftCorner<3, 3>();
+      const Mat3 R_w_b = refined.T_w_b.rotationMatrix();
+      const double yaw_variance = (R_w_b * covariance_b * R_w_b.transpose())(2, 2);
+      if (yaw_variance >= 0.0) result.yaw_sigma_rad = std::sqrt(yaw_variance);
+    }
     std::vector<std::pair<int, map::MapPointId>> kept;
     for (std::size_t k = 0; k < result.matches.size(); ++k) {
       if (refined.inliers[k]) kept.push_back(result.matches[k]);

@@ -41,6 +41,11 @@ constexpr double kProximityMaxDistance_m = 2.0;
 constexpr double kProximitySigma_rad = 0.01;
 constexpr double kProximityMinCorrection_m = 0.01;
 constexpr double kProximityMinCorrection_rad = 0.005;
+/// Largest yaw sigma of a guided place match (rejoin, proximity loop) that may correct the map, rad
+/// (GuidedPlaceMatch::yaw_sigma_rad). Measured on generated ltlo/mtlo/static runs: true rejoins and
+/// proximity loops 0.07-0.32 deg; the two rejoins check_loops.py found false (3.2-3.3 deg off),
+/// matched in a sliver of the view beside a box, 0.78 and 0.92 deg.
+constexpr double kMaxCorrectionYawSigma_rad = 0.5 * M_PI / 180.0;
 /// Largest position sigma (m) of a rejoin search: 3 sigma reaches 3 m, a room's scale.
 constexpr double kRejoinMaxSigma_m = 1.0;
 /// Ancestors of a map's origin chain searched by the rejoin (the parent first).
@@ -270,8 +275,10 @@ bool LoopCloser::Impl::tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf
       searchNear(*kf, map, SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w), T_w_c, search);
   log::debug("proximity loop: ", kf->id(), " in ", map.id(), ": ", vote.pairs, " pairs, ", vote.support,
              " at the peak, ", found.matches.size(), " inliers, ", found.distance_m, " m / ",
-             found.rotation_rad * 180.0 / M_PI, " deg from its pose", found.success ? "" : ": rejected");
-  if (!found.success || static_cast<int>(found.matches.size()) < options.loop.min_inliers || !found.nearest_keyframe) {
+             found.rotation_rad * 180.0 / M_PI, " deg from its pose, yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI,
+             " deg", found.success ? "" : ": rejected");
+  if (!found.success || static_cast<int>(found.matches.size()) < options.loop.min_inliers || !found.nearest_keyframe ||
+      !(found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad)) {
     return false;
   }
   // Tracking may already have matched the old points: nothing left to correct.
@@ -421,9 +428,15 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
              found.distance_m, " m / ", found.rotation_rad * 180.0 / M_PI, " deg from its pose",
              found.success ? "" : ": rejected");
   if (!found.success || inliers < options.loop.min_inliers || !found.nearest_keyframe) return false;
+  if (!(found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad)) {
+    log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " with ", inliers,
+              " inliers, but their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide to correct by");
+    return false;
+  }
   LoopClosure place = closureOf(*kf, found);
   log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", found.distance_m,
-            " m from its pose (sigma ", sigma_position_m, " m), ", inliers, " inliers near ", place.loop);
+            " m from its pose (sigma ", sigma_position_m, " m), ", inliers, " inliers near ", place.loop, ", yaw sigma ",
+            found.yaw_sigma_rad * 180.0 / M_PI, " deg");
   return merge(kf, found.nearest_keyframe, std::move(place));
 }
 

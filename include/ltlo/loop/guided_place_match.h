@@ -69,6 +69,11 @@ struct GuidedPlaceMatch {
   int refined_inliers = 0;    ///< of the pose optimisation (refine_pose)
   double distance_m = 0.0;    ///< of the RANSAC pose from the prediction
   double rotation_rad = 0.0;  ///< likewise
+  /// With refine_pose: standard deviation of the refined pose's rotation about the world z axis
+  /// (gravity once the IMU is initialised), from the marginal pose information of its inliers. A
+  /// view whose matches crowd into a small patch at one depth cannot tell a turn about z from a
+  /// sideways step; a 4-DoF correction built on it turns the map by that ambiguity.
+  double yaw_sigma_rad = std::numeric_limits<double>::infinity();
 };
 
 /// `View` is map::Frame or map::KeyFrame (keypoints, descriptors, depths, static flags, camera).
