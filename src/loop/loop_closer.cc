@@ -46,6 +46,7 @@ constexpr double kProximityMinCorrection_rad = 0.005;
 /// proximity loops 0.07-0.32 deg; the two rejoins check_loops.py found false (3.2-3.3 deg off),
 /// matched in a sliver of the view beside a box, 0.78 and 0.92 deg.
 constexpr double kMaxCorrectionYawSigma_rad = 0.5 * M_PI / 180.0;
+bool fixesYaw(const GuidedPlaceMatch& found) { return found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad; }
 /// Largest position sigma (m) of a rejoin search: 3 sigma reaches 3 m, a room's scale.
 constexpr double kRejoinMaxSigma_m = 1.0;
 /// Ancestors of a map's origin chain searched by the rejoin (the parent first).
@@ -278,7 +279,7 @@ bool LoopCloser::Impl::tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf
              found.rotation_rad * 180.0 / M_PI, " deg from its pose, yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI,
              " deg", found.success ? "" : ": rejected");
   if (!found.success || static_cast<int>(found.matches.size()) < options.loop.min_inliers || !found.nearest_keyframe ||
-      !(found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad)) {
+      !fixesYaw(found)) {
     return false;
   }
   // Tracking may already have matched the old points: nothing left to correct.
@@ -428,7 +429,7 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
              found.distance_m, " m / ", found.rotation_rad * 180.0 / M_PI, " deg from its pose",
              found.success ? "" : ": rejected");
   if (!found.success || inliers < options.loop.min_inliers || !found.nearest_keyframe) return false;
-  if (!(found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad)) {
+  if (!fixesYaw(found)) {
     log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " with ", inliers,
               " inliers, but their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide to correct by");
     return false;
