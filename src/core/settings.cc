@@ -100,6 +100,7 @@ void visitLocalMapping(O& o, V& v) {
   v.real("LocalMapping.HuberChi2", o.huber_chi2, 0.01, 1000.0);
   v.real("LocalMapping.LambdaImu", o.lambda_imu, 0.0, 1e6);
   v.real("LocalMapping.MinPointBeta", o.min_point_beta, 0.0, 1.0);
+  v.boolean("LocalMapping.ScoresNeedEvidence", o.scores_need_evidence);
   v.boolean("LocalMapping.VisualVarianceEstimation", o.visual_variance_estimation);
   v.real("LocalMapping.RedundantRatio", o.redundant_ratio, 0.5, 1.0);
 }
@@ -159,6 +160,7 @@ void visitImuInit(O& o, V& v) {
   v.integer("ImuInit.RefineIterations", o.refine_iterations, 1, 1000);
   v.integer("ImuInit.RefineMaxKeyFrames", o.refine_max_keyframes, 3, 10000);
   v.real("ImuInit.RefineInterval", o.refine_interval_s, 0.0, 100.0);
+  v.real("ImuInit.MinStaticRatio", o.min_static_ratio, 0.0, 1.0);
   v.boolean("ImuInit.LooseEarlyBias", o.loose_early_bias);
 }
 

@@ -31,6 +31,14 @@ ImuChain imuChainEndingAt(const map::Map& map, const std::shared_ptr<map::KeyFra
   return chain;
 }
 
+ImuChain endAtStaticView(ImuChain chain, double min_static_ratio) {
+  while (!chain.keyframes.empty() && chain.keyframes.back()->staticAreaRatio() < min_static_ratio) {
+    chain.keyframes.pop_back();
+    if (!chain.pims.empty()) chain.pims.pop_back();
+  }
+  return chain;
+}
+
 std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const ImuInitOptions& options,
                                                     const imu::ImuBias& bias_init) {
   LTLO_ASSERT(chain.keyframes.size() >= 3 && chain.pims.size() + 1 == chain.keyframes.size(),

@@ -29,6 +29,12 @@ struct ImuChain {
 /// preintegration and the keyframe is live.
 ImuChain imuChainEndingAt(const map::Map& map, const std::shared_ptr<map::KeyFrame>& newest);
 
+/// `chain` cut after its newest keyframe whose static share of the view with depth
+/// (KeyFrame::staticAreaRatio) is at least `min_static_ratio` (ImuInit.MinStaticRatio): while an
+/// occluder fills the view, vision fixes the keyframe poses too loosely for gravity and the biases.
+/// Empty when no keyframe qualifies.
+ImuChain endAtStaticView(ImuChain chain, double min_static_ratio);
+
 struct ImuInitEstimate {
   Vec3 g_w = Vec3::Zero();
   imu::ImuBias bias;

@@ -94,6 +94,7 @@ struct LocalMapper::Impl {
   int sequence = 0;
   double first_imu_init_t_s = 0.0;
   double last_imu_estimate_t_s = 0.0;  ///< keyframe time of the last (re)estimate
+  double last_imu_chain_end_t_s = -1.0;  ///< newest keyframe the last applied estimate used
   std::size_t imu_refinements = 0;  ///< refinements done (index into imu_refinement_delays_s)
 };
 
@@ -184,6 +185,7 @@ void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<m
   ba.huber_chi2 = options.local_mapping.huber_chi2;
   ba.robust = options.local_mapping.robust_beta;
   ba.alternations = options.local_mapping.alternations;
+  ba.evidence_only = options.local_mapping.scores_need_evidence;
   ba.scores.lambda_d = options.local_mapping.lambda_d;
   ba.scores.lambda_s = options.segmentation.lambda_s;
   ba.scores.lambda_p = options.segmentation.lambda_p;
@@ -229,11 +231,16 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
   } else {
     return false;
   }
-  const ImuChain chain = imuChainEndingAt(map, kf);
+  // The estimate ends at the newest keyframe whose view is mostly static (on ltlo_s3 the window
+  // that took in the second a box covered 40-90 % of the view moved gravity from 0.13-0.25 to
+  // 0.40-0.50 deg off, which then integrated over the occlusion's dead reckoning).
+  const ImuChain chain = endAtStaticView(imuChainEndingAt(map, kf), options.imu_init.min_static_ratio);
   if (static_cast<int>(chain.keyframes.size()) < std::max(3, options.imu_init.min_keyframes) ||
       chain.span_s() < options.imu_init.min_time_s) {
     return false;
   }
+  // Nothing new since the last estimate (the view has been occluded since): wait.
+  if (state.initialised && chain.keyframes.back()->t_s() <= last_imu_chain_end_t_s) return false;
   const bool refinement = state.initialised && options.imu_init.visual_inertial_refinement;
   std::optional<ScopedTimer> timer;
   if (timing != nullptr) timer.emplace(*timing, refinement ? "mapping.imu_refine" : "mapping.imu_init");
@@ -263,6 +270,7 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
     ++imu_refinements;
   }
   last_imu_estimate_t_s = kf->t_s();
+  last_imu_chain_end_t_s = chain.keyframes.back()->t_s();
   publishImu(*estimate, what);
   return true;
 }

@@ -425,6 +425,14 @@ void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowB
   // Gamma, B for fixed states and points.
   std::vector<double> r_sq;
   std::vector<bool> in_front;
+  const std::vector<bool> fixed_by_layout = [&] {
+    std::vector<bool> fixed(layout.problem.clusters.size());
+    for (std::size_t c = 0; c < fixed.size(); ++c) fixed[c] = layout.problem.clusters[c].fixed;
+    return fixed;
+  }();
+  std::vector<int> window_observations(window.points.size(), 0);
+  for (const ObservationRef& ref : window.refs) ++window_observations[ref.point];
+  std::vector<bool> cluster_evidence;
   auto score_step = [&] {
     graph.residuals(&r_sq, &in_front);
     for (std::size_t o = 0; o < r_sq.size(); ++o) {
@@ -432,7 +440,30 @@ void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowB
       if (s >= 0) layout.problem.observations[static_cast<std::size_t>(s)].r_sq = in_front[o] ? r_sq[o] : kBehindCameraRsq;
     }
     layout.problem.depth_samples = depthSamples(window, layout, graph);
+    if (options.evidence_only) {
+      // The window's evidence on a cluster is Eq. 56's depth samples and the reprojection residuals
+      // of points seen from two or more of its keyframes. A cluster without either (typically
+      // revealed behind an occluder, its points made from this keyframe's depth) keeps the score
+      // tracking gave it: Eq. 54's smoothness alone would pull it halfway to a dynamic neighbour
+      // and Eq. 57 would then delete every point it holds.
+      cluster_evidence.assign(layout.problem.clusters.size(), false);
+      for (const DepthSample& sample : layout.problem.depth_samples) cluster_evidence[static_cast<std::size_t>(sample.cluster)] = true;
+      for (const ScoreObservation& o : layout.problem.observations) {
+        if (window_observations[static_cast<std::size_t>(o.point)] >= 2) cluster_evidence[static_cast<std::size_t>(o.cluster)] = true;
+      }
+      for (std::size_t c = 0; c < cluster_evidence.size(); ++c) {
+        layout.problem.clusters[c].fixed = fixed_by_layout[c] || !cluster_evidence[c];
+      }
+    }
+    std::vector<double> beta_before = scores.beta;
     scores = solveStaticScores(layout.problem, options.scores, std::move(scores), &stats.c_hat);
+    if (options.evidence_only) {
+      // Likewise a point seen once, from a cluster without evidence, keeps its beta.
+      for (const ScoreObservation& o : layout.problem.observations) {
+        const auto m = static_cast<std::size_t>(o.point);
+        if (window_observations[m] < 2 && !cluster_evidence[static_cast<std::size_t>(o.cluster)]) scores.beta[m] = beta_before[m];
+      }
+    }
     ++stats.score_steps;
   };
   // The scores first, at the states tracking left: a dynamic object's depth disagreement with the

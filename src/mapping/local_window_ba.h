@@ -47,6 +47,10 @@ struct WindowBaOptions {
   /// The robust VIBA above (Mapping.RobustBeta); false: the plain VIBA.
   bool robust = true;
   int alternations = 3;          ///< robust: state <-> score rounds
+  /// Robust: a cluster changes its score only on the window's evidence (Eq. 56 depth samples, or
+  /// residuals of points seen twice or more), and a point seen once in a cluster without any keeps
+  /// its beta (LocalMapping.ScoresNeedEvidence).
+  bool evidence_only = true;
   StaticScoreOptions scores;     ///< robust: the closed forms' weights
   const std::atomic<bool>* stop_flag = nullptr;
 };

@@ -1,12 +1,15 @@
 // Map maintenance of local mapping on generated keyframes (no images, fixed seeds): duplicate
 // fusion by projection (links, merges, descriptor and static-score gates) and keyframe culling
-// (redundancy, origin, the IMU time-span rule).
+// (redundancy, origin, the IMU time-span rule); the IMU chain's end at the newest mostly-static view.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
+#include "../../src/mapping/imu_initializer.h"
 #include "../../src/mapping/map_culling.h"
 #include "../../src/mapping/point_fusion.h"
+#include "ltlo/imu/preintegration.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
 
@@ -204,6 +207,42 @@ TEST(RecentPointCulling, ErasesPointsNotConfirmedByLaterKeyFrames) {
   EXPECT_EQ(culler.cull(atlas, 4), 0);  // mature: no longer checked
   EXPECT_EQ(culler.size(), 0u);
   EXPECT_EQ(map.numMapPoints(), 1u);
+}
+
+/// Two depth clusters (static, dynamic) and the no-depth cluster, `static_share` of the pixels
+/// with depth in the static one.
+map::ClusterSegmentation staticShare(double static_share) {
+  map::ClusterSegmentation seg;
+  seg.labels = cv::Mat(10, 10, CV_8U, cv::Scalar(2));
+  seg.gamma = {1.0, 0.0, 1.0};
+  const int static_pixels = static_cast<int>(std::lround(100.0 * static_share));
+  seg.pixel_counts = {static_pixels, 100 - static_pixels, 0};
+  return seg;
+}
+
+TEST(ImuChain, EndsAtTheNewestKeyFrameWithAMostlyStaticView) {
+  // A box covers more and more of the view, leaves, and covers it again (ImuInit.MinStaticRatio).
+  const std::vector<double> static_share = {1.0, 0.9, 0.6, 0.3, 0.7, 0.2, 0.1};
+  std::mt19937 rng(5);
+  map::Map map;
+  ImuChain chain;
+  for (std::size_t k = 0; k < static_share.size(); ++k) {
+    map::Frame frame = frameSeeing(0.5 * static_cast<double>(k), SE3(), {}, {});
+    frame.setSegmentation(staticShare(static_share[k]), 0.5);
+    chain.keyframes.push_back(map.createKeyFrame(frame));
+    if (k > 0) chain.pims.push_back(std::make_shared<const imu::Preintegrated>(imu::ImuBias(), imu::ImuNoise()));
+  }
+  const ImuChain half = endAtStaticView(chain, 0.5);
+  ASSERT_EQ(half.keyframes.size(), 5u);  // up to the 0.7 view; the 0.3 inside stays
+  EXPECT_EQ(half.keyframes.back(), chain.keyframes[4]);
+  EXPECT_EQ(half.pims.size(), 4u);
+  EXPECT_EQ(half.pims.back(), chain.pims[3]);
+  EXPECT_DOUBLE_EQ(half.span_s(), 2.0);
+  EXPECT_EQ(endAtStaticView(chain, 0.0).keyframes.size(), chain.keyframes.size());  // off
+  const ImuChain strict = endAtStaticView(chain, 0.95);
+  EXPECT_EQ(strict.keyframes.size(), 1u);
+  EXPECT_TRUE(strict.pims.empty());
+  EXPECT_TRUE(endAtStaticView(chain, 1.01).keyframes.empty());
 }
 
 }  // namespace

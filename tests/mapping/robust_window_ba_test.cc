@@ -100,7 +100,7 @@ int clusterOfPixel(const SE3& T_w_c, int k, double u, double v) {
   return 2 + (v >= 120.0 ? 2 : 0) + (u >= 160.0 ? 1 : 0);
 }
 
-map::ClusterSegmentation segmentationOf(const SE3& T_w_c, int k) {
+map::ClusterSegmentation segmentationOf(const SE3& T_w_c, int k, bool floor_revealed) {
   map::ClusterSegmentation seg;
   seg.scale = kLabelScale;
   seg.labels.create(240 / kLabelScale, 320 / kLabelScale, CV_8U);
@@ -115,6 +115,9 @@ map::ClusterSegmentation segmentationOf(const SE3& T_w_c, int k) {
   }
   seg.neighbours = {{2, 3}, {2, 4}, {3, 5}, {4, 5}};
   if (k >= kFirstBoxKeyFrame) seg.neighbours.insert(seg.neighbours.end(), {{0, 1}, {0, 4}});  // box on the floor
+  // The floor quadrant revealed in the last keyframe touches only the box (in space), as a strip of
+  // floor beside a box that fills the view.
+  if (floor_revealed) seg.neighbours = {{0, 1}, {0, 4}, {1, 4}, {2, 3}, {3, 5}};
   seg.depth_scale = kDepthScale;
   seg.depth_mm.create(240 / kDepthScale, 320 / kDepthScale, CV_16U);
   for (int r = 0; r < seg.depth_mm.rows; ++r) {
@@ -134,11 +137,14 @@ struct Window {
   std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
   std::vector<std::shared_ptr<map::MapPoint>> static_points;
   std::vector<std::shared_ptr<map::MapPoint>> box_points;
+  std::vector<std::shared_ptr<map::MapPoint>> revealed_points;  ///< made by the last keyframe alone (floor_revealed)
 };
 
 /// The map of the window, as tracking would have left it: poses from kf2 on dragged by the box
 /// (3.5 cm, 0.6 deg), points created from their first keyframe's measured depth at that pose.
-std::unique_ptr<Window> makeWindow() {
+/// With floor_revealed, the background the last keyframe sees in its lower-left quadrant (cluster 4)
+/// was hidden from every earlier keyframe: its points are made from the last keyframe's depth alone.
+std::unique_ptr<Window> makeWindow(bool floor_revealed = false) {
   auto window = std::make_unique<Window>();
   std::mt19937 rng(41);
   window->scene = makeScene(rng);
@@ -149,6 +155,17 @@ std::unique_ptr<Window> makeWindow() {
   const SE3 T_b_c = bodyToCamera();
   std::vector<int> static_index(scene.static_w.size(), -1);  // map point index per static point
   window->box_points.resize(scene.box_local.size());
+  std::vector<bool> hidden_before_last(scene.static_w.size(), false);
+  if (floor_revealed) {
+    const SE3 T_w_c_last = scene.T_w_b_true.back() * T_b_c;
+    for (std::size_t j = 0; j < scene.static_w.size(); ++j) {
+      const Vec3 p_c = T_w_c_last.inverse() * scene.static_w[j];
+      if (p_c.z() < 0.5 || boxAt(kNumKeyFrames - 1).contains(p_c)) continue;
+      const Vec2 uv = camera().project(p_c);
+      hidden_before_last[j] = camera().isInImage(uv) &&
+                              clusterOfPixel(T_w_c_last, kNumKeyFrames - 1, uv.x(), uv.y()) == 4;
+    }
+  }
   for (int k = 0; k < kNumKeyFrames; ++k) {
     const SE3 T_w_c_true = scene.T_w_b_true[static_cast<std::size_t>(k)] * T_b_c;
     // Keypoints: visible static points, then (kf2 on) the box's points.
@@ -169,6 +186,7 @@ std::unique_ptr<Window> makeWindow() {
     for (std::size_t j = 0; j < scene.static_w.size(); ++j) {
       const Vec3 p_c = T_w_c_true.inverse() * scene.static_w[j];
       if (p_c.z() < 0.5 || (k >= kFirstBoxKeyFrame && boxAt(k).contains(p_c))) continue;
+      if (hidden_before_last[j] && k < kNumKeyFrames - 1) continue;
       add_keypoint(p_c, false, static_cast<int>(j));
     }
     if (k >= kFirstBoxKeyFrame) {
@@ -179,7 +197,7 @@ std::unique_ptr<Window> makeWindow() {
       }
     }
     map::Frame frame(1.0 + kSpacing_s * k, camera(), T_b_c, std::move(features), std::move(depths), scaleFactors());
-    frame.setSegmentation(segmentationOf(T_w_c_true, k), 0.5);
+    frame.setSegmentation(segmentationOf(T_w_c_true, k, floor_revealed && k == kNumKeyFrames - 1), 0.5);
     SE3 T_w_b = scene.T_w_b_true[static_cast<std::size_t>(k)];
     if (k >= kFirstBoxKeyFrame) {
       T_w_b = SE3(T_w_b.quaternion() * so3ExpQuat(Vec3(0.0, 0.0, 0.01)), T_w_b.translation() + Vec3(0.02, -0.02, 0.02));
@@ -209,6 +227,7 @@ std::unique_ptr<Window> makeWindow() {
         } else {
           static_index[static_cast<std::size_t>(index)] = static_cast<int>(window->static_points.size());
           window->static_points.push_back(point);
+          if (hidden_before_last[static_cast<std::size_t>(index)]) window->revealed_points.push_back(point);
         }
       }
       EXPECT_TRUE(window->map.addObservation(*kf, i, *point)) << "kf " << k << " keypoint " << i;
@@ -224,7 +243,7 @@ std::unique_ptr<Window> makeWindow() {
   return window;
 }
 
-WindowBaOptions windowOptions(bool robust) {
+WindowBaOptions windowOptions(bool robust, bool evidence_only = true) {
   WindowBaOptions options;
   options.window_size = kNumKeyFrames - 1;
   options.iterations = 10;
@@ -233,6 +252,7 @@ WindowBaOptions windowOptions(bool robust) {
   options.g_w = imu::gravityWorld();
   options.robust = robust;
   options.alternations = 3;
+  options.evidence_only = evidence_only;
   options.scores.lambda_d = 50.0;
   options.scores.lambda_s = 100.0;
   options.scores.lambda_p = 2.0;
@@ -293,6 +313,45 @@ TEST(RobustWindowBa, PlainVibaStaysDraggedByTheBox) {
   int box_left = 0;
   for (const auto& point : window->box_points) box_left += (point && !point->isBad()) ? 1 : 0;
   EXPECT_GT(box_left, 0);
+}
+
+int survivors(const std::vector<std::shared_ptr<map::MapPoint>>& points) {
+  int alive = 0;
+  for (const auto& point : points) alive += !point->isBad() && point->beta() >= 0.5 ? 1 : 0;
+  return alive;
+}
+
+TEST(RobustWindowBa, ARevealedClusterWithoutEvidenceKeepsItsScoreAndItsPoints) {
+  // The last keyframe sees floor that the box hid from every earlier one (as a keyframe placed at
+  // the IMU's prediction after an occlusion does): its points are made from that keyframe's depth
+  // alone, no static map point projects there and in space it touches only the box (only the box's
+  // old points, in front of it, give Eq. 56 samples). Nothing in the window says the floor moves,
+  // so it stays static and keeps its points.
+  const std::unique_ptr<Window> window = makeWindow(true);
+  ASSERT_GE(window->revealed_points.size(), 15u);
+  for (const auto& point : window->revealed_points) ASSERT_EQ(point->numObservations(), 1);
+  const WindowBaStats stats =
+      localWindowBundleAdjust(window->map, window->keyframes.back(), windowOptions(true), levelSigma2());
+  const std::vector<double> gamma = window->keyframes.back()->gamma();
+  EXPECT_GT(gamma[4], 0.75);
+  EXPECT_LT(gamma[0], 0.5);
+  EXPECT_LT(gamma[1], 0.5);
+  EXPECT_GE(survivors(window->revealed_points), static_cast<int>(window->revealed_points.size()) * 9 / 10);
+  // The box is still found and the static poses still recovered.
+  int box_left = 0;
+  for (const auto& point : window->box_points) box_left += (point && !point->isBad()) ? 1 : 0;
+  EXPECT_EQ(box_left, 0);
+  EXPECT_LT(worstTranslationError(*window), 0.005);
+  EXPECT_GE(stats.dynamic_points_erased, static_cast<int>(window->box_points.size()));
+}
+
+TEST(RobustWindowBa, WithoutTheEvidenceRuleTheBoxDragsARevealedClusterAndDeletesItsPoints) {
+  // LocalMapping.ScoresNeedEvidence = 0 on the same window: Eq. 54's smoothness with the box pulls
+  // the floor's score towards the box's, and Eq. 57 then deletes the floor's points.
+  const std::unique_ptr<Window> window = makeWindow(true);
+  localWindowBundleAdjust(window->map, window->keyframes.back(), windowOptions(true, false), levelSigma2());
+  EXPECT_LT(window->keyframes.back()->gamma()[4], 0.75);
+  EXPECT_LT(survivors(window->revealed_points), static_cast<int>(window->revealed_points.size()) / 2);
 }
 
 }  // namespace

@@ -220,6 +220,12 @@ struct LocalMappingOptions {
   double lambda_imu = 1.0;
   /// map points whose beta ends below are deleted as dynamic (LocalMapping.MinPointBeta, [0, 1])
   double min_point_beta = 0.5;
+  /// Robust VIBA: a cluster's gamma moves only on the window's evidence about it (Eq. 56 depth
+  /// samples, or reprojection residuals of points seen from two or more keyframes), and a point seen
+  /// once, in a cluster without such evidence, keeps its beta. Without it, Eq. 54's smoothness pulls
+  /// a cluster nothing observes (revealed behind an occluder) towards its dynamic neighbours and
+  /// Eq. 57 deletes its points (LocalMapping.ScoresNeedEvidence, 0/1)
+  bool scores_need_evidence = true;
   /// The visual-inertial BAs of the IMU refinement and of loop closing (full BA, welding BA) weight
   /// the reprojection edges by the camera noise estimated from their residuals (the variance factor
   /// of optim::visualVarianceFactor) instead of the 1 px-per-pyramid-level model, so camera and IMU
@@ -355,6 +361,11 @@ struct ImuInitOptions {
   /// and turns, so a few refinements suffice. s;
   /// 0: only the scheduled refinements (ImuInit.RefineInterval, [0, 100])
   double refine_interval_s = 1.0;
+  /// An initialisation or refinement ends at the newest keyframe whose static share of the view
+  /// with depth (KeyFrame::staticAreaRatio) is at least this: while an occluder fills the view,
+  /// vision fixes the keyframe poses too loosely for gravity and the biases. 0: every keyframe
+  /// (ImuInit.MinStaticRatio, [0, 1])
+  double min_static_ratio = 0.5;
   /// Until the first scheduled refinement (+5 s), local BA holds the accelerometer bias of its held
   /// keyframes only to max(Tracking.AccBiasSigma, the estimate's acceleration sigma) instead of
   /// exactly (optim::LocalBaProblem::held_acc_bias_sigma_m_s2): an initialisation from the first
