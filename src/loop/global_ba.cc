@@ -17,9 +17,7 @@ GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const Globa
     if (!kf->isBad()) selection.optimised.push_back(kf);
   }
   if (selection.optimised.size() < 2) return solution;
-  for (const map::KeyFrameId id : map.originKeyFrames()) {
-    if (std::shared_ptr<map::KeyFrame> origin = map.keyFrame(id)) selection.gauge.push_back(origin);
-  }
+  if (std::shared_ptr<map::KeyFrame> gauge = map.keyFrame(map.gaugeKeyFrame())) selection.gauge.push_back(gauge);
   MapBaOptions build;
   const map::KeyFrame& first = *selection.optimised.front();
   build.bf_px_m = first.camera().K()(0, 0) * options.virtual_baseline_m;

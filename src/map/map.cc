@@ -80,6 +80,10 @@ std::vector<KeyFrameId> Map::originKeyFrames() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return origins_;
 }
+KeyFrameId Map::gaugeKeyFrame() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return origins_.empty() ? KeyFrameId() : origins_.front();
+}
 bool Map::isOrigin(KeyFrameId id) const {
   std::lock_guard<std::mutex> lock(mutex_);
   return std::find(origins_.begin(), origins_.end(), id) != origins_.end();

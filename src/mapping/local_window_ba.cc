@@ -123,9 +123,9 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
       if (usable(other)) add_keyframe(other, false);
     }
   }
-  const std::vector<map::KeyFrameId> origins = map.originKeyFrames();
+  const map::KeyFrameId gauge = map.gaugeKeyFrame();
   for (WindowKeyFrame& entry : keyframes) {
-    if (std::find(origins.begin(), origins.end(), entry.kf->id()) != origins.end()) entry.fixed = true;
+    if (entry.kf->id() == gauge) entry.fixed = true;
   }
   const std::size_t window_end = keyframes.size();
 

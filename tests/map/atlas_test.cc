@@ -42,7 +42,8 @@ TEST(Atlas, MergeTransformsEveryPoseAndPointExactly) {
   Atlas atlas(16);
   Map& target = atlas.activeMap();
   test::SceneBuilder target_scene(target, 34);
-  for (int k = 0; k < 3; ++k) target_scene.addKeyFrame(randomPose(rng));
+  const std::shared_ptr<KeyFrame> target_first = target_scene.addKeyFrame(randomPose(rng));
+  for (int k = 1; k < 3; ++k) target_scene.addKeyFrame(randomPose(rng));
   Map& source = atlas.createNewMap();
   test::SceneBuilder source_scene(source, 35);
   std::vector<std::shared_ptr<KeyFrame>> source_kfs;
@@ -74,7 +75,10 @@ TEST(Atlas, MergeTransformsEveryPoseAndPointExactly) {
   EXPECT_EQ(target.numKeyFrames(), 7u);
   EXPECT_EQ(target.numMapPoints(), 30u);
   EXPECT_EQ(target.version(), target_version + 1);
+  // Both first keyframes stay roots, but only the target's own holds the BAs' gauge: the source's
+  // was placed by the merge transform, which the BAs must be free to correct.
   EXPECT_EQ(target.originKeyFrames().size(), 2u);
+  EXPECT_EQ(target.gaugeKeyFrame(), target_first->id());
   const Mat3 R = T_target_source.rotationMatrix();
   for (std::size_t k = 0; k < source_kfs.size(); ++k) {
     const std::shared_ptr<KeyFrame> kf = target.keyFrame(source_kfs[k]->id());

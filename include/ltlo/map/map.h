@@ -58,7 +58,13 @@ class Map {
   std::vector<std::shared_ptr<MapPoint>> mapPoints() const;
   std::size_t numKeyFrames() const;
   std::size_t numMapPoints() const;
+  /// The first keyframe of this map and of every map merged into it: never culled, roots of the
+  /// spanning tree.
   std::vector<KeyFrameId> originKeyFrames() const;
+  /// The keyframe the map's BAs hold as their gauge: the map's own first keyframe (invalid before
+  /// it has one). The origins of maps merged into it are not held: a merge places them by the
+  /// seam's alignment, which the BAs must be free to correct.
+  KeyFrameId gaugeKeyFrame() const;
 
   /// Links keypoint `keypoint_index` of `kf` to `point` on both ends. Returns false (and links
   /// nothing) when either is bad, the keypoint holds another point, or `point` is already seen at
