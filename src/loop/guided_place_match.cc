@@ -304,6 +304,66 @@ WorldOffsetVote voteWorldOffset(const View& view, const map::Map& map, const SE3
   return vote;
 }
 
+template <class View>
+GuidedPlaceMatch translationWithHeldRotation(const View& view, const map::Map& map, const GuidedPlaceMatch& found,
+                                             const SE3& T_w_c_pred, int min_inliers, double min_inlier_m) {
+  GuidedPlaceMatch result = found;
+  result.success = false;
+  result.matches.clear();
+  const Mat3 R_w_c = T_w_c_pred.rotationMatrix();
+  // Per match: t = p_w - R_w_c p_c, with the standard deviation of its depth on both sides.
+  struct Pair {
+    std::pair<int, map::MapPointId> match;
+    Vec3 t_w;
+    double sigma_m;
+  };
+  std::vector<Pair> pairs;
+  for (const auto& match : found.matches) {
+    const auto point = map.mapPoint(match.second);
+    if (!point || point->isBad()) continue;
+    const double depth_m = view.depth_m(match.first);
+    if (!(depth_m > 0.0)) continue;
+    pairs.push_back({match, point->p_w() - R_w_c * view.p_c(match.first), std::sqrt(2.0) * depthSigma_m(depth_m)});
+  }
+  if (static_cast<int>(pairs.size()) < min_inliers) return result;
+  Vec3 t_w;
+  for (int axis = 0; axis < 3; ++axis) {
+    std::vector<double> values;
+    for (const Pair& p : pairs) values.push_back(p.t_w[axis]);
+    std::nth_element(values.begin(), values.begin() + static_cast<long>(values.size() / 2), values.end());
+    t_w[axis] = values[values.size() / 2];
+  }
+  // Twice: the inliers around the current estimate, then their weighted mean.
+  std::vector<bool> inlier(pairs.size(), false);
+  for (int round = 0; round < 2; ++round) {
+    Vec3 sum = Vec3::Zero();
+    double weight = 0.0;
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+      const double gate_m = std::max(min_inlier_m, 3.0 * pairs[k].sigma_m);
+      inlier[k] = (pairs[k].t_w - t_w).norm() <= gate_m;
+      if (!inlier[k]) continue;
+      const double w = 1.0 / (pairs[k].sigma_m * pairs[k].sigma_m);
+      sum += w * pairs[k].t_w;
+      weight += w;
+    }
+    if (weight <= 0.0) return result;
+    t_w = sum / weight;
+  }
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    if (inlier[k]) result.matches.push_back(pairs[k].match);
+  }
+  if (static_cast<int>(result.matches.size()) < min_inliers) return result;
+  result.T_w_c = SE3(T_w_c_pred.quaternion(), t_w);
+  result.distance_m = (t_w - T_w_c_pred.translation()).norm();
+  result.rotation_rad = 0.0;
+  result.success = true;
+  return result;
+}
+
+template GuidedPlaceMatch translationWithHeldRotation<map::KeyFrame>(const map::KeyFrame&, const map::Map&,
+                                                                     const GuidedPlaceMatch&, const SE3&, int, double);
+template GuidedPlaceMatch translationWithHeldRotation<map::Frame>(const map::Frame&, const map::Map&,
+                                                                  const GuidedPlaceMatch&, const SE3&, int, double);
 template WorldOffsetVote voteWorldOffset<map::KeyFrame>(const map::KeyFrame&, const map::Map&, const SE3&,
                                                        const GuidedPlaceMatchOptions&, int, double);
 template WorldOffsetVote voteWorldOffset<map::Frame>(const map::Frame&, const map::Map&, const SE3&,

@@ -7,6 +7,7 @@
 #include <exception>
 #include <mutex>
 #include <optional>
+#include <string>
 #include <thread>
 
 #include "bow/bow_vector.h"
@@ -430,9 +431,24 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
              found.success ? "" : ": rejected");
   if (!found.success || inliers < options.loop.min_inliers || !found.nearest_keyframe) return false;
   if (!fixesYaw(found)) {
+    // The matches cannot fix the yaw, but the dead reckoning that placed the map may know it well
+    // enough (gyro drift over the stretch): then they fix the translation under the held rotation.
+    GuidedPlaceMatch held;
+    if (sigma_rotation_rad <= kMaxCorrectionYawSigma_rad) {
+      held = translationWithHeldRotation(*kf, target, found, T_w_c, options.loop.min_inliers);
+    }
+    const bool within_gate = held.success && held.distance_m <= search.gate_sigmas * sigma_position_m;
     log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " with ", inliers,
-              " inliers, but their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide to correct by");
-    return false;
+              " inliers, but their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide to correct by",
+              within_gate ? "; the prediction's rotation (sigma " : "",
+              within_gate ? std::to_string(sigma_rotation_rad * 180.0 / M_PI) : "",
+              within_gate ? " deg) held, translation from " + std::to_string(held.matches.size()) + " matches" : "");
+    if (!within_gate) return false;
+    LoopClosure place = closureOf(*kf, held);
+    log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", held.distance_m,
+              " m from its pose (sigma ", sigma_position_m, " m), ", held.matches.size(), " inliers near ", place.loop,
+              ", rotation held");
+    return merge(kf, held.nearest_keyframe, std::move(place));
   }
   LoopClosure place = closureOf(*kf, found);
   log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", found.distance_m,

@@ -81,6 +81,17 @@ template <class View>
 GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const SE3& T_w_c_pred,
                                   const GuidedPlaceMatchOptions& options);
 
+/// `found` (a success) solved again with the rotation held at T_w_c_pred's: the translation is the
+/// mean of its matches' 3-D differences (map point minus the view's point turned into the world,
+/// depth on both sides, weighted by the depth noise), after a median start, keeping the matches
+/// within 3 of their standard deviations (at least `min_inlier_m`). For a view whose matches cannot
+/// fix its yaw (a narrow fan of matches beside an occluder) while the prediction's rotation is
+/// better known (an IMU-carried pose: gyro drift, roll and pitch from gravity). success is false
+/// below min_inliers matches; yaw_sigma_rad is then the prediction's own, not the matches'.
+template <class View>
+GuidedPlaceMatch translationWithHeldRotation(const View& view, const map::Map& map, const GuidedPlaceMatch& found,
+                                             const SE3& T_w_c_pred, int min_inliers, double min_inlier_m = 0.03);
+
 /// A translation of the view's world frame against the map's, found by voting.
 struct WorldOffsetVote {
   bool found = false;
