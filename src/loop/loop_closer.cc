@@ -7,7 +7,6 @@
 #include <exception>
 #include <mutex>
 #include <optional>
-#include <string>
 #include <thread>
 
 #include "bow/bow_vector.h"
@@ -437,17 +436,16 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
     if (sigma_rotation_rad <= kMaxCorrectionYawSigma_rad) {
       held = translationWithHeldRotation(*kf, target, found, T_w_c, options.loop.min_inliers);
     }
-    const bool within_gate = held.success && held.distance_m <= search.gate_sigmas * sigma_position_m;
-    log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " with ", inliers,
-              " inliers, but their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide to correct by",
-              within_gate ? "; the prediction's rotation (sigma " : "",
-              within_gate ? std::to_string(sigma_rotation_rad * 180.0 / M_PI) : "",
-              within_gate ? " deg) held, translation from " + std::to_string(held.matches.size()) + " matches" : "");
-    if (!within_gate) return false;
+    if (!held.success || held.distance_m > search.gate_sigmas * sigma_position_m) {
+      log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " with ", inliers,
+                " inliers, but their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide to correct by");
+      return false;
+    }
     LoopClosure place = closureOf(*kf, held);
     log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", held.distance_m,
               " m from its pose (sigma ", sigma_position_m, " m), ", held.matches.size(), " inliers near ", place.loop,
-              ", rotation held");
+              "; their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide, the prediction's rotation (sigma ",
+              sigma_rotation_rad * 180.0 / M_PI, " deg) held");
     return merge(kf, held.nearest_keyframe, std::move(place));
   }
   LoopClosure place = closureOf(*kf, found);

@@ -455,7 +455,7 @@ void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowB
         layout.problem.clusters[c].fixed = fixed_by_layout[c] || !cluster_evidence[c];
       }
     }
-    std::vector<double> beta_before = scores.beta;
+    const std::vector<double> beta_before = options.evidence_only ? scores.beta : std::vector<double>();
     scores = solveStaticScores(layout.problem, options.scores, std::move(scores), &stats.c_hat);
     if (options.evidence_only) {
       // Likewise a point seen once, from a cluster without evidence, keeps its beta.
