@@ -153,6 +153,10 @@ struct LoopCloser::Impl {
   /// Forgets the consistency state (a correction or a map change).
   void resetDetection();
   void recordEvent(const LoopEvent& event);
+  /// Arms the refining full BA of `map` after a correction (Loop.RefineKeyFrames).
+  void scheduleRefinement(const map::Map& map);
+  /// Runs the armed refining full BA once Loop.RefineKeyFrames keyframes of its map followed.
+  void refineAfterCorrection(const std::shared_ptr<map::KeyFrame>& kf);
 
   // ---- full BA ----
   /// The IMU's gravity once initialised (nullopt before).
@@ -179,6 +183,9 @@ struct LoopCloser::Impl {
   ConsistencyChecker merge_consistency;
   map::MapId detection_map;  ///< map of the last query (the consistency state belongs to it)
   int keyframes_since_correction = kKeyFramesBetweenLoops;
+  /// The map whose last correction still waits for its refining full BA (Loop.RefineKeyFrames).
+  map::MapId refine_map;
+  bool refine_pending = false;
 
   // Full BA: the thread object is touched by the loop thread (start/abort) and run()/destructor.
   std::thread ba_thread;
@@ -208,6 +215,22 @@ void LoopCloser::Impl::recordEvent(const LoopEvent& event) {
   }
 }
 
+void LoopCloser::Impl::scheduleRefinement(const map::Map& map) {
+  refine_pending = options.run_global_ba && options.loop.refine_keyframes > 0;
+  refine_map = map.id();
+}
+
+void LoopCloser::Impl::refineAfterCorrection(const std::shared_ptr<map::KeyFrame>& kf) {
+  if (!refine_pending || keyframes_since_correction < options.loop.refine_keyframes || kf->isBad()) return;
+  refine_pending = false;
+  map::Map* map = atlas.map(kf->mapId());
+  // A map merged away since: its successor holds the correction's keyframes.
+  if (map == nullptr || atlas.resolve(refine_map) != map->id()) return;
+  log::info("full BA of ", map->id(), " again at ", kf->id(), ", ", keyframes_since_correction,
+            " keyframes after the last correction");
+  startGlobalBa(*map, gravity());
+}
+
 void LoopCloser::Impl::process(const std::shared_ptr<map::KeyFrame>& kf) {
   if (!kf || kf->isBad()) return;
   std::optional<ScopedTimer> timer;
@@ -225,6 +248,7 @@ void LoopCloser::Impl::process(const std::shared_ptr<map::KeyFrame>& kf) {
     const bool rejoined = !closed && options.loop.rejoin && tryRejoin(kf, *map);
     if (!closed && !rejoined && kf->hasBow()) tryMerge(kf, *map);
   }
+  refineAfterCorrection(kf);
   // After the queries, so the keyframe does not find itself.
   if (kf->hasBow() && !kf->isBad()) atlas.keyFrameDatabase().add(kf);
 }
@@ -319,6 +343,7 @@ bool LoopCloser::Impl::correct(const std::shared_ptr<map::KeyFrame>& kf, const s
   keyframes_since_correction = 0;
   resetDetection();
   if (options.run_global_ba) startGlobalBa(map, correction_options.g_w);
+  scheduleRefinement(map);
   return true;
 }
 
@@ -495,7 +520,10 @@ bool LoopCloser::Impl::merge(const std::shared_ptr<map::KeyFrame>& kf, const std
   resetDetection();
   detection_map = merged->target;
   map::Map* target = atlas.map(merged->target);
-  if (options.run_global_ba && target != nullptr) startGlobalBa(*target, merge_options.g_w);
+  if (options.run_global_ba && target != nullptr) {
+    startGlobalBa(*target, merge_options.g_w);
+    scheduleRefinement(*target);
+  }
   return true;
 }
 

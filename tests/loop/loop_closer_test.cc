@@ -165,6 +165,7 @@ SE3 driftStep() { return SE3::exp((Vec6() << 0.002, 0.008, 0.002, 0.012, 0.004, 
 LoopCloserOptions closerOptions() {
   LoopCloserOptions options;
   options.loop.full_ba_iterations = 10;
+  options.loop.refine_keyframes = 0;  // one full BA per correction (RefinesTheLoopWith... turns it on)
   return options;
 }
 
@@ -548,6 +549,45 @@ TEST(LoopCloser, ThreadedRunMatchesTheSynchronousOne) {
   EXPECT_EQ(timing.stage("loop.keyframe").count, static_cast<std::size_t>(kLoopSteps));
   EXPECT_EQ(timing.stage("loop.correction").count, 1u);
   EXPECT_EQ(timing.stage("loop.global_ba").count, 1u);
+}
+
+// Loop.RefineKeyFrames: the full BA after the loop knows only the closing keyframe's matches; the
+// keyframes that follow keep tracking the old side's points, and the drift they accumulate meanwhile
+// is left in the map unless the full BA runs again with what they saw.
+TEST(LoopCloser, RefinesTheLoopWithTheKeyFramesThatFollowIt) {
+  constexpr int kSteps = kStepsPerLap + 14;
+  struct Outcome {
+    double seam_m = 0.0;
+    std::size_t full_bas = 0;
+    int loops = 0;
+    int pauses = 0, resumes = 0;
+  };
+  auto runWith = [](int refine_keyframes) {
+    map::Atlas atlas(world().vocabulary->numWords());
+    LoopCloserOptions options = closerOptions();
+    options.loop.refine_keyframes = refine_keyframes;
+    Outcome outcome;
+    TimingStats timing;
+    LoopCloser closer(atlas, options, MappingControl{[&] { ++outcome.pauses; }, [&] { ++outcome.resumes; }}, &timing);
+    SceneBuilder scene(atlas, driftStep());
+    for (int step = 0; step < kSteps; ++step) closer.processKeyFrame(scene.add(step));
+    outcome.seam_m = seamError_m(scene);
+    outcome.full_bas = timing.stage("loop.global_ba").count;
+    outcome.loops = closer.numLoops();
+    return outcome;
+  };
+  const Outcome once = runWith(0);
+  const Outcome refined = runWith(10);
+  std::printf("[ REFINE   ] seam error %.4f m with one full BA per loop -> %.4f m with the refining one "
+              "10 keyframes later (%zu -> %zu full BA runs, %d / %d loops)\n",
+              once.seam_m, refined.seam_m, once.full_bas, refined.full_bas, once.loops, refined.loops);
+  ASSERT_EQ(once.loops, 1);
+  ASSERT_EQ(refined.loops, 1);
+  EXPECT_EQ(once.full_bas, 1u);
+  EXPECT_EQ(refined.full_bas, 2u);
+  EXPECT_EQ(refined.pauses, refined.resumes);
+  EXPECT_EQ(refined.pauses, 3);  // the correction and two write-backs
+  EXPECT_LT(refined.seam_m, 0.25 * once.seam_m);
 }
 
 TEST(LoopCloser, ALaterLoopAbortsOrFollowsTheRunningFullBa) {

@@ -264,6 +264,10 @@ struct LoopOptions {
   bool proximity = true;
   /// standard deviation of that drift, m (Loop.ProximitySigma, [0.005, 5])
   double proximity_sigma_m = 0.10;
+  /// The full BA after a loop or merge sees only the matches of that one keyframe; the keyframes
+  /// that follow keep observing the old side. This many keyframes after a correction the full BA
+  /// runs once more, with that evidence (Loop.RefineKeyFrames; 0: off)
+  int refine_keyframes = 10;
 
   static LoopOptions load(const SettingsFile& file);
 };
