@@ -113,6 +113,7 @@ void visitLoop(O& o, V& v) {
   v.integer("Loop.MinInliers", o.min_inliers, 3, 10000);
   v.real("Loop.InlierThreshold", o.inlier_threshold_m, 0.001, 10.0);
   v.integer("Loop.FullBaIterations", o.full_ba_iterations, 1, 1000);
+  v.boolean("Loop.FullBaGravity", o.full_ba_gravity);
   v.boolean("Loop.Rejoin", o.rejoin);
   v.boolean("Loop.Proximity", o.proximity);
   v.integer("Loop.RefineKeyFrames", o.refine_keyframes, 0, 1000);

@@ -1,5 +1,7 @@
 #include "ltlo/loop/global_ba.h"
 
+#include <algorithm>
+#include <cmath>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -25,7 +27,9 @@ GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const Globa
   build.g_w = options.g_w;
   build.lambda_imu = options.lambda_imu;
   build.visual_variance_estimation = options.visual_variance_estimation;
-  const MapBaProblem built = buildMapBa(map, selection, build);
+  MapBaProblem built = buildMapBa(map, selection, build);
+  const bool estimate_gravity = options.estimate_gravity && options.g_w && !built.problem.inertial.empty();
+  built.problem.estimate_gravity = estimate_gravity;
   solution.keyframes = built.keyframes;
   solution.points = built.points;
   for (const optim::BaKeyFrame& v : built.problem.keyframes) solution.T_w_b_before.push_back(v.T_w_b);
@@ -48,6 +52,11 @@ GlobalBaSolution optimizeGlobalBundleAdjustment(const map::Map& map, const Globa
     solution.bias_after.push_back(v.bias);
   }
   for (const optim::BaPoint& p : solved.points) solution.p_w_after.push_back(p.p_w);
+  if (estimate_gravity && solved.g_w.allFinite()) {
+    solution.g_w_after = solved.g_w;
+    const double cosine = solved.g_w.normalized().dot(options.g_w->normalized());
+    result.gravity_change_deg = std::acos(std::clamp(cosine, -1.0, 1.0)) * 180.0 / M_PI;
+  }
   for (const bool inlier : solved.inliers) result.outliers += inlier ? 0 : 1;
   result.initial_chi2 = solved.initial_chi2;
   result.final_chi2 = solved.summary.final_chi2;
@@ -99,6 +108,11 @@ int applyGlobalBundleAdjustment(map::Map& map, const GlobalBaSolution& solution)
   log::info("global BA: ", result.keyframes, " keyframes, ", result.points, " points, ", result.observations,
             " observations, ", result.inertial_links, " inertial links, ", result.outliers, " outliers, chi2 ",
             result.initial_chi2, " -> ", result.final_chi2, "; ", propagated, " newer keyframes moved with their parents");
+  if (solution.g_w_after) {
+    const Vec3& g = *solution.g_w_after;
+    log::info("global BA: gravity (", g.x(), ", ", g.y(), ", ", g.z(), ") m/s^2, turned by ", result.gravity_change_deg,
+              " deg");
+  }
   return propagated;
 }
 

@@ -554,11 +554,15 @@ void LoopCloser::Impl::globalBa(map::Map& map, const std::optional<Vec3>& g_w) {
     ba_options.lambda_imu = options.lambda_imu;
     ba_options.visual_variance_estimation = options.visual_variance_estimation;
     ba_options.stop_flag = &ba_stop;
+    ba_options.estimate_gravity = options.loop.full_ba_gravity && mapping.set_gravity_w != nullptr;
     const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(map, ba_options);
     if (solution.valid && !ba_stop.load()) {
       // Local BA writes the same poses and points: it holds while the result is written.
       MappingPause pause(mapping);
-      if (!ba_stop.load()) applyGlobalBundleAdjustment(map, solution);
+      if (!ba_stop.load()) {
+        applyGlobalBundleAdjustment(map, solution);
+        if (solution.g_w_after) mapping.set_gravity_w(*solution.g_w_after);
+      }
     } else if (ba_stop.load()) {
       log::info("global BA of ", map.id(), " aborted");
     }

@@ -322,6 +322,21 @@ ImuState LocalMapper::imuState() const {
   return impl_->imu_state;
 }
 
+void LocalMapper::setGravityFromFullBa(const Vec3& g_w) {
+  Vec3 before;
+  std::uint64_t generation = 0;
+  {
+    std::lock_guard<std::mutex> lock(impl_->state_mutex);
+    if (!impl_->imu_state.initialised) return;
+    before = impl_->imu_state.g_w;
+    impl_->imu_state.g_w = g_w;
+    generation = ++impl_->imu_state.generation;
+  }
+  log::info("IMU gravity from the full BA: g_w = (", g_w.x(), ", ", g_w.y(), ", ", g_w.z(), ") m/s^2, ",
+            angleDeg(g_w, before), " deg from the previous estimate, ", angleDeg(g_w, Vec3(0.0, 0.0, -1.0)),
+            " deg from the map's -z, generation ", generation);
+}
+
 void LocalMapper::processKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) { impl_->process(kf, false); }
 
 void LocalMapper::run() {

@@ -99,6 +99,9 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
                                          const mapping::ImuState imu = mapper_->imuState();
                                          return imu.initialised ? std::optional<Vec3>(imu.g_w) : std::nullopt;
                                        }};
+  if (use_imu_) {
+    mapping_control.set_gravity_w = [this](const Vec3& g_w) { mapper_->setGravityFromFullBa(g_w); };
+  }
   if (options_.threaded) {
     mapping_control.hold_tracking = [this] { world_gate_.beginChange(); };
     mapping_control.release_tracking = [this] { world_gate_.endChange(); };

@@ -25,6 +25,10 @@ struct GlobalBaOptions {
   /// origin keyframes hold their pose only). nullopt: vision only (the origins are fixed).
   std::optional<Vec3> g_w;
   double lambda_imu = 1.0;  ///< bias random-walk weight, Eq. 58 (LocalMapping.LambdaImu)
+  /// Visual-inertial: the gravity direction is optimised too, from g_w (magnitude kept; the gauge
+  /// keyframe holds the frame, so its two tilt angles are observable). The whole map informs it,
+  /// where the IMU initialisation and its refinements saw one window (Loop.FullBaGravity).
+  bool estimate_gravity = false;
   /// Visual-inertial: reprojection edges weighted by the camera noise estimated from their
   /// residuals (LocalMapping.VisualVarianceEstimation).
   bool visual_variance_estimation = true;
@@ -40,6 +44,7 @@ struct GlobalBaResult {
   int outliers = 0;  ///< observations failing the chi2 test at the end (left linked)
   double initial_chi2 = 0.0;
   double final_chi2 = 0.0;
+  double gravity_change_deg = 0.0;  ///< with estimate_gravity: angle between g_w and the optimised one
 };
 
 /// The optimised state of a full BA, not yet written to the map: the snapshot's keyframes and points
@@ -56,6 +61,8 @@ struct GlobalBaSolution {
   std::vector<imu::ImuBias> bias_after;
   std::vector<std::shared_ptr<map::MapPoint>> points;
   std::vector<Vec3> p_w_after;
+  /// With estimate_gravity: the optimised gravity.
+  std::optional<Vec3> g_w_after;
 };
 
 /// The optimisation part of runGlobalBundleAdjustment on a snapshot of `map` (reads the map only;

@@ -59,6 +59,10 @@ struct MappingControl {
   /// Gravity in the run's world frame (m/s^2) once the IMU is initialised, nullopt before (or
   /// without an IMU, or not wired). Called from the loop thread; must be thread-safe.
   std::function<std::optional<Vec3>()> gravity_w = nullptr;
+  /// Hands a full BA's gravity (Loop.FullBaGravity) to the IMU state local mapping publishes (the
+  /// keyframes carry the BA's velocities and biases). Called from the loop thread with local mapping
+  /// paused. Empty: the full BA keeps gravity fixed.
+  std::function<void(const Vec3& g_w)> set_gravity_w = nullptr;
   /// Around every change of the map's world frame (correction, merge, full-BA write-back), after
   /// local mapping paused: keeps the frame being tracked out of it (System wires a ChangeGate,
   /// core/change_gate.h). Empty: no tracking to hold (tests, single-threaded runs).

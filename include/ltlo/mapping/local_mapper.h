@@ -107,6 +107,10 @@ class LocalMapper {
   std::size_t queuedKeyFrames() const;
   /// The latest IMU estimate.
   ImuState imuState() const;
+  /// Replaces the published gravity with a full BA's (Loop.FullBaGravity; the loop thread calls it
+  /// with local mapping paused). The biases stay: the BA wrote each keyframe's, and the newest
+  /// keyframe's can be the one a long dead-reckoned gap bent. Ignored before the IMU is initialised.
+  void setGravityFromFullBa(const Vec3& g_w);
 
   // ---- synchronous use (tests, single-threaded runs) ----
   /// The whole processing of one keyframe, in the calling thread.
