@@ -252,8 +252,8 @@ struct LoopOptions {
   double inlier_threshold_m = 0.05;
   /// iterations of the vision-only full BA after a loop (Loop.FullBaIterations, [1, 1000])
   int full_ba_iterations = 10;
-  /// With the IMU, the full BA also optimises the gravity direction and hands it (with the newest
-  /// keyframe's biases) to tracking and local mapping: the IMU initialisation and its refinements
+  /// With the IMU, the full BA also optimises the gravity direction and hands it to tracking and
+  /// local mapping (the keyframes carry the BA's biases): the IMU initialisation and its refinements
   /// each saw one window, which a long occlusion can leave 0.3-0.5 deg off (Loop.FullBaGravity, 0/1)
   bool full_ba_gravity = true;
   /// A map started at the IMU's prediction after tracking was lost (map::MapOrigin) rejoins the map
