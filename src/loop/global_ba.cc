@@ -108,11 +108,6 @@ int applyGlobalBundleAdjustment(map::Map& map, const GlobalBaSolution& solution)
   log::info("global BA: ", result.keyframes, " keyframes, ", result.points, " points, ", result.observations,
             " observations, ", result.inertial_links, " inertial links, ", result.outliers, " outliers, chi2 ",
             result.initial_chi2, " -> ", result.final_chi2, "; ", propagated, " newer keyframes moved with their parents");
-  if (solution.g_w_after) {
-    const Vec3& g = *solution.g_w_after;
-    log::info("global BA: gravity (", g.x(), ", ", g.y(), ", ", g.z(), ") m/s^2, turned by ", result.gravity_change_deg,
-              " deg");
-  }
   return propagated;
 }
 
