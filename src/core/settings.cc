@@ -115,6 +115,7 @@ void visitLoop(O& o, V& v) {
   v.integer("Loop.FullBaIterations", o.full_ba_iterations, 1, 1000);
   v.boolean("Loop.FullBaGravity", o.full_ba_gravity);
   v.boolean("Loop.Rejoin", o.rejoin);
+  v.integer("Loop.RejoinPool", o.rejoin_pool, 1, 20);
   v.boolean("Loop.Proximity", o.proximity);
   v.integer("Loop.RefineKeyFrames", o.refine_keyframes, 0, 1000);
   v.real("Loop.ProximitySigma", o.proximity_sigma_m, 0.005, 5.0);

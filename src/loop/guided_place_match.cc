@@ -26,13 +26,6 @@ double rotationAngle_rad(const SE3& a, const SE3& b) {
   return so3Log(a.quaternion().conjugate() * b.quaternion()).norm();
 }
 
-struct Candidate {
-  int keypoint = -1;
-  map::MapPointId point;
-  Vec3 p_w = Vec3::Zero();
-  int distance = 257;
-};
-
 /// The keyframes of `map` looking the same way as the predicted camera, nearest first, at most
 /// options.max_keyframes, with their distances (m); the options' distance, age and exclusions apply.
 std::vector<std::pair<double, std::shared_ptr<map::KeyFrame>>> keyFramesAround(
@@ -57,6 +50,24 @@ std::vector<std::pair<double, std::shared_ptr<map::KeyFrame>>> keyFramesAround(
   if (static_cast<int>(nearby.size()) > max_keyframes) nearby.resize(static_cast<std::size_t>(max_keyframes));
   return nearby;
 }
+
+}  // namespace
+
+std::shared_ptr<map::KeyFrame> nearestSearchedKeyFrame(const map::Map& map, const SE3& T_w_c_pred,
+                                                       const GuidedPlaceMatchOptions& options, const Vec3& t_w_c) {
+  std::shared_ptr<map::KeyFrame> nearest;
+  double nearest_m = std::numeric_limits<double>::infinity();
+  for (const auto& [distance_kf_m, kf] : keyFramesAround(map, T_w_c_pred, options)) {
+    const double d = (kf->T_w_c().translation() - t_w_c).norm();
+    if (d < nearest_m) {
+      nearest_m = d;
+      nearest = kf;
+    }
+  }
+  return nearest;
+}
+
+namespace {
 
 /// Static keypoints with depth of a view (one pass; the keyframe's flags take a lock).
 template <class View>
@@ -83,9 +94,8 @@ bool withinPredictionGate(const SE3& T_w_c, const SE3& T_w_c_pred, const GuidedP
 }
 
 template <class View>
-GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const SE3& T_w_c_pred,
-                                  const GuidedPlaceMatchOptions& options) {
-  GuidedPlaceMatch result;
+std::vector<WindowMatch> windowMatches(const View& view, const map::Map& map, const SE3& T_w_c_pred,
+                                       const GuidedPlaceMatchOptions& options, int* keyframes, int* projected) {
   const SE3 T_c_w_pred = T_w_c_pred.inverse();
   const Vec3 centre_w = T_w_c_pred.translation();
 
@@ -93,12 +103,13 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
 
   const std::vector<std::pair<double, std::shared_ptr<map::KeyFrame>>> nearby =
       keyFramesAround(map, T_w_c_pred, options);
-  result.keyframes = static_cast<int>(nearby.size());
+  if (keyframes != nullptr) *keyframes = static_cast<int>(nearby.size());
+  int num_projected = 0;
 
   // Projection of their points with the prediction; static keypoints with depth within the
   // window, best descriptor with the ratio test, each keypoint kept for its best point.
   const PinholeCamera& camera = view.camera();
-  std::vector<Candidate> best(static_cast<std::size_t>(view.numKeypoints()));
+  std::vector<WindowMatch> best(static_cast<std::size_t>(view.numKeypoints()));
   std::unordered_set<map::MapPointId> seen;
   for (const auto& [distance_kf_m, kf] : nearby) {
     for (const map::MapPointId id : kf->mapPoints()) {
@@ -110,7 +121,7 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
       if (p_c.z() <= 0.1) continue;
       const Vec2 uv = camera.project(p_c);
       if (!camera.isInImage(uv)) continue;
-      ++result.projected;
+      ++num_projected;
       const double distance_m = (p_w - centre_w).norm();
       const int level = point->predictScale(distance_m, view.scaleFactors());
       // Reprojection standard deviation under the predicted uncertainty.
@@ -135,20 +146,33 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
         }
       }
       if (best_i < 0 || best_d > options.max_descriptor_distance || best_d > options.ratio * second_d) continue;
-      Candidate& slot = best[static_cast<std::size_t>(best_i)];
-      if (best_d < slot.distance) slot = Candidate{best_i, id, p_w, best_d};
+      WindowMatch& slot = best[static_cast<std::size_t>(best_i)];
+      if (best_d < slot.distance) slot = WindowMatch{best_i, id, p_w, best_d};
     }
   }
+  if (projected != nullptr) *projected = num_projected;
+  best.erase(std::remove_if(best.begin(), best.end(), [](const WindowMatch& m) { return m.keypoint < 0; }), best.end());
+  return best;
+}
+
+template <class View>
+GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const SE3& T_w_c_pred,
+                                  const GuidedPlaceMatchOptions& options) {
+  GuidedPlaceMatch result;
+  const PinholeCamera& camera = view.camera();
+  const std::vector<WindowMatch> best =
+      windowMatches(view, map, T_w_c_pred, options, &result.keyframes, &result.projected);
   std::vector<Correspondence3d> correspondences;
   std::vector<std::pair<int, map::MapPointId>> matched;
-  for (const Candidate& c : best) {
-    if (c.keypoint < 0) continue;
+  std::unordered_map<int, Vec3> matched_p_w;  // keypoint -> its map point's position
+  for (const WindowMatch& c : best) {
     Correspondence3d correspondence;
     correspondence.p_a = view.p_c(c.keypoint);
     correspondence.p_b = c.p_w;
     correspondence.sigma_m = std::sqrt(2.0) * depthSigma_m(view.depth_m(c.keypoint));
     correspondences.push_back(correspondence);
     matched.emplace_back(c.keypoint, c.point);
+    matched_p_w.emplace(c.keypoint, c.p_w);
   }
   result.correspondences = static_cast<int>(correspondences.size());
   if (result.correspondences < options.min_ransac_inliers) return result;
@@ -176,7 +200,7 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
     for (const auto& [keypoint, point] : result.matches) {
       const features::Keypoint& kp = view.keypoints()[static_cast<std::size_t>(keypoint)];
       optim::PoseObservation observation;
-      observation.p_w = best[static_cast<std::size_t>(keypoint)].p_w;
+      observation.p_w = matched_p_w.at(keypoint);
       observation.uv = Vec2(kp.x_px, kp.y_px);
       observation.depth_m = view.depth_m(keypoint);
       observation.sigma_px = view.scaleFactors()[static_cast<std::size_t>(kp.octave)];
@@ -206,14 +230,7 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
       return result;
     }
   }
-  double nearest_m = std::numeric_limits<double>::infinity();
-  for (const auto& [distance_kf_m, kf] : nearby) {
-    const double d = (kf->T_w_c().translation() - result.T_w_c.translation()).norm();
-    if (d < nearest_m) {
-      nearest_m = d;
-      result.nearest_keyframe = kf;
-    }
-  }
+  result.nearest_keyframe = nearestSearchedKeyFrame(map, T_w_c_pred, options, result.T_w_c.translation());
   result.success = true;
   return result;
 }
@@ -368,6 +385,10 @@ template WorldOffsetVote voteWorldOffset<map::KeyFrame>(const map::KeyFrame&, co
                                                        const GuidedPlaceMatchOptions&, int, double);
 template WorldOffsetVote voteWorldOffset<map::Frame>(const map::Frame&, const map::Map&, const SE3&,
                                                     const GuidedPlaceMatchOptions&, int, double);
+template std::vector<WindowMatch> windowMatches<map::Frame>(const map::Frame&, const map::Map&, const SE3&,
+                                                            const GuidedPlaceMatchOptions&, int*, int*);
+template std::vector<WindowMatch> windowMatches<map::KeyFrame>(const map::KeyFrame&, const map::Map&, const SE3&,
+                                                               const GuidedPlaceMatchOptions&, int*, int*);
 template GuidedPlaceMatch guidedPlaceMatch<map::Frame>(const map::Frame&, const map::Map&, const SE3&,
                                                       const GuidedPlaceMatchOptions&);
 template GuidedPlaceMatch guidedPlaceMatch<map::KeyFrame>(const map::KeyFrame&, const map::Map&, const SE3&,

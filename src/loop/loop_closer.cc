@@ -15,6 +15,7 @@
 #include "ltlo/loop/loop_corrector.h"
 #include "ltlo/loop/loop_detector.h"
 #include "ltlo/loop/map_merger.h"
+#include "ltlo/loop/pooled_place_match.h"
 #include "ltlo/map/keyframe_database.h"
 
 namespace ltlo::loop {
@@ -96,6 +97,21 @@ GuidedPlaceMatch searchNear(const map::KeyFrame& kf, const map::Map& map, const 
   narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
   narrow.apply_gate = false;  // the centre is a hypothesis: gated against kf's own pose below
   GuidedPlaceMatch found = guidedPlaceMatch(kf, map, T_w_c_centre, narrow);
+  if (found.success && !withinPredictionGate(found.T_w_c, T_w_c_gate, search, &found.distance_m, &found.rotation_rad)) {
+    found.success = false;
+  }
+  return found;
+}
+
+/// searchNear for a pooled window (window.front() is kf).
+GuidedPlaceMatch pooledNear(const std::vector<std::shared_ptr<map::KeyFrame>>& window, const map::Map& map,
+                            const SE3& T_w_c_centre, const SE3& T_w_c_gate, const GuidedPlaceMatchOptions& search,
+                            bool hold_rotation = false) {
+  GuidedPlaceMatchOptions narrow = search;
+  narrow.sigma_position_m = kRejoinRefineSigma_m;
+  narrow.sigma_rotation_rad = kRejoinRefineSigma_rad;
+  narrow.apply_gate = false;
+  GuidedPlaceMatch found = pooledPlaceMatch(window, map, T_w_c_centre, narrow, hold_rotation);
   if (found.success && !withinPredictionGate(found.T_w_c, T_w_c_gate, search, &found.distance_m, &found.rotation_rad)) {
     found.success = false;
   }
@@ -447,19 +463,50 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
     GuidedPlaceMatch refined = searchNear(*kf, target, found.T_w_c, T_w_c, search);
     if (refined.success && refined.matches.size() > found.matches.size()) found = std::move(refined);
   }
-  const int inliers = static_cast<int>(found.matches.size());
+  int inliers = static_cast<int>(found.matches.size());
   log::debug("rejoin: ", kf->id(), " of ", map.id(), " against ", target.id(), " (sigma ", sigma_position_m,
              " m): ", found.keyframes, " keyframes, ", found.projected, " points projected, ", found.correspondences,
              " matches, ", found.ransac_inliers, " RANSAC inliers, ", found.refined_inliers, " refined, ",
              found.distance_m, " m / ", found.rotation_rad * 180.0 / M_PI, " deg from its pose",
              found.success ? "" : ": rejected");
+  // The keyframe alone may see too little of the static world (a strip beside an occluder): pooled
+  // with its best covisibles of its own map, around the pose found or else the voted offset.
+  std::vector<std::shared_ptr<map::KeyFrame>> window;  // non-empty when the pooled result is taken
+  if (options.loop.rejoin_pool > 1 && (found.success || vote.found)) window = poolingWindow(kf, map, options.loop.rejoin_pool);
+  if (window.size() <= 1) window.clear();
+  if (!window.empty()) {
+    const SE3 centre = found.success ? found.T_w_c : SE3(T_w_c.quaternion(), T_w_c.translation() + vote.offset_w);
+    GuidedPlaceMatch pooled = pooledNear(window, target, centre, T_w_c, search);
+    if (pooled.success) {
+      // Again around the pooled pose: the windows then sit where the points are.
+      GuidedPlaceMatch again = pooledNear(window, target, pooled.T_w_c, T_w_c, search);
+      if (again.success && again.refined_inliers >= pooled.refined_inliers) pooled = std::move(again);
+    }
+    log::debug("rejoin pooled: ", kf->id(), " with ", pooled.views - 1, " covisibles of ", map.id(), " against ",
+               target.id(), ": ", pooled.correspondences, " matches, ", pooled.ransac_inliers, " RANSAC inliers, ",
+               pooled.refined_inliers, " refined (", pooled.matches.size(), " of its own), ", pooled.distance_m,
+               " m / ", pooled.rotation_rad * 180.0 / M_PI, " deg from its pose, yaw sigma ",
+               pooled.yaw_sigma_rad * 180.0 / M_PI, " deg", pooled.success ? "" : ": rejected");
+    if (pooled.success && pooled.refined_inliers > inliers) {
+      found = std::move(pooled);
+      inliers = found.refined_inliers;
+    } else {
+      window.clear();  // the keyframe's own result stands
+    }
+  }
   if (!found.success || inliers < options.loop.min_inliers || !found.nearest_keyframe) return false;
   if (!fixesYaw(found)) {
     // The matches cannot fix the yaw, but the dead reckoning that placed the map may know it well
     // enough (gyro drift over the stretch): then they fix the translation under the held rotation.
     GuidedPlaceMatch held;
     if (sigma_rotation_rad <= kMaxCorrectionYawSigma_rad) {
-      held = translationWithHeldRotation(*kf, target, found, T_w_c, options.loop.min_inliers);
+      if (window.empty()) {
+        held = translationWithHeldRotation(*kf, target, found, T_w_c, options.loop.min_inliers);
+      } else {
+        held = pooledNear(window, target, SE3(T_w_c.quaternion(), found.T_w_c.translation()), T_w_c, search, true);
+        held.success = held.success && held.refined_inliers >= options.loop.min_inliers;
+        held.distance_m = (held.T_w_c.translation() - T_w_c.translation()).norm();
+      }
     }
     if (!held.success || held.distance_m > search.gate_sigmas * sigma_position_m) {
       log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " with ", inliers,
@@ -468,14 +515,17 @@ bool LoopCloser::Impl::rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::M
     }
     LoopClosure place = closureOf(*kf, held);
     log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", held.distance_m,
-              " m from its pose (sigma ", sigma_position_m, " m), ", held.matches.size(), " inliers near ", place.loop,
+              " m from its pose (sigma ", sigma_position_m, " m), ",
+              window.empty() ? static_cast<int>(held.matches.size()) : held.refined_inliers, " inliers",
+              window.empty() ? "" : " (pooled)", " near ", place.loop,
               "; their yaw sigma ", found.yaw_sigma_rad * 180.0 / M_PI, " deg is too wide, the prediction's rotation (sigma ",
               sigma_rotation_rad * 180.0 / M_PI, " deg) held");
     return merge(kf, held.nearest_keyframe, std::move(place));
   }
   LoopClosure place = closureOf(*kf, found);
   log::info("rejoin: ", kf->id(), " of ", map.id(), " found ", target.id(), " at ", found.distance_m,
-            " m from its pose (sigma ", sigma_position_m, " m), ", inliers, " inliers near ", place.loop, ", yaw sigma ",
+            " m from its pose (sigma ", sigma_position_m, " m), ", inliers, " inliers", window.empty() ? "" : " (pooled)",
+            " near ", place.loop, ", yaw sigma ",
             found.yaw_sigma_rad * 180.0 / M_PI, " deg");
   return merge(kf, found.nearest_keyframe, std::move(place));
 }

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "ltlo/core/log.h"
+
 namespace ltlo::system {
 
 double carriedCorrectionShare(double tau, double duration_s, double velocity_sigma_m_s, double acc_sigma_m_s2) {
@@ -24,7 +26,11 @@ int smoothCarriedStretches(std::vector<CarriedSample>& samples, double velocity_
     const std::size_t begin = i;
     while (i < samples.size() && samples[i].carried) ++i;
     const std::size_t end = i;  // the anchored sample after the stretch, if any
-    if (begin == 0 || end == samples.size() || !samples[end].T_w_c_dead_reckoned) continue;
+    if (begin == 0 || end == samples.size() || !samples[end].T_w_c_dead_reckoned) {
+      log::debug("carried stretch ", samples[begin].t_s, " - ", samples[end - 1].t_s, " s: not smoothed (",
+                 begin == 0 ? "at the start" : end == samples.size() ? "at the end" : "its end not comparable", ")");
+      continue;
+    }
     const double t_start_s = samples[begin - 1].t_s;
     const double duration_s = samples[end].t_s - t_start_s;
     if (duration_s <= 0.0) continue;
@@ -39,6 +45,8 @@ int smoothCarriedStretches(std::vector<CarriedSample>& samples, double velocity_
       const SE3& T_w_c = samples[k].T_w_c;
       samples[k].T_w_c = SE3(so3Exp(share * dphi_w) * T_w_c.rotationMatrix(), T_w_c.translation() + share * dp_w);
     }
+    log::debug("carried stretch ", samples[begin].t_s, " - ", samples[end - 1].t_s, " s: smoothed, end correction ",
+               dp_w.norm(), " m / ", dphi_w.norm() * 180.0 / M_PI, " deg");
     ++corrected;
   }
   return corrected;

@@ -261,6 +261,11 @@ struct LoopOptions {
   /// dead reckoning's uncertainty: a guided search, gated like Tracking.Reacquire, instead of
   /// waiting for BoW place recognition (Loop.Rejoin, 0/1)
   bool rejoin = true;
+  /// The rejoin also searches with the keyframe's best covisibles of its own map, pooled into one
+  /// view by their relative poses (pooled_place_match.h): under a long occlusion one keyframe sees
+  /// too little of the static world to accept or to fix the yaw. Keyframes pooled, the keyframe
+  /// itself included (Loop.RejoinPool; 1: the keyframe alone)
+  int rejoin_pool = 5;
   /// Once the IMU is initialised, a keyframe for which BoW finds no loop also searches the older
   /// keyframes of its map near its own pose (not its covisibles), within the drift it may have
   /// gathered since: the same guided search as the rejoin, so loops do not depend on the

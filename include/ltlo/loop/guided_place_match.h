@@ -67,6 +67,7 @@ struct GuidedPlaceMatch {
   int correspondences = 0;  ///< matches given to the RANSAC
   int ransac_inliers = 0;
   int refined_inliers = 0;    ///< of the pose optimisation (refine_pose)
+  int views = 1;              ///< keyframes pooled (pooled_place_match.h)
   double distance_m = 0.0;    ///< of the RANSAC pose from the prediction
   double rotation_rad = 0.0;  ///< likewise
   /// With refine_pose: standard deviation of the refined pose's rotation about the world z axis
@@ -75,6 +76,29 @@ struct GuidedPlaceMatch {
   /// sideways step; a 4-DoF correction built on it turns the map by that ambiguity.
   double yaw_sigma_rad = std::numeric_limits<double>::infinity();
 };
+
+/// A static keypoint with depth of a view matched to a map point in the window around its
+/// projection at the prediction.
+struct WindowMatch {
+  int keypoint = -1;
+  map::MapPointId point;
+  Vec3 p_w = Vec3::Zero();  ///< the map point's position
+  int distance = 257;       ///< descriptor distance
+};
+
+/// The window search of guidedPlaceMatch without its RANSAC: the points of the map's keyframes
+/// around T_w_c_pred projected with it, each matched to the best static keypoint with depth in the
+/// window of the prediction's uncertainty (descriptor distance and ratio test), each keypoint kept
+/// for its best point; keypoint order. The counts of searched keyframes and projected points are
+/// written when not null.
+template <class View>
+std::vector<WindowMatch> windowMatches(const View& view, const map::Map& map, const SE3& T_w_c_pred,
+                                       const GuidedPlaceMatchOptions& options, int* keyframes = nullptr,
+                                       int* projected = nullptr);
+
+/// Of the keyframes the search around T_w_c_pred covers, the one nearest to `t_w_c` (null if none).
+std::shared_ptr<map::KeyFrame> nearestSearchedKeyFrame(const map::Map& map, const SE3& T_w_c_pred,
+                                                       const GuidedPlaceMatchOptions& options, const Vec3& t_w_c);
 
 /// `View` is map::Frame or map::KeyFrame (keypoints, descriptors, depths, static flags, camera).
 template <class View>
