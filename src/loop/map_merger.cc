@@ -107,6 +107,48 @@ WeldingResult weldingBundleAdjust(map::Map& map, const map::KeyFrame& current, c
   return result;
 }
 
+bool bridgeOrigin(map::Map& map, const map::MapOrigin& origin) {
+  if (!origin.imu_across || !origin.parent_keyframe.valid() || !origin.first_keyframe.valid()) return false;
+  const std::shared_ptr<map::KeyFrame> parent = map.keyFrame(origin.parent_keyframe);
+  const std::shared_ptr<map::KeyFrame> first = map.keyFrame(origin.first_keyframe);
+  if (!parent || !first || parent->isBad() || first->isBad()) return false;
+  if (first->previousKeyFrame().valid() || parent->nextKeyFrame().valid() || !(parent->t_s() < first->t_s())) {
+    return false;
+  }
+  first->setPreviousKeyFrame(parent->id());
+  first->setImuFromPrevious(*origin.imu_across);
+  parent->setNextKeyFrame(first->id());
+  // Also an essential-graph edge: the two spanning trees are joined there, whatever place the
+  // merge matched.
+  parent->addLoopEdge(first->id());
+  first->addLoopEdge(parent->id());
+  map.bumpVersion();
+  return true;
+}
+
+int absorbBridgedMiddle(map::Atlas& atlas, map::Map& target, const map::MapOrigin& source_origin,
+                        const std::optional<Vec3>& g_w) {
+  if (!source_origin.imu_across) return 0;
+  const map::MapId middle_id = atlas.resolve(source_origin.parent);
+  map::Map* middle = atlas.map(middle_id);
+  if (middle == nullptr || middle_id == target.id()) return 0;
+  const std::optional<map::MapOrigin> middle_origin = middle->origin();
+  if (!middle_origin || !middle_origin->imu_across || atlas.resolve(middle_origin->parent) != target.id()) return 0;
+  const std::shared_ptr<map::KeyFrame> anchor = target.keyFrame(middle_origin->parent_keyframe);
+  const std::shared_ptr<map::KeyFrame> middle_last = middle->keyFrame(source_origin.parent_keyframe);
+  if (!anchor || anchor->isBad() || !middle_last || middle_last->isBad()) return 0;
+  SE3 T_target_middle = anchor->T_w_b() * middle_origin->T_w_b_parent_keyframe.inverse();
+  if (g_w) T_target_middle = optim::fourDofCorrection(T_target_middle, *g_w, anchor->T_w_b().translation());
+  const std::size_t keyframes = middle->numKeyFrames();
+  atlas.mergeMaps(middle_id, target.id(), T_target_middle);
+  const bool linked_before = bridgeOrigin(target, *middle_origin);
+  const bool linked_after = bridgeOrigin(target, source_origin);
+  log::info("merged ", middle_id, " (", keyframes, " keyframes) into ", target.id(),
+            " between two losses, at its dead-reckoned place; the IMU across them linked: ", linked_before ? "yes" : "no",
+            ", ", linked_after ? "yes" : "no");
+  return 1;
+}
+
 std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& current, const map::KeyFrame& candidate,
                                         const LoopOptions& options, const MergeOptions& merge) {
   const map::MapId source = current.mapId();
@@ -140,9 +182,19 @@ std::optional<MergeResult> mergeWithPlace(map::Atlas& atlas, const map::KeyFrame
     result.T_target_source = optim::fourDofCorrection(result.T_target_source, *merge.g_w, T_w_b_current.translation());
     place.T_w_b_current_corrected = result.T_target_source * T_w_b_current;
   }
+  const std::optional<map::MapOrigin> source_origin = atlas.map(source)->origin();
+  const std::optional<map::MapOrigin> target_origin = target_map->origin();
   atlas.mergeMaps(source, target, result.T_target_source);
+  // Either map may have started from a keyframe of the other (or of a map merged into it before).
+  if (source_origin && bridgeOrigin(*target_map, *source_origin)) ++result.bridged;
+  if (target_origin && bridgeOrigin(*target_map, *target_origin)) ++result.bridged;
+  if (source_origin && result.bridged == 0) {
+    result.absorbed = absorbBridgedMiddle(atlas, *target_map, *source_origin, merge.g_w);
+    result.bridged += 2 * result.absorbed;
+  }
   log::info("merged ", source, " into ", target, " at kf ", current.id(), " ~ kf ", candidate.id(), " (",
-            result.inliers, " inliers, ", (merge.g_w ? "4-DoF" : "SE3"), " alignment)");
+            result.inliers, " inliers, ", (merge.g_w ? "4-DoF" : "SE3"), " alignment",
+            result.bridged > 0 ? ", the IMU across the loss linked" : "", ")");
   // The current keyframe is now in the target frame at (nearly) its corrected pose; the loop
   // correction fuses the duplicated points and ties the two spanning trees with the loop edge.
   LoopCorrectionOptions correction;

@@ -256,6 +256,9 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
       record.T_stretchrefb_c_predicted =
           map::latestPose_T_w_b(*carried_reference_).inverse() * (*predicted_T_w_b * frame.T_b_c());
     }
+    if (record.tracked && carried_reference_ && !predicted_T_w_b) {
+      log::debug("system: the frame at t = ", record.t_s, " s ends a carried stretch without an IMU prediction");
+    }
     if (record.carried) {
       if (!carried_reference_) carried_reference_ = record.reference;
     } else {
@@ -361,6 +364,10 @@ std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
           world_of(record.stretch_reference->mapId()) == pose.map) {
         sample.T_w_c_dead_reckoned =
             map::latestPose_T_w_b(*record.stretch_reference) * record.T_stretchrefb_c_predicted;
+      } else if (record.stretch_reference) {
+        log::debug("trajectory: the frame at t = ", record.t_s, " s in ", pose.map, " (floating ",
+                   floating.count(pose.map), ") ends a carried stretch hung on ", record.stretch_reference->id(),
+                   " in ", record.stretch_reference->mapId(), ": not comparable");
       }
     } else {
       pose.T_w_c = record.T_w_c;

@@ -245,14 +245,25 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
     }
     // New map at the predicted pose: same world frame (gravity stays valid), old map kept.
     const map::MapId parent = activeMap().id();
-    map::Map& created = atlas_.createNewMap();
-    ++maps_created_;
-    log::warn("lost for ", lost_for_s, " s: new map ", created.id(), " at t = ", frame.t_s(), " s");
+    std::optional<map::MapOrigin> origin;
     if (imu_carries && imu_prediction_.link && std::isfinite(sigma_m)) {
       // The dead reckoning placed it in the parent's world: the loop closer may rejoin the two by
       // a search within this uncertainty (Loop.Rejoin).
-      created.setOrigin(map::MapOrigin{parent, sigma_m, stats_.predicted_rotation_sigma_rad, frame.t_s()});
+      origin.emplace();
+      origin->parent = parent;
+      origin->sigma_position_m = sigma_m;
+      origin->sigma_rotation_rad = stats_.predicted_rotation_sigma_rad;
+      origin->t_s = frame.t_s();
+      if (keyframe_in_map && imu_since_keyframe_ && !imu_chain_broken_) {
+        // The IMU from the parent's last keyframe to this frame (the new map's first keyframe).
+        origin->parent_keyframe = last_kf_;
+        origin->T_w_b_parent_keyframe = last_kf_ptr_->T_w_b();
+        origin->imu_across = std::make_shared<const imu::Preintegrated>(*imu_since_keyframe_);
+      }
     }
+    map::Map& created = atlas_.createNewMap();
+    ++maps_created_;
+    log::warn("lost for ", lost_for_s, " s: new map ", created.id(), " at t = ", frame.t_s(), " s");
     last_kf_ = map::KeyFrameId();
     last_kf_ptr_.reset();
     reference_kf_ = map::KeyFrameId();
@@ -266,6 +277,11 @@ void Tracker::handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Ve
     frame_information_ = StateInformation();
     state_ = initialise(frame);
     LTLO_ASSERT(state_ == TrackingState::kOk, "new map not initialised");
+    if (origin) {
+      // Before the keyframe leaves tracking (the loop closer reads the origin with it).
+      if (origin->imu_across) origin->first_keyframe = last_kf_;
+      created.setOrigin(*origin);
+    }
     carried_first_point_ = map::MapPointId();
     carried_fix_sigma_m_ = 0.0;
     carried_fix_t_s_ = frame.t_s();

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <optional>
 #include <random>
+#include <tuple>
+#include <utility>
 
 #include "bow/vocabulary.h"
 #include "inertial_scene.h"
@@ -248,6 +250,167 @@ TEST(MapMerger, FourDofAlignmentKeepsGravityAndClosesTheGap) {
   EXPECT_LT(after.tilt_deg, 0.05);
   EXPECT_LT(after.tilt_change_outside_deg, 1e-6);  // 4-DoF: roll and pitch untouched
   EXPECT_GT(se3.tilt_deg, 0.5);                    // what the 4-DoF alignment avoids
+}
+
+// ---- the IMU across a loss (map::MapOrigin::imu_across, bridgeOrigin) ----
+
+// A map started after 0.9 s of loss, placed by the dead reckoning 0.15 m and 1.5 deg (yaw) off in
+// its parent's world, merged back where no point of the two is shared (a place matched by a
+// strip): only the IMU across the loss ties the two. With that link the full VI BA puts the child
+// at the truth; without it the child keeps the dead reckoning's error.
+TEST(MapMerger, TheImuAcrossALossTiesTheMapsItSeparated) {
+  struct Outcome {
+    bool linked = false;
+    bool linked_again = false;
+    double before_m = 0.0, after_m = 0.0, yaw_after_deg = 0.0;
+    int inertial_links = 0;
+  };
+  auto run = [](bool bridge) {
+    Outcome out;
+    std::mt19937 rng(61);
+    const std::vector<double> times = test::sceneTimes(14);
+    test::SceneWorld world;
+    world.addPointsSeenAt(times, 40, rng);
+    const std::vector<double> parent_times(times.begin(), times.begin() + 6);
+    const std::vector<double> child_times(times.begin() + 8, times.end());
+    map::Atlas atlas(100000);
+    map::Map& parent_map = atlas.activeMap();
+    const test::SceneMap parent = test::buildSceneMap(
+        parent_map, world, parent_times, [](int, const SE3& T) { return T; }, [](int, const Vec3& v) { return v; },
+        [](int) { return test::sceneBias(); });
+    map::Map& child_map = atlas.createNewMap();
+    const SE3 T_off(so3ExpQuat(Vec3(0.0, 0.0, 1.5 / kRadToDeg)), Vec3(0.12, -0.08, 0.03));
+    const test::SceneMap child = test::buildSceneMap(
+        child_map, world, child_times, [&](int, const SE3& T) { return T_off * T; },
+        [&](int, const Vec3& v) -> Vec3 { return T_off.rotationMatrix() * v; }, [](int) { return test::sceneBias(); });
+    map::MapOrigin origin;
+    origin.parent = parent_map.id();
+    origin.parent_keyframe = parent.kfs.back()->id();
+    origin.first_keyframe = child.kfs.front()->id();
+    auto across = std::make_shared<imu::Preintegrated>(imu::ImuBias(), imu::ImuNoise());
+    across->integrate(world.trajectory.samples(parent_times.back(), child_times.front(), 200.0, test::sceneBias()));
+    origin.imu_across = across;
+    child_map.setOrigin(origin);
+    atlas.mergeMaps(child_map.id(), parent_map.id(), SE3());
+    if (bridge) {
+      out.linked = bridgeOrigin(parent_map, origin);
+      out.linked_again = bridgeOrigin(parent_map, origin);
+    }
+    auto childError = [&] {
+      double worst_m = 0.0, worst_yaw_deg = 0.0;
+      for (std::size_t k = 0; k < child.kfs.size(); ++k) {
+        const SE3 T_true = world.T_w_b(child_times[k]);
+        worst_m = std::max(worst_m, (child.kfs[k]->T_w_b().translation() - T_true.translation()).norm());
+        worst_yaw_deg = std::max(worst_yaw_deg,
+                                 std::abs(so3Log(T_true.quaternion() * child.kfs[k]->T_w_b().quaternion().conjugate()).z()) *
+                                     kRadToDeg);
+      }
+      return std::make_pair(worst_m, worst_yaw_deg);
+    };
+    out.before_m = childError().first;
+    GlobalBaOptions options;
+    options.g_w = imu::gravityWorld();
+    const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(parent_map, options);
+    EXPECT_TRUE(solution.valid);
+    if (!solution.valid) return out;
+    applyGlobalBundleAdjustment(parent_map, solution);
+    out.inertial_links = solution.result.inertial_links;
+    std::tie(out.after_m, out.yaw_after_deg) = childError();
+    return out;
+  };
+  const Outcome with = run(true);
+  const Outcome without = run(false);
+  std::printf("[ BRIDGE   ] child map %.3f m off; full VI BA with the IMU across the loss: %.4f m, %.3f deg yaw (%d "
+              "inertial links); without: %.4f m\n",
+              with.before_m, with.after_m, with.yaw_after_deg, with.inertial_links, without.after_m);
+  EXPECT_TRUE(with.linked);
+  EXPECT_FALSE(with.linked_again);  // once only
+  EXPECT_EQ(with.inertial_links, 11);  // 5 in the parent, 1 across, 5 in the child
+  EXPECT_EQ(without.inertial_links, 10);
+  EXPECT_GT(with.before_m, 0.1);
+  EXPECT_LT(with.after_m, 0.01);
+  EXPECT_LT(with.yaw_after_deg, 0.1);
+  EXPECT_GT(without.after_m, 0.1);
+}
+
+// Two losses in a row (parent -> middle -> child), the middle map never matched by a place: once the
+// child is merged into the parent (here at its true place), the middle map hangs on the IMU at both
+// ends; absorbBridgedMiddle merges it at its dead-reckoned place (5 cm and 0.3 deg off) and bridges
+// both losses, and the full VI BA puts it at the truth.
+TEST(MapMerger, AMapBetweenTwoLossesIsMergedOnTheImuAcrossBoth) {
+  std::mt19937 rng(67);
+  const std::vector<double> times = test::sceneTimes(15);
+  test::SceneWorld world;
+  world.addPointsSeenAt(times, 40, rng);
+  const std::vector<double> parent_times(times.begin(), times.begin() + 4);
+  const std::vector<double> middle_times(times.begin() + 5, times.begin() + 9);
+  const std::vector<double> child_times(times.begin() + 10, times.end());
+  map::Atlas atlas(100000);
+  auto same = [](int, const SE3& T) { return T; };
+  auto bias = [](int) { return test::sceneBias(); };
+  map::Map& parent_map = atlas.activeMap();
+  const test::SceneMap parent =
+      test::buildSceneMap(parent_map, world, parent_times, same, [](int, const Vec3& v) { return v; }, bias);
+  auto originOf = [&](map::MapId parent_id, const std::shared_ptr<map::KeyFrame>& from, double t_from,
+                      const std::shared_ptr<map::KeyFrame>& first, double t_first) {
+    map::MapOrigin origin;
+    origin.parent = parent_id;
+    origin.parent_keyframe = from->id();
+    origin.T_w_b_parent_keyframe = from->T_w_b();
+    origin.first_keyframe = first->id();
+    auto across = std::make_shared<imu::Preintegrated>(imu::ImuBias(), imu::ImuNoise());
+    across->integrate(world.trajectory.samples(t_from, t_first, 200.0, test::sceneBias()));
+    origin.imu_across = across;
+    return origin;
+  };
+  // The middle map: placed by a short dead reckoning (5 cm, 0.3 deg of yaw off).
+  map::Map& middle_map = atlas.createNewMap();
+  const SE3 T_middle(so3ExpQuat(Vec3(0.0, 0.0, 0.3 / kRadToDeg)), Vec3(0.03, 0.04, -0.01));
+  const test::SceneMap middle = test::buildSceneMap(
+      middle_map, world, middle_times, [&](int, const SE3& T) { return T_middle * T; },
+      [&](int, const Vec3& v) -> Vec3 { return T_middle.rotationMatrix() * v; }, bias);
+  middle_map.setOrigin(originOf(parent_map.id(), parent.kfs.back(), parent_times.back(), middle.kfs.front(),
+                                middle_times.front()));
+  // The child: far off, then merged at its true place (what its place match gives).
+  map::Map& child_map = atlas.createNewMap();
+  const SE3 T_child(so3ExpQuat(Vec3(0.0, 0.0, 2.0 / kRadToDeg)), Vec3(0.2, -0.1, 0.02));
+  const test::SceneMap child = test::buildSceneMap(
+      child_map, world, child_times, [&](int, const SE3& T) { return T_child * T; },
+      [&](int, const Vec3& v) -> Vec3 { return T_child.rotationMatrix() * v; }, bias);
+  const map::MapOrigin child_origin =
+      originOf(middle_map.id(), middle.kfs.back(), middle_times.back(), child.kfs.front(), child_times.front());
+  child_map.setOrigin(child_origin);
+  const map::MapId middle_id = middle_map.id();
+  atlas.mergeMaps(child_map.id(), parent_map.id(), T_child.inverse());
+  EXPECT_FALSE(bridgeOrigin(parent_map, child_origin));  // its parent keyframe is in the middle map
+  ASSERT_EQ(atlas.numMaps(), 2u);
+
+  const int absorbed = absorbBridgedMiddle(atlas, parent_map, child_origin, imu::gravityWorld());
+  auto middleError_m = [&] {
+    double worst = 0.0;
+    for (std::size_t k = 0; k < middle.kfs.size(); ++k) {
+      worst = std::max(worst, (middle.kfs[k]->T_w_b().translation() - world.T_w_b(middle_times[k]).translation()).norm());
+    }
+    return worst;
+  };
+  const double before_m = middleError_m();
+  GlobalBaOptions options;
+  options.g_w = imu::gravityWorld();
+  const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(parent_map, options);
+  ASSERT_TRUE(solution.valid);
+  applyGlobalBundleAdjustment(parent_map, solution);
+  std::printf("[ MIDDLE   ] absorbed %d: middle map %.4f m off -> %.5f m after the full VI BA (%d inertial links)\n",
+              absorbed, before_m, middleError_m(), solution.result.inertial_links);
+  EXPECT_EQ(absorbed, 1);
+  EXPECT_EQ(atlas.numMaps(), 1u);
+  EXPECT_EQ(atlas.resolve(middle_id), parent_map.id());
+  EXPECT_EQ(middle.kfs.front()->previousKeyFrame(), parent.kfs.back()->id());
+  EXPECT_EQ(child.kfs.front()->previousKeyFrame(), middle.kfs.back()->id());
+  EXPECT_EQ(solution.result.inertial_links, 12);  // 3 + 3 + 4 within the maps, 2 across the losses
+  EXPECT_GT(before_m, 0.04);
+  EXPECT_LT(middleError_m(), 0.005);
+  // Nothing more to absorb.
+  EXPECT_EQ(absorbBridgedMiddle(atlas, parent_map, child_origin, imu::gravityWorld()), 0);
 }
 
 }  // namespace

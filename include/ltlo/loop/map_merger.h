@@ -46,9 +46,33 @@ struct MergeResult {
   map::MapId target;    ///< the map of the recognised place, kept
   SE3 T_target_source;  ///< applied to everything of `source` (4-DoF with gravity)
   int inliers = 0;      ///< RANSAC inliers of the place match
+  /// Inertial links across a loss added by the merge (bridgeOrigin)
+  int bridged = 0;
+  /// Maps between the source and the target by consecutive losses merged with it
+  /// (absorbBridgedMiddle)
+  int absorbed = 0;
   LoopCorrectionResult correction;
   WeldingResult welding;
 };
+
+/// The IMU across the loss that started a map (map::MapOrigin::imu_across), once the parent's
+/// keyframe and the map's first keyframe both lie in `map` (good, the first without a previous
+/// keyframe, the parent's without a next one, in time order): the first keyframe's previous
+/// keyframe and inertial link become the parent's keyframe and that preintegration (and the two
+/// are joined by an essential-graph loop edge), so the visual-inertial BAs spread a rejoin's
+/// correction over the dead-reckoned stretch and its keyframes.
+/// Returns true when linked. Call with tracking and local mapping paused.
+bool bridgeOrigin(map::Map& map, const map::MapOrigin& origin);
+
+/// A map left between two losses (the target -> `middle` -> the source) that no place match reaches
+/// (it saw the static world only through the occluder's gaps): once the source, which started from
+/// a keyframe of `middle`, is merged into the target, `middle` hangs between them on the IMU at both
+/// ends. It is merged too, at the world its dead reckoning gave it (moved with its parent keyframe
+/// since, 4-DoF with gravity), and both losses are bridged (bridgeOrigin), so the full BA places it.
+/// `source_origin` is the merged source's origin; returns the number of maps merged (0 or 1). Call
+/// with tracking and local mapping paused.
+int absorbBridgedMiddle(map::Atlas& atlas, map::Map& target, const map::MapOrigin& source_origin,
+                        const std::optional<Vec3>& g_w);
 
 /// nullopt (and nothing changed) when both keyframes are in the same map or the place match fails
 /// verification. Call with tracking and local mapping paused on both maps.

@@ -25,6 +25,15 @@ struct MapOrigin {
   double sigma_position_m = 0.0;    ///< of the first keyframe's position in the parent's world
   double sigma_rotation_rad = 0.0;  ///< of its rotation
   double t_s = 0.0;                 ///< time of the first frame
+  /// The IMU across the loss, when its chain was unbroken: the parent's last keyframe, the new map's
+  /// first keyframe and the preintegration from the one to the other. Once both lie in one map
+  /// (rejoin or merge), the first keyframe's inertial link (map_merger.h, bridgeOrigins).
+  KeyFrameId parent_keyframe;
+  KeyFrameId first_keyframe;
+  std::shared_ptr<const imu::Preintegrated> imu_across;
+  /// The parent keyframe's body pose when the map started (the map's world is the parent's as it
+  /// was then; corrections of the parent since move it with that keyframe).
+  SE3 T_w_b_parent_keyframe;
 };
 
 /// Thread-safe. mutex_ guards the containers only and is never held while a KeyFrame or MapPoint
