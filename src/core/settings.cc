@@ -68,6 +68,7 @@ void visitKeyFrame(O& o, V& v) {
 template <typename O, typename V>
 void visitTracking(O& o, V& v) {
   v.boolean("Tracking.InertialPoseOptimisation", o.inertial_pose_optimisation);
+  v.boolean("Tracking.DenseStateWithImu", o.dense_state_with_imu);
   v.integer("Tracking.MinInliers", o.min_inliers, 6, 10000);
   v.integer("Tracking.MinInliersImu", o.min_inliers_imu, 3, 10000);
   if (o.min_inliers_imu > o.min_inliers) {
@@ -116,6 +117,7 @@ void visitLoop(O& o, V& v) {
   v.boolean("Loop.FullBaGravity", o.full_ba_gravity);
   v.boolean("Loop.Rejoin", o.rejoin);
   v.integer("Loop.RejoinPool", o.rejoin_pool, 1, 20);
+  v.boolean("Loop.BridgeLosses", o.bridge_losses);
   v.boolean("Loop.Proximity", o.proximity);
   v.integer("Loop.RefineKeyFrames", o.refine_keyframes, 0, 1000);
   v.real("Loop.ProximitySigma", o.proximity_sigma_m, 0.005, 5.0);

@@ -543,6 +543,7 @@ bool LoopCloser::Impl::merge(const std::shared_ptr<map::KeyFrame>& kf, const std
   merge_options.min_point_beta = options.min_point_beta;
   merge_options.lambda_imu = options.lambda_imu;
   merge_options.visual_variance_estimation = options.visual_variance_estimation;
+  merge_options.bridge_losses = options.loop.bridge_losses;
   {
     MappingPause pause(mapping);
     if (kf->isBad() || accepted->isBad()) return false;

@@ -186,9 +186,9 @@ std::optional<MergeResult> mergeWithPlace(map::Atlas& atlas, const map::KeyFrame
   const std::optional<map::MapOrigin> target_origin = target_map->origin();
   atlas.mergeMaps(source, target, result.T_target_source);
   // Either map may have started from a keyframe of the other (or of a map merged into it before).
-  if (source_origin && bridgeOrigin(*target_map, *source_origin)) ++result.bridged;
-  if (target_origin && bridgeOrigin(*target_map, *target_origin)) ++result.bridged;
-  if (source_origin && result.bridged == 0) {
+  if (merge.bridge_losses && source_origin && bridgeOrigin(*target_map, *source_origin)) ++result.bridged;
+  if (merge.bridge_losses && target_origin && bridgeOrigin(*target_map, *target_origin)) ++result.bridged;
+  if (merge.bridge_losses && source_origin && result.bridged == 0) {
     result.absorbed = absorbBridgedMiddle(atlas, *target_map, *source_origin, merge.g_w);
     result.bridged += 2 * result.absorbed;
   }

@@ -92,7 +92,9 @@ TrackingState Tracker::track(map::Frame& frame) {
   // Segmentation between the prediction and the matching (thesis Eq. 59-64): it labels the static
   // clusters the matching may use and may refine the predicted state.
   const SegmentationOutcome outcome = segment(frame, motionPrior(frame, T_w_b_pred));
-  if (outcome.state_refined) {
+  // With the IMU's prediction the pose optimisation weighs it against the features itself; the
+  // dense refinement of it is the start only with Tracking.DenseStateWithImu.
+  if (outcome.state_refined && (!imu_prediction_.link || options_.tracking.dense_state_with_imu)) {
     T_w_b_pred = outcome.T_w_b;
     frame.setVelocity(outcome.v_w_b);
     frame.setBias(outcome.bias);

@@ -119,6 +119,11 @@ struct TrackingOptions {
   /// marginal enters as a prior (Tracking.InertialPoseOptimisation, 0/1). 0: the IMU only predicts
   /// the pose and seeds the search (an ablation).
   bool inertial_pose_optimisation = true;
+  /// With the IMU's prediction, tracking starts from it, not from the dense alignment's refinement
+  /// of it (0; the alignment still gives the segmentation): the pose optimisation already weighs
+  /// the prediction against the features, and on static runs starting from the refinement cost
+  /// ~10 % of ATE. 1: start from the refinement (Tracking.DenseStateWithImu, 0/1)
+  bool dense_state_with_imu = false;
   /// pose inliers a frame needs to be tracked by vision alone (no IMU, or before its
   /// initialisation) (Tracking.MinInliers, [6, 10000])
   int min_inliers = 30;
@@ -266,6 +271,11 @@ struct LoopOptions {
   /// too little of the static world to accept or to fix the yaw. Keyframes pooled, the keyframe
   /// itself included (Loop.RejoinPool; 1: the keyframe alone)
   int rejoin_pool = 5;
+  /// When a map started after a loss meets the map it came from (rejoin or merge), the IMU
+  /// preintegrated across the loss links the two keyframes it spans, so the full VI BA spreads the
+  /// correction over the dead-reckoned stretch; a map left between two such losses is merged with
+  /// the later one on that link (Loop.BridgeLosses, 0/1)
+  bool bridge_losses = true;
   /// Once the IMU is initialised, a keyframe for which BoW finds no loop also searches the older
   /// keyframes of its map near its own pose (not its covisibles), within the drift it may have
   /// gathered since: the same guided search as the rejoin, so loops do not depend on the

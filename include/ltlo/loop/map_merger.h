@@ -27,6 +27,9 @@ struct MergeOptions {
   double min_point_beta = 0.5;      ///< points with a lower static score are left out
   double lambda_imu = 1.0;          ///< bias random-walk weight, Eq. 58
   bool visual_variance_estimation = true;  ///< LocalMapping.VisualVarianceEstimation
+  /// Link the IMU across the losses between the two maps (bridgeOrigin, absorbBridgedMiddle;
+  /// Loop.BridgeLosses)
+  bool bridge_losses = true;
 };
 
 /// What the welding did (zero when it did not run).
