@@ -81,6 +81,14 @@ std::vector<char> usableKeypoints(const View& view) {
 
 }  // namespace
 
+Se3RansacOptions ransacOptionsOf(const GuidedPlaceMatchOptions& options) {
+  Se3RansacOptions ransac;
+  ransac.min_inliers = options.min_ransac_inliers;
+  ransac.max_iterations = options.ransac_iterations;
+  ransac.seed = options.seed;
+  return ransac;
+}
+
 bool withinPredictionGate(const SE3& T_w_c, const SE3& T_w_c_pred, const GuidedPlaceMatchOptions& options,
                           double* distance_m, double* rotation_rad) {
   const double dp_m = (T_w_c.translation() - T_w_c_pred.translation()).norm();
@@ -176,11 +184,7 @@ GuidedPlaceMatch guidedPlaceMatch(const View& view, const map::Map& map, const S
   }
   result.correspondences = static_cast<int>(correspondences.size());
   if (result.correspondences < options.min_ransac_inliers) return result;
-  Se3RansacOptions ransac_options;
-  ransac_options.min_inliers = options.min_ransac_inliers;
-  ransac_options.max_iterations = options.ransac_iterations;
-  ransac_options.seed = options.seed;
-  const Se3RansacResult ransac = estimateSe3Ransac(correspondences, ransac_options);
+  const Se3RansacResult ransac = estimateSe3Ransac(correspondences, ransacOptionsOf(options));
   result.ransac_inliers = ransac.num_inliers;
   if (!ransac.success) return result;
   result.T_w_c = ransac.T_a_b.inverse();  // T_a_b = T_c_w

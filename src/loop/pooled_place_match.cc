@@ -178,11 +178,7 @@ GuidedPlaceMatch pooledPlaceMatch(const std::vector<std::shared_ptr<map::KeyFram
     c.sigma_m = std::sqrt(m.covariance_c0.trace() * 2.0 / 3.0 + kPoolingFloorSigma_m * kPoolingFloorSigma_m);
     correspondences.push_back(c);
   }
-  Se3RansacOptions ransac_options;
-  ransac_options.min_inliers = options.min_ransac_inliers;
-  ransac_options.max_iterations = options.ransac_iterations;
-  ransac_options.seed = options.seed;
-  const Se3RansacResult ransac = estimateSe3Ransac(correspondences, ransac_options);
+  const Se3RansacResult ransac = estimateSe3Ransac(correspondences, ransacOptionsOf(options));
   result.ransac_inliers = ransac.num_inliers;
   if (!ransac.success) return result;
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "ltlo/core/lie.h"
+#include "ltlo/loop/se3_ransac.h"
 #include "ltlo/map/map.h"
 
 namespace ltlo::loop {
@@ -136,6 +137,9 @@ template <class View>
 WorldOffsetVote voteWorldOffset(const View& view, const map::Map& map, const SE3& T_w_c_pred,
                                 const GuidedPlaceMatchOptions& options, int max_descriptor_distance,
                                 double bin_m = 0.05);
+
+/// The RANSAC settings of a guided search (its inliers, iterations and seed).
+Se3RansacOptions ransacOptionsOf(const GuidedPlaceMatchOptions& options);
 
 /// The gate: `T_w_c` within gate_sigmas of the prediction (position, and rotation with the floor
 /// min_rotation_gate_deg); the distances are written when not null.
