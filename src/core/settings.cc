@@ -60,6 +60,7 @@ template <typename O, typename V>
 void visitKeyFrame(O& o, V& v) {
   v.real("KF.MaxOverlap", o.max_overlap, 0.05, 0.99);
   v.integer("KF.MinTrackedPoints", o.min_tracked_points, 0, 10000);
+  v.real("KF.WeakMinInterval", o.weak_min_interval_s, 0.0, 10.0);
   v.real("KF.MaxInterval", o.max_interval_s, 0.01, 100.0);
   v.integer("KF.MinInliers", o.min_inliers, 3, 10000);
   v.integer("KF.MinInliersInertial", o.min_inliers_inertial, 3, 10000);

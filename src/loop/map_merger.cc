@@ -129,24 +129,48 @@ bool bridgeOrigin(map::Map& map, const map::MapOrigin& origin) {
 int absorbBridgedMiddle(map::Atlas& atlas, map::Map& target, const map::MapOrigin& source_origin,
                         const std::optional<Vec3>& g_w) {
   if (!source_origin.imu_across) return 0;
-  const map::MapId middle_id = atlas.resolve(source_origin.parent);
-  map::Map* middle = atlas.map(middle_id);
-  if (middle == nullptr || middle_id == target.id()) return 0;
-  const std::optional<map::MapOrigin> middle_origin = middle->origin();
-  if (!middle_origin || !middle_origin->imu_across || atlas.resolve(middle_origin->parent) != target.id()) return 0;
-  const std::shared_ptr<map::KeyFrame> anchor = target.keyFrame(middle_origin->parent_keyframe);
-  const std::shared_ptr<map::KeyFrame> middle_last = middle->keyFrame(source_origin.parent_keyframe);
-  if (!anchor || anchor->isBad() || !middle_last || middle_last->isBad()) return 0;
-  SE3 T_target_middle = anchor->T_w_b() * middle_origin->T_w_b_parent_keyframe.inverse();
-  if (g_w) T_target_middle = optim::fourDofCorrection(T_target_middle, *g_w, anchor->T_w_b().translation());
-  const std::size_t keyframes = middle->numKeyFrames();
-  atlas.mergeMaps(middle_id, target.id(), T_target_middle);
-  const bool linked_before = bridgeOrigin(target, *middle_origin);
-  const bool linked_after = bridgeOrigin(target, source_origin);
-  log::info("merged ", middle_id, " (", keyframes, " keyframes) into ", target.id(),
-            " between two losses, at its dead-reckoned place; the IMU across them linked: ", linked_before ? "yes" : "no",
-            ", ", linked_after ? "yes" : "no");
-  return 1;
+  // Walk back from the source's parent map to the target: every map on the way must have started
+  // on the IMU across a loss from the map before it, whose keyframe it started from is good.
+  struct Middle {
+    map::MapId id;
+    map::MapOrigin origin;
+  };
+  std::vector<Middle> chain;  // newest first
+  map::MapId id = atlas.resolve(source_origin.parent);
+  map::KeyFrameId needed = source_origin.parent_keyframe;  // in the map `id`
+  while (true) {
+    map::Map* on_chain = atlas.map(id);
+    if (on_chain == nullptr) return 0;
+    const std::shared_ptr<map::KeyFrame> from = on_chain->keyFrame(needed);
+    if (!from || from->isBad()) return 0;
+    if (id == target.id()) break;
+    if (chain.size() == kMaxBridgedMiddleMaps) return 0;
+    for (const Middle& seen : chain) {
+      if (seen.id == id) return 0;
+    }
+    std::optional<map::MapOrigin> origin = on_chain->origin();
+    if (!origin || !origin->imu_across) return 0;
+    chain.push_back({id, std::move(*origin)});
+    id = atlas.resolve(chain.back().origin.parent);
+    needed = chain.back().origin.parent_keyframe;
+  }
+  if (chain.empty()) return 0;
+  // Oldest first: each map's parent keyframe is in the target by the time it is merged.
+  for (auto middle = chain.rbegin(); middle != chain.rend(); ++middle) {
+    const std::shared_ptr<map::KeyFrame> anchor = target.keyFrame(middle->origin.parent_keyframe);
+    SE3 T_target_middle = anchor->T_w_b() * middle->origin.T_w_b_parent_keyframe.inverse();
+    if (g_w) T_target_middle = optim::fourDofCorrection(T_target_middle, *g_w, anchor->T_w_b().translation());
+    const std::size_t keyframes = atlas.map(middle->id)->numKeyFrames();
+    atlas.mergeMaps(middle->id, target.id(), T_target_middle);
+    const bool linked = bridgeOrigin(target, middle->origin);
+    log::info("merged ", middle->id, " (", keyframes, " keyframes) into ", target.id(),
+              " between two losses, at its dead-reckoned place; the IMU across the loss before it linked: ",
+              linked ? "yes" : "no");
+  }
+  const bool linked_source = bridgeOrigin(target, source_origin);
+  log::info(chain.size(), " map(s) between losses merged into ", target.id(),
+            "; the IMU across the last loss linked: ", linked_source ? "yes" : "no");
+  return static_cast<int>(chain.size());
 }
 
 std::optional<MergeResult> mergeAtPlace(map::Atlas& atlas, const map::KeyFrame& current, const map::KeyFrame& candidate,
@@ -190,7 +214,7 @@ std::optional<MergeResult> mergeWithPlace(map::Atlas& atlas, const map::KeyFrame
   if (merge.bridge_losses && target_origin && bridgeOrigin(*target_map, *target_origin)) ++result.bridged;
   if (merge.bridge_losses && source_origin && result.bridged == 0) {
     result.absorbed = absorbBridgedMiddle(atlas, *target_map, *source_origin, merge.g_w);
-    result.bridged += 2 * result.absorbed;
+    if (result.absorbed > 0) result.bridged += result.absorbed + 1;
   }
   log::info("merged ", source, " into ", target, " at kf ", current.id(), " ~ kf ", candidate.id(), " (",
             result.inliers, " inliers, ", (merge.g_w ? "4-DoF" : "SE3"), " alignment",

@@ -333,22 +333,34 @@ TEST(MapMerger, TheImuAcrossALossTiesTheMapsItSeparated) {
   EXPECT_GT(without.after_m, 0.1);
 }
 
-// Two losses in a row (parent -> middle -> child), the middle map never matched by a place: once the
-// child is merged into the parent (here at its true place), the middle map hangs on the IMU at both
-// ends; absorbBridgedMiddle merges it at its dead-reckoned place (5 cm and 0.3 deg off) and bridges
-// both losses, and the full VI BA puts it at the truth.
-TEST(MapMerger, AMapBetweenTwoLossesIsMergedOnTheImuAcrossBoth) {
+/// Consecutive losses (parent -> `middles` maps -> child), no middle map matched by a place: the
+/// child is merged into the parent (here at its true place), then absorbBridgedMiddle; `before_m` /
+/// `after_m` are the worst middle keyframe's position error before / after the full VI BA.
+struct MiddleChainOutcome {
+  int absorbed = 0;
+  int again = 0;  // absorbBridgedMiddle a second time
+  std::size_t maps = 0;
+  bool all_in_parent = false;
+  bool chain_linked = false;  // every first keyframe's previous keyframe is the keyframe before the loss
+  int inertial_links = 0;
+  double before_m = 0.0;
+  double after_m = 0.0;
+};
+
+MiddleChainOutcome absorbMiddleChain(int middles) {
   std::mt19937 rng(67);
-  const std::vector<double> times = test::sceneTimes(15);
+  const std::vector<double> times = test::sceneTimes(5 * (middles + 1) + 5);
   test::SceneWorld world;
   world.addPointsSeenAt(times, 40, rng);
-  const std::vector<double> parent_times(times.begin(), times.begin() + 4);
-  const std::vector<double> middle_times(times.begin() + 5, times.begin() + 9);
-  const std::vector<double> child_times(times.begin() + 10, times.end());
+  // Four keyframes a map (five for the child), one keyframe time lost between maps.
+  auto segment = [&](int index, int length) {
+    return std::vector<double>(times.begin() + 5 * index, times.begin() + 5 * index + length);
+  };
   map::Atlas atlas(100000);
   auto same = [](int, const SE3& T) { return T; };
   auto bias = [](int) { return test::sceneBias(); };
   map::Map& parent_map = atlas.activeMap();
+  const std::vector<double> parent_times = segment(0, 4);
   const test::SceneMap parent =
       test::buildSceneMap(parent_map, world, parent_times, same, [](int, const Vec3& v) { return v; }, bias);
   auto originOf = [&](map::MapId parent_id, const std::shared_ptr<map::KeyFrame>& from, double t_from,
@@ -363,54 +375,108 @@ TEST(MapMerger, AMapBetweenTwoLossesIsMergedOnTheImuAcrossBoth) {
     origin.imu_across = across;
     return origin;
   };
-  // The middle map: placed by a short dead reckoning (5 cm, 0.3 deg of yaw off).
-  map::Map& middle_map = atlas.createNewMap();
-  const SE3 T_middle(so3ExpQuat(Vec3(0.0, 0.0, 0.3 / kRadToDeg)), Vec3(0.03, 0.04, -0.01));
-  const test::SceneMap middle = test::buildSceneMap(
-      middle_map, world, middle_times, [&](int, const SE3& T) { return T_middle * T; },
-      [&](int, const Vec3& v) -> Vec3 { return T_middle.rotationMatrix() * v; }, bias);
-  middle_map.setOrigin(originOf(parent_map.id(), parent.kfs.back(), parent_times.back(), middle.kfs.front(),
-                                middle_times.front()));
+  // The middle maps: each placed by a short dead reckoning (3-8 cm, 0.3 deg of yaw off).
+  std::vector<test::SceneMap> middle;
+  std::vector<std::vector<double>> middle_times;
+  std::vector<map::MapId> middle_ids;
+  map::MapId before_id = parent_map.id();
+  std::shared_ptr<map::KeyFrame> before_last = parent.kfs.back();
+  double before_t = parent_times.back();
+  for (int i = 0; i < middles; ++i) {
+    map::Map& middle_map = atlas.createNewMap();
+    const double sign = i % 2 == 0 ? 1.0 : -1.0;
+    const SE3 T_middle(so3ExpQuat(Vec3(0.0, 0.0, sign * 0.3 / kRadToDeg)), Vec3(0.03, sign * 0.04, -0.01 * (i + 1)));
+    middle_times.push_back(segment(i + 1, 4));
+    middle.push_back(test::buildSceneMap(
+        middle_map, world, middle_times.back(), [&](int, const SE3& T) { return T_middle * T; },
+        [&](int, const Vec3& v) -> Vec3 { return T_middle.rotationMatrix() * v; }, bias));
+    middle_map.setOrigin(
+        originOf(before_id, before_last, before_t, middle.back().kfs.front(), middle_times.back().front()));
+    middle_ids.push_back(middle_map.id());
+    before_id = middle_map.id();
+    before_last = middle.back().kfs.back();
+    before_t = middle_times.back().back();
+  }
   // The child: far off, then merged at its true place (what its place match gives).
   map::Map& child_map = atlas.createNewMap();
+  const std::vector<double> child_times = segment(middles + 1, 5);
   const SE3 T_child(so3ExpQuat(Vec3(0.0, 0.0, 2.0 / kRadToDeg)), Vec3(0.2, -0.1, 0.02));
   const test::SceneMap child = test::buildSceneMap(
       child_map, world, child_times, [&](int, const SE3& T) { return T_child * T; },
       [&](int, const Vec3& v) -> Vec3 { return T_child.rotationMatrix() * v; }, bias);
   const map::MapOrigin child_origin =
-      originOf(middle_map.id(), middle.kfs.back(), middle_times.back(), child.kfs.front(), child_times.front());
+      originOf(before_id, before_last, before_t, child.kfs.front(), child_times.front());
   child_map.setOrigin(child_origin);
-  const map::MapId middle_id = middle_map.id();
   atlas.mergeMaps(child_map.id(), parent_map.id(), T_child.inverse());
-  EXPECT_FALSE(bridgeOrigin(parent_map, child_origin));  // its parent keyframe is in the middle map
-  ASSERT_EQ(atlas.numMaps(), 2u);
+  EXPECT_FALSE(bridgeOrigin(parent_map, child_origin));  // its parent keyframe is in a middle map
+  EXPECT_EQ(atlas.numMaps(), static_cast<std::size_t>(middles + 1));
 
-  const int absorbed = absorbBridgedMiddle(atlas, parent_map, child_origin, imu::gravityWorld());
+  MiddleChainOutcome out;
+  out.absorbed = absorbBridgedMiddle(atlas, parent_map, child_origin, imu::gravityWorld());
   auto middleError_m = [&] {
     double worst = 0.0;
-    for (std::size_t k = 0; k < middle.kfs.size(); ++k) {
-      worst = std::max(worst, (middle.kfs[k]->T_w_b().translation() - world.T_w_b(middle_times[k]).translation()).norm());
+    for (std::size_t i = 0; i < middle.size(); ++i) {
+      for (std::size_t k = 0; k < middle[i].kfs.size(); ++k) {
+        const Vec3 truth = world.T_w_b(middle_times[i][k]).translation();
+        worst = std::max(worst, (middle[i].kfs[k]->T_w_b().translation() - truth).norm());
+      }
     }
     return worst;
   };
-  const double before_m = middleError_m();
+  out.before_m = middleError_m();
   GlobalBaOptions options;
   options.g_w = imu::gravityWorld();
   const GlobalBaSolution solution = optimizeGlobalBundleAdjustment(parent_map, options);
-  ASSERT_TRUE(solution.valid);
+  EXPECT_TRUE(solution.valid);
+  if (!solution.valid) return out;
   applyGlobalBundleAdjustment(parent_map, solution);
+  out.after_m = middleError_m();
+  out.inertial_links = solution.result.inertial_links;
+  out.maps = atlas.numMaps();
+  out.all_in_parent = true;
+  for (const map::MapId id : middle_ids) out.all_in_parent = out.all_in_parent && atlas.resolve(id) == parent_map.id();
+  out.chain_linked = child.kfs.front()->previousKeyFrame() == middle.back().kfs.back()->id();
+  std::shared_ptr<map::KeyFrame> last_before = parent.kfs.back();
+  for (const test::SceneMap& m : middle) {
+    out.chain_linked = out.chain_linked && m.kfs.front()->previousKeyFrame() == last_before->id();
+    last_before = m.kfs.back();
+  }
+  out.again = absorbBridgedMiddle(atlas, parent_map, child_origin, imu::gravityWorld());
+  return out;
+}
+
+// Two losses in a row (parent -> middle -> child), the middle map never matched by a place: once the
+// child is merged into the parent, the middle map hangs on the IMU at both ends; absorbBridgedMiddle
+// merges it at its dead-reckoned place (5 cm and 0.3 deg off) and bridges both losses, and the full
+// VI BA puts it at the truth.
+TEST(MapMerger, AMapBetweenTwoLossesIsMergedOnTheImuAcrossBoth) {
+  const MiddleChainOutcome out = absorbMiddleChain(1);
   std::printf("[ MIDDLE   ] absorbed %d: middle map %.4f m off -> %.5f m after the full VI BA (%d inertial links)\n",
-              absorbed, before_m, middleError_m(), solution.result.inertial_links);
-  EXPECT_EQ(absorbed, 1);
-  EXPECT_EQ(atlas.numMaps(), 1u);
-  EXPECT_EQ(atlas.resolve(middle_id), parent_map.id());
-  EXPECT_EQ(middle.kfs.front()->previousKeyFrame(), parent.kfs.back()->id());
-  EXPECT_EQ(child.kfs.front()->previousKeyFrame(), middle.kfs.back()->id());
-  EXPECT_EQ(solution.result.inertial_links, 12);  // 3 + 3 + 4 within the maps, 2 across the losses
-  EXPECT_GT(before_m, 0.04);
-  EXPECT_LT(middleError_m(), 0.005);
-  // Nothing more to absorb.
-  EXPECT_EQ(absorbBridgedMiddle(atlas, parent_map, child_origin, imu::gravityWorld()), 0);
+              out.absorbed, out.before_m, out.after_m, out.inertial_links);
+  EXPECT_EQ(out.absorbed, 1);
+  EXPECT_EQ(out.maps, 1u);
+  EXPECT_TRUE(out.all_in_parent);
+  EXPECT_TRUE(out.chain_linked);
+  EXPECT_EQ(out.inertial_links, 12);  // 3 + 3 + 4 within the maps, 2 across the losses
+  EXPECT_GT(out.before_m, 0.04);
+  EXPECT_LT(out.after_m, 0.005);
+  EXPECT_EQ(out.again, 0);  // nothing more to absorb
+}
+
+// Three losses in a row (parent -> middle 1 -> middle 2 -> child), seen on ltlo_s3 when a box
+// sweeps the view twice: both middle maps are merged, oldest first, every loss bridged.
+TEST(MapMerger, TwoMapsBetweenThreeLossesAreMergedOldestFirst) {
+  const MiddleChainOutcome out = absorbMiddleChain(2);
+  std::printf("[ MIDDLE   ] absorbed %d: middle maps %.4f m off -> %.5f m after the full VI BA (%d inertial links)\n",
+              out.absorbed, out.before_m, out.after_m, out.inertial_links);
+  EXPECT_EQ(out.absorbed, 2);
+  EXPECT_EQ(out.maps, 1u);
+  EXPECT_TRUE(out.all_in_parent);
+  EXPECT_TRUE(out.chain_linked);
+  EXPECT_EQ(out.inertial_links, 16);  // 3 + 3 + 3 + 4 within the maps, 3 across the losses
+  EXPECT_GT(out.before_m, 0.04);
+  EXPECT_LT(out.after_m, 0.005);
+  EXPECT_EQ(out.again, 0);
 }
 
 }  // namespace

@@ -265,6 +265,57 @@ TEST_F(TrackerOnSimulatedSequence, KeyFramesComeEveryImuInitIntervalUntilTheImuI
   EXPECT_GT(early_after_s, kInterval + 1.5 * frame_s);   // after the initialisation: KF.* alone again
 }
 
+/// Keyframe times (s) of a run in which every frame is weak (KF.MinTrackedPoints above any
+/// frame's inliers) and no other rule fires, with KF.WeakMinInterval = `weak_min_interval_s`;
+/// `tracked` counts the frames tracked.
+std::vector<double> weakKeyFrameTimes(const fs::path& dir, const OrbOptions& orb, double weak_min_interval_s,
+                                      int& frames, int& tracked) {
+  io::SequenceReader reader = io::SequenceReader::open(dir.string());
+  const FrameBuilder builder(orb, reader.calib());
+  map::Atlas atlas(1);
+  TrackerOptions options;
+  options.keyframe.min_tracked_points = 10000;  // every frame is weak
+  options.keyframe.max_overlap = 0.05;          // the overlap rule stays silent
+  options.keyframe.max_interval_s = 100.0;      // so does the interval rule
+  options.keyframe.weak_min_interval_s = weak_min_interval_s;
+  Tracker tracker(atlas, options, builder.extractor().levelSigma2());
+  std::vector<double> keyframe_t_s;
+  tracker.setLocalMappingCallback(
+      [&](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { keyframe_t_s.push_back(kf->t_s()); });
+  frames = tracked = 0;
+  while (auto input = reader.next()) {
+    map::Frame frame = builder.build(*input);
+    if (frames++ == 0) frame.setPose_T_w_c(reader.groundTruth().front().T_w_x);
+    if (tracker.track(frame) == TrackingState::kOk) ++tracked;
+  }
+  return keyframe_t_s;
+}
+
+// A weak frame (fewer inliers than KF.MinTrackedPoints) becomes a keyframe only KF.WeakMinInterval
+// after the last one: beside a large occluder the static strip never holds enough points, and a
+// keyframe per frame would abort every local BA. With the interval 0 every weak frame is one (the
+// test can fail both ways).
+TEST_F(TrackerOnSimulatedSequence, AWeakViewMakesAKeyFrameEveryWeakIntervalNotEveryFrame) {
+  constexpr double kWeakInterval = 0.1;
+  const double frame_s = 1.0 / 30.0;  // the simulator's default rate
+  int frames = 0, tracked = 0;
+  const std::vector<double> every = weakKeyFrameTimes(*dir_, orbOptions(), 0.0, frames, tracked);
+  EXPECT_EQ(tracked, frames);
+  EXPECT_EQ(static_cast<int>(every.size()), frames);  // the first frame and then every weak frame
+  const std::vector<double> spaced = weakKeyFrameTimes(*dir_, orbOptions(), kWeakInterval, frames, tracked);
+  EXPECT_EQ(tracked, frames);
+  ASSERT_GE(spaced.size(), 2u);
+  double shortest_s = 1e9, longest_s = 0.0;
+  for (std::size_t k = 1; k < spaced.size(); ++k) {
+    shortest_s = std::min(shortest_s, spaced[k] - spaced[k - 1]);
+    longest_s = std::max(longest_s, spaced[k] - spaced[k - 1]);
+  }
+  std::printf("%d frames: %zu keyframes with the weak interval 0, %zu with %.2f s (gaps %.3f-%.3f s)\n", frames,
+              every.size(), spaced.size(), kWeakInterval, shortest_s, longest_s);
+  EXPECT_GE(shortest_s, kWeakInterval - 1e-6);
+  EXPECT_LE(longest_s, kWeakInterval + 0.5 * frame_s);  // the first frame past the interval
+}
+
 TEST_F(TrackerOnSimulatedSequence, ImuPredictsFromTheKeyFrameAfterLocalMappingUpdatedIt) {
   // Local BA in the callback moves the newest keyframes: the next IMU prediction starts from the
   // last keyframe's updated state with the preintegration since it (ORB-SLAM3's map-updated case).

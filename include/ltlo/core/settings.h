@@ -94,6 +94,12 @@ struct KeyFrameOptions {
   /// tracking is weak (new keyframe) below this many tracked static map points
   /// (KF.MinTrackedPoints, [0, 10000])
   int min_tracked_points = 50;
+  /// a keyframe made only because tracking is weak needs at least this long since the last
+  /// keyframe, s (KF.WeakMinInterval, [0, 10]). Beside a large occluder the static view can hold
+  /// fewer features than KF.MinTrackedPoints however many keyframes are made: one keyframe per
+  /// frame then adds single-view points of the same strip and aborts every local BA, so the window
+  /// spans a fraction of a second and drifts. 0: a weak frame is always a keyframe (ablation).
+  double weak_min_interval_s = 0.1;
   /// a keyframe at least this often, s; bounds IMU preintegration time (KF.MaxInterval, [0.01,
   /// 100])
   double max_interval_s = 1.0;

@@ -67,13 +67,18 @@ struct MergeResult {
 /// Returns true when linked. Call with tracking and local mapping paused.
 bool bridgeOrigin(map::Map& map, const map::MapOrigin& origin);
 
-/// A map left between two losses (the target -> `middle` -> the source) that no place match reaches
-/// (it saw the static world only through the occluder's gaps): once the source, which started from
-/// a keyframe of `middle`, is merged into the target, `middle` hangs between them on the IMU at both
-/// ends. It is merged too, at the world its dead reckoning gave it (moved with its parent keyframe
-/// since, 4-DoF with gravity), and both losses are bridged (bridgeOrigin), so the full BA places it.
-/// `source_origin` is the merged source's origin; returns the number of maps merged (0 or 1). Call
-/// with tracking and local mapping paused.
+/// Most maps absorbBridgedMiddle merges between the target and the source.
+inline constexpr std::size_t kMaxBridgedMiddleMaps = 4;
+
+/// Maps left between consecutive losses (the target -> middle 1 -> ... -> middle n -> the source,
+/// n <= kMaxBridgedMiddleMaps) that no place match reaches (they saw the static world only through
+/// the occluder's gaps): once the source, which started from a keyframe of middle n, is merged into
+/// the target, the middle maps hang between them on the IMU at both ends. They are merged too,
+/// oldest first, each at the world its dead reckoning gave it (moved with its parent keyframe
+/// since, 4-DoF with gravity), and every loss is bridged (bridgeOrigin), so the full BA places them.
+/// Nothing is merged unless every loss of the chain kept its IMU and every parent keyframe is good.
+/// `source_origin` is the merged source's origin; returns the number of maps merged. Call with
+/// tracking and local mapping paused.
 int absorbBridgedMiddle(map::Atlas& atlas, map::Map& target, const map::MapOrigin& source_origin,
                         const std::optional<Vec3>& g_w);
 
