@@ -445,39 +445,33 @@ MiddleChainOutcome absorbMiddleChain(int middles) {
   return out;
 }
 
-// Two losses in a row (parent -> middle -> child), the middle map never matched by a place: once the
-// child is merged into the parent, the middle map hangs on the IMU at both ends; absorbBridgedMiddle
-// merges it at its dead-reckoned place (5 cm and 0.3 deg off) and bridges both losses, and the full
-// VI BA puts it at the truth.
-TEST(MapMerger, AMapBetweenTwoLossesIsMergedOnTheImuAcrossBoth) {
-  const MiddleChainOutcome out = absorbMiddleChain(1);
-  std::printf("[ MIDDLE   ] absorbed %d: middle map %.4f m off -> %.5f m after the full VI BA (%d inertial links)\n",
-              out.absorbed, out.before_m, out.after_m, out.inertial_links);
-  EXPECT_EQ(out.absorbed, 1);
+/// absorbMiddleChain(middles): every middle map merged into the parent, every loss linked (one more
+/// inertial link than middle maps across the losses, besides 3 per four-keyframe map and 4 in the
+/// child), and the full VI BA puts the middle maps from 4-5 cm off onto the truth.
+void expectMiddleChainAbsorbed(int middles) {
+  const MiddleChainOutcome out = absorbMiddleChain(middles);
+  std::printf("[ MIDDLE   ] absorbed %d of %d: middle maps %.4f m off -> %.5f m after the full VI BA (%d inertial "
+              "links)\n",
+              out.absorbed, middles, out.before_m, out.after_m, out.inertial_links);
+  EXPECT_EQ(out.absorbed, middles);
   EXPECT_EQ(out.maps, 1u);
   EXPECT_TRUE(out.all_in_parent);
   EXPECT_TRUE(out.chain_linked);
-  EXPECT_EQ(out.inertial_links, 12);  // 3 + 3 + 4 within the maps, 2 across the losses
+  EXPECT_EQ(out.inertial_links, 3 + 3 * middles + 4 + (middles + 1));
   EXPECT_GT(out.before_m, 0.04);
   EXPECT_LT(out.after_m, 0.005);
   EXPECT_EQ(out.again, 0);  // nothing more to absorb
 }
 
+// Two losses in a row (parent -> middle -> child), the middle map never matched by a place: once the
+// child is merged into the parent, the middle map hangs on the IMU at both ends; absorbBridgedMiddle
+// merges it at its dead-reckoned place (5 cm and 0.3 deg off) and bridges both losses (12 inertial
+// links), and the full VI BA puts it at the truth.
+TEST(MapMerger, AMapBetweenTwoLossesIsMergedOnTheImuAcrossBoth) { expectMiddleChainAbsorbed(1); }
+
 // Three losses in a row (parent -> middle 1 -> middle 2 -> child), seen on ltlo_s3 when a box
-// sweeps the view twice: both middle maps are merged, oldest first, every loss bridged.
-TEST(MapMerger, TwoMapsBetweenThreeLossesAreMergedOldestFirst) {
-  const MiddleChainOutcome out = absorbMiddleChain(2);
-  std::printf("[ MIDDLE   ] absorbed %d: middle maps %.4f m off -> %.5f m after the full VI BA (%d inertial links)\n",
-              out.absorbed, out.before_m, out.after_m, out.inertial_links);
-  EXPECT_EQ(out.absorbed, 2);
-  EXPECT_EQ(out.maps, 1u);
-  EXPECT_TRUE(out.all_in_parent);
-  EXPECT_TRUE(out.chain_linked);
-  EXPECT_EQ(out.inertial_links, 16);  // 3 + 3 + 3 + 4 within the maps, 3 across the losses
-  EXPECT_GT(out.before_m, 0.04);
-  EXPECT_LT(out.after_m, 0.005);
-  EXPECT_EQ(out.again, 0);
-}
+// sweeps the view twice: both middle maps are merged, oldest first, every loss bridged (16 links).
+TEST(MapMerger, TwoMapsBetweenThreeLossesAreMergedOldestFirst) { expectMiddleChainAbsorbed(2); }
 
 }  // namespace
 }  // namespace ltlo::loop
