@@ -144,10 +144,7 @@ int absorbBridgedMiddle(map::Atlas& atlas, map::Map& target, const map::MapOrigi
     const std::shared_ptr<map::KeyFrame> from = on_chain->keyFrame(needed);
     if (!from || from->isBad()) return 0;
     if (id == target.id()) break;
-    if (chain.size() == kMaxBridgedMiddleMaps) return 0;
-    for (const Middle& seen : chain) {
-      if (seen.id == id) return 0;
-    }
+    if (chain.size() == kMaxBridgedMiddleMaps) return 0;  // also ends any cycle of origins
     std::optional<map::MapOrigin> origin = on_chain->origin();
     if (!origin || !origin->imu_across) return 0;
     chain.push_back({id, std::move(*origin)});

@@ -480,8 +480,10 @@ bool Tracker::needNewKeyFrame() const {
   }
   const bool interval = last_frame_->t_s() - last_keyframe_t_s_ >= max_interval_s;
   const bool low_overlap = stats_.overlap < kf.max_overlap;
+  // (The tolerance lets three 1/30 s frame steps count as 0.1 s.)
+  constexpr double kTimeTolerance_s = 1e-6;
   const bool weak = stats_.inliers < kf.min_tracked_points &&
-                    last_frame_->t_s() - last_keyframe_t_s_ >= kf.weak_min_interval_s - 1e-6;
+                    last_frame_->t_s() - last_keyframe_t_s_ >= kf.weak_min_interval_s - kTimeTolerance_s;
   // A keyframe needs enough inliers to be anchored in the map. When tracking resumes after a loss,
   // a frame tracked with the inertial optimisation is anchored by its IMU link too and needs fewer:
   // the view is then mostly unmapped, and without a keyframe its few matches run out and tracking
