@@ -159,7 +159,7 @@ SegmentationOutcome DenseSegmenter::segment(map::Frame& frame, const MotionPrior
   }
   map::ClusterSegmentation seg = clusterSegmentation(current, gamma);
   outcome.dynamic_share = 1.0 - seg.staticAreaRatio(segmentation_.static_threshold);
-  if (has_previous_ && K > 0) {
+  if (has_previous_ && K > 0 && log::level() <= log::Level::kDebug) {  // the line's scan of gamma only when shown
     log::debug("dense t = ", current.t_s, " s: prior ", static_cast<int>(prior.kind), ", chi2 ",
                last_result_.prior_chi2, last_result_.prior_rejected ? " (rejected)" : "", ", moved ",
                (last_result_.T_w_b.translation() - prior.T_w_b_pred.translation()).norm(), " m, dynamic ",
