@@ -464,6 +464,7 @@ std::string Settings::describe() const {
        << "\nCamera.cy = " << cam.cy() << "\nCamera.width = " << cam.width()
        << "\nCamera.height = " << cam.height() << "\nCamera.fps = " << calib.camera.fps
        << "\nDepthMapFactor = " << calib.camera.depth_map_factor << "\n";
+  d.os << "Camera.lens = " << calib.camera.lens.describe() << "\n";
   if (calib.has_imu) {
     const SE3& T = calib.imu.T_b_c;
     const Quat& q = T.quaternion();
@@ -471,7 +472,7 @@ std::string Settings::describe() const {
          << " " << q.y() << " " << q.z() << " " << q.w() << "]\n";
     d.os << "IMU.NoiseGyro = " << calib.imu.noise_gyro << "\nIMU.NoiseAcc = " << calib.imu.noise_acc
          << "\nIMU.GyroWalk = " << calib.imu.gyro_walk << "\nIMU.AccWalk = " << calib.imu.acc_walk
-         << "\nIMU.Frequency = " << calib.imu.rate_hz << "\n";
+         << "\nIMU.Frequency = " << calib.imu.rate_hz << "\nIMU.TimeOffset = " << calib.imu.time_offset_s << "\n";
   } else {
     d.os << "IMU = none\n";
   }
