@@ -202,6 +202,7 @@ int run(const Arguments& args) {
   // Mask confirmation over the ground-truth frames.
   std::vector<int> moving_votes(off_geometry.size(), 0), static_votes(off_geometry.size(), 0);
   const PinholeCamera& camera = sequence.calib().camera.camera;
+  const CameraModel lens_camera = sequence.calib().camera.model();  // raw images: through the lens
   const double depth_factor = sequence.calib().camera.depth_map_factor;
   std::size_t gt_index = 0;
   for (int f = 0; f < sequence.frameCount() && !off_geometry.empty(); f += std::max(1, args.frame_step)) {
@@ -216,7 +217,7 @@ int run(const Arguments& args) {
     for (std::size_t k = 0; k < off_geometry.size(); ++k) {
       const Vec3 p_c = T_c_w * off_geometry[k];
       if (p_c.z() < 0.1) continue;
-      const Vec2 uv = camera.project(p_c);
+      const Vec2 uv = lens_camera.isDistorted() ? lens_camera.project(p_c) : camera.project(p_c);
       const int col = static_cast<int>(std::lround(uv.x())), row = static_cast<int>(std::lround(uv.y()));
       if (col < 0 || row < 0 || col >= depth.cols || row >= depth.rows || col >= mask.cols || row >= mask.rows) continue;
       const double image_depth_m = depth.at<std::uint16_t>(row, col) / depth_factor;

@@ -5,8 +5,11 @@
 #include <limits>
 #include <tuple>
 
+#include <opencv2/imgproc.hpp>
+
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
+#include "ltlo/core/undistorter.h"
 #include "ltlo/io/associate.h"
 
 namespace ltlo::eval {
@@ -264,10 +267,22 @@ SurfelCheckResult checkSurfels(const SurfelDiscs& discs, const TriangleMesh& sce
     }
     for (const io::StampedPose& pose : sequence->groundTruth()) gt_times_s.push_back(pose.t_s);
     const PinholeCamera& camera = sequence->calib().camera.camera;
+    // A distorting lens: depth and masks are taken onto the ideal grid, where the pinhole holds.
+    const Undistorter undistorter(sequence->calib().camera.model());
     const float fx = static_cast<float>(camera.fx()), fy = static_cast<float>(camera.fy());
     const float cx = static_cast<float>(camera.cx()), cy = static_cast<float>(camera.cy());
     for (const auto& [a, b] : io::associateTimestamps(frame_times_s, gt_times_s, 1e-3)) {
-      const io::RgbdImuFrame frame = sequence->load(a * options.frame_step);
+      io::RgbdImuFrame frame = sequence->load(a * options.frame_step);
+      if (undistorter.active()) {
+        cv::Mat ideal;
+        undistorter.toIdeal(frame.depth_m, &ideal, cv::INTER_NEAREST);
+        frame.depth_m = ideal;
+        if (!frame.mask.empty()) {
+          cv::Mat ideal_mask;
+          undistorter.toIdeal(frame.mask, &ideal_mask, cv::INTER_NEAREST);
+          frame.mask = ideal_mask;
+        }
+      }
       const SE3& T_w_c = sequence->groundTruth()[b].T_w_x;
       const Eigen::Matrix3f R_w_c = T_w_c.rotationMatrix().cast<float>();
       const Eigen::Vector3f t_w_c = T_w_c.translation().cast<float>();

@@ -4,6 +4,8 @@
 #include <string>
 #include <utility>
 
+#include <opencv2/imgproc.hpp>
+
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
 
@@ -21,12 +23,14 @@ FusionFrame toFusionFrame(const io::RgbdImuFrame& frame, const SE3& T_w_c) {
 
 ParallelFrameLoader::ParallelFrameLoader(const io::SequenceReader& reader, std::vector<int> indices,
                                          std::vector<uint8_t> with_colour, int num_threads,
-                                         int lookahead, const SurfelFusion* preparer)
+                                         int lookahead, const SurfelFusion* preparer,
+                                         const Undistorter* undistorter)
     : reader_(reader),
       indices_(std::move(indices)),
       with_colour_(std::move(with_colour)),
       lookahead_(static_cast<std::size_t>(lookahead)),
-      preparer_(preparer) {
+      preparer_(preparer),
+      undistorter_(undistorter) {
   LTLO_ASSERT(num_threads >= 1 && lookahead >= 1,
               "loader threads " << num_threads << ", lookahead " << lookahead);
   for (int t = 0; t < num_threads; ++t) {
@@ -61,6 +65,22 @@ void ParallelFrameLoader::work() {
     try {
       LoadedFrame loaded;
       loaded.frame = reader_.load(indices_[job], with_colour_.empty() || with_colour_[job] != 0);
+      if (undistorter_ != nullptr && undistorter_->active()) {
+        io::RgbdImuFrame& f = loaded.frame;
+        cv::Mat ideal;
+        if (!f.color_bgr.empty()) {
+          undistorter_->toIdeal(f.color_bgr, &ideal, cv::INTER_LINEAR);
+          f.color_bgr = ideal;
+        }
+        if (!f.depth_m.empty()) {
+          undistorter_->toIdeal(f.depth_m, &ideal, cv::INTER_NEAREST);
+          f.depth_m = ideal;
+        }
+        if (!f.mask.empty()) {
+          undistorter_->toIdeal(f.mask, &ideal, cv::INTER_NEAREST);
+          f.mask = ideal;
+        }
+      }
       if (preparer_ != nullptr) {
         {
           std::lock_guard<std::mutex> lock(mutex_);

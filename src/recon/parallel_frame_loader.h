@@ -13,6 +13,10 @@
 // Threads: the workers only call the reader's const, thread-safe load() and the fusion's const,
 // thread-safe prepare(); the reader and fusion must outlive the loader. next() and recycle() are
 // for one consumer. The destructor stops and joins the workers.
+//
+// With a distorting lens (an active `undistorter`) each loaded frame's colour (bilinear), depth and
+// mask (nearest) are remapped onto the ideal pinhole grid in the loader thread, before it is
+// measured: the fusion sees an ideal camera of the same K.
 #include <condition_variable>
 #include <cstdint>
 #include <cstddef>
@@ -24,6 +28,7 @@
 #include <variant>
 #include <vector>
 
+#include "ltlo/core/undistorter.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/recon/surfel_fusion.h"
 
@@ -44,7 +49,7 @@ class ParallelFrameLoader {
   /// loaded with its colour image. `preparer` (may be null) measures every loaded frame.
   ParallelFrameLoader(const io::SequenceReader& reader, std::vector<int> indices,
                       std::vector<uint8_t> with_colour, int num_threads, int lookahead,
-                      const SurfelFusion* preparer = nullptr);
+                      const SurfelFusion* preparer = nullptr, const Undistorter* undistorter = nullptr);
   ~ParallelFrameLoader();
   ParallelFrameLoader(const ParallelFrameLoader&) = delete;
   ParallelFrameLoader& operator=(const ParallelFrameLoader&) = delete;
@@ -65,6 +70,7 @@ class ParallelFrameLoader {
   const std::vector<uint8_t> with_colour_;
   const std::size_t lookahead_;
   const SurfelFusion* const preparer_;
+  const Undistorter* const undistorter_;
   std::mutex mutex_;                  // guards everything below
   std::condition_variable may_load_;  // a slot in the lookahead window freed, or stopping
   std::condition_variable loaded_;    // a frame was stored in done_

@@ -103,6 +103,10 @@ ReconstructionResult reconstruct(const ReconstructionRequest& request,
                 : " (static pixels of " + request.segmentation_dir + ")");
 
   SurfelFusion fusion(reader.calib().camera.camera, options, request.fusion_threads);
+  const Undistorter undistorter(reader.calib().camera.model());
+  if (undistorter.active()) {
+    log::info("reconstruct: lens ", reader.calib().camera.lens.describe(), "; every frame is remapped onto the ideal grid");
+  }
   ProgressReporter::Options progress_options;
   progress_options.total_frames = static_cast<long>(frames.size());
   progress_options.log_every_n_frames = request.progress_every > 0 ? request.progress_every : 1;
@@ -115,7 +119,7 @@ ReconstructionResult reconstruct(const ReconstructionRequest& request,
     // The loader threads decode and measure frames (SurfelFusion::prepare) while this thread
     // fuses earlier ones.
     ParallelFrameLoader loader(reader, frames, with_colour, request.loader_threads,
-                               kLookaheadPerThread * request.loader_threads, &fusion);
+                               kLookaheadPerThread * request.loader_threads, &fusion, &undistorter);
     TimingStats loader_timing;
     for (std::size_t k = 0; k < frames.size(); ++k) {
       ScopedTimer wait_timer(loader_timing, "recon.wait_frames");

@@ -24,13 +24,17 @@
 namespace ltlo::system {
 namespace {
 
-/// BGR of the image pixel nearest to each keypoint (level-0 coordinates, clamped to the image).
-std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector<features::Keypoint>& keypoints) {
+/// BGR of the raw image pixel nearest to each keypoint (ideal level-0 coordinates, taken back through
+/// the lens when it distorts; clamped to the image).
+std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector<features::Keypoint>& keypoints,
+                                     const Undistorter& undistorter) {
   std::vector<cv::Vec3b> colours(keypoints.size(), cv::Vec3b(128, 128, 128));
   if (color_bgr.empty() || color_bgr.type() != CV_8UC3) return colours;
   for (std::size_t i = 0; i < keypoints.size(); ++i) {
-    const int col = std::clamp(static_cast<int>(std::lround(keypoints[i].x_px)), 0, color_bgr.cols - 1);
-    const int row = std::clamp(static_cast<int>(std::lround(keypoints[i].y_px)), 0, color_bgr.rows - 1);
+    Vec2 u(keypoints[i].x_px, keypoints[i].y_px);
+    if (undistorter.active()) u = undistorter.model().distortPixel(u);
+    const int col = std::clamp(static_cast<int>(std::lround(u.x())), 0, color_bgr.cols - 1);
+    const int row = std::clamp(static_cast<int>(std::lround(u.y())), 0, color_bgr.rows - 1);
     colours[i] = color_bgr.at<cv::Vec3b>(row, col);
   }
   return colours;
@@ -38,15 +42,18 @@ std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector
 
 /// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit), or the ground-truth
 /// masks of the --oracle-masks ablation; its stages go to `timing`.
-std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings, bool oracle_masks, TimingStats* timing) {
+/// With a distorting lens each takes the images onto the ideal grid through `undistorter`.
+std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings, bool oracle_masks, TimingStats* timing,
+                                                        const std::shared_ptr<const Undistorter>& undistorter) {
   const SegmentationOptions& seg = settings.segmentation;
-  if (oracle_masks) return std::make_unique<tracking::OracleMaskSegmenter>(seg.static_threshold);
+  if (oracle_masks) return std::make_unique<tracking::OracleMaskSegmenter>(seg.static_threshold, undistorter);
   if (!seg.enable) return std::make_unique<tracking::AllStaticSegmenter>(seg.static_threshold);
   if (seg.dense_init) {
     return std::make_unique<tracking::DenseSegmenter>(seg, settings.dense, settings.local_mapping,
-                                                      settings.calib.camera.camera, timing);
+                                                      settings.calib.camera.camera, timing, undistorter);
   }
-  return std::make_unique<tracking::ClusterOnlySegmenter>(seg, settings.dense, settings.calib.camera.camera, timing);
+  return std::make_unique<tracking::ClusterOnlySegmenter>(seg, settings.dense, settings.calib.camera.camera, timing,
+                                                          undistorter);
 }
 
 }  // namespace
@@ -72,7 +79,12 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   }
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
-  tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks, &timing_));
+  tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks, &timing_, builder_->undistorter()));
+  if (builder_->undistorter()->active()) {
+    log::info("system: lens ", calib.camera.lens.describe(), "; keypoints undistorted by lookup, the dense images remapped (",
+              static_cast<int>(builder_->undistorter()->idealCoverage() * 1000.0 + 0.5) / 10.0,
+              " % of the ideal image has a raw source)");
+  }
   tracker_->setLocalMappingCallback(
       [this](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { onNewKeyFrame(kf); });
 
@@ -109,7 +121,8 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   closer_ = std::make_unique<loop::LoopCloser>(*atlas_, closer_options, std::move(mapping_control), &timing_);
 
   if (!options_.segmentation_dir.empty()) {
-    segmentation_writer_ = std::make_unique<SegmentationWriter>(options_.segmentation_dir);
+    segmentation_writer_ =
+        std::make_unique<SegmentationWriter>(options_.segmentation_dir, 128, builder_->undistorter());
   }
   if (options_.threaded) {
     mapper_->setKeyFrameProcessedCallback([this](const std::shared_ptr<map::KeyFrame>& kf) {
@@ -162,7 +175,7 @@ void System::pollImuState() {
 
 void System::onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) {
   if (current_input_ != nullptr) {
-    std::vector<cv::Vec3b> colours = sampleColours(current_input_->color_bgr, kf->keypoints());
+    std::vector<cv::Vec3b> colours = sampleColours(current_input_->color_bgr, kf->keypoints(), *builder_->undistorter());
     std::lock_guard<std::mutex> lock(records_mutex_);
     colours_[kf->id().value] = std::move(colours);
   }

@@ -89,18 +89,19 @@ segmentation::DensePrior densePrior(const MotionPrior& prior, const DenseOptions
 
 DenseSegmenter::DenseSegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense,
                                const LocalMappingOptions& local_mapping, const PinholeCamera& camera,
-                               TimingStats* timing)
+                               TimingStats* timing, std::shared_ptr<const Undistorter> undistorter)
     : segmentation_(segmentation),
       dense_(dense),
       camera_(camera),
       timing_(timing),
+      undistorter_(std::move(undistorter)),
       solver_(segmentation::DenseSolverOptions::from(segmentation, dense, local_mapping)) {
   for (std::unique_ptr<PreparedFrame>& frame : frames_) frame = std::make_unique<PreparedFrame>();
   const segmentation::DenseFrameOptions frame_options = segmentation::DenseFrameOptions::from(segmentation, dense);
   auto kmeans = std::make_shared<segmentation::DepthKMeans>(segmentation::DepthKMeansOptions::from(segmentation));
   worker_ = std::make_unique<SegmentationWorker>([this, frame_options, kmeans](const io::RgbdImuFrame& input) {
     // Worker thread: writes only frames_[current_] (the tracking thread reads it after wait()).
-    prepareFrame(input, camera_, frame_options, *kmeans, frames_[current_].get(), timing_);
+    prepareFrame(input, camera_, frame_options, *kmeans, frames_[current_].get(), timing_, undistorter_.get());
   });
 }
 

@@ -7,7 +7,10 @@
 namespace ltlo::tracking {
 
 FrameBuilder::FrameBuilder(const OrbOptions& orb, const SensorCalib& calib, const FrameBuilderOptions& options)
-    : extractor_(orb), calib_(calib), options_(options) {
+    : extractor_(orb),
+      calib_(calib),
+      undistorter_(std::make_shared<const Undistorter>(calib.camera.model())),
+      options_(options) {
   LTLO_ASSERT(options_.min_depth_m >= 0.0 && options_.max_depth_m > options_.min_depth_m,
               "depth range [" << options_.min_depth_m << ", " << options_.max_depth_m << "] m is empty");
 }
@@ -25,6 +28,9 @@ map::Frame FrameBuilder::build(const io::RgbdImuFrame& input, const imu::ImuBias
   std::vector<float> depths = map::depthsAtKeypoints(input.depth_m, features.keypoints);
   for (float& d : depths) {
     if (d < options_.min_depth_m || d > options_.max_depth_m) d = 0.0f;
+  }
+  if (undistorter_->active()) {
+    for (features::Keypoint& kp : features.keypoints) undistorter_->undistortPoint(kp.x_px, kp.y_px, &kp.x_px, &kp.y_px);
   }
   const SE3 T_b_c = calib_.has_imu ? calib_.imu.T_b_c : SE3();
   map::Frame frame(input.t_s, calib_.camera.camera, T_b_c, std::move(features), std::move(depths),

@@ -16,15 +16,16 @@ SegmentationOutcome AllStaticSegmenter::segment(map::Frame& frame, const MotionP
 }
 
 ClusterOnlySegmenter::ClusterOnlySegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense,
-                                           const PinholeCamera& camera, TimingStats* timing)
+                                           const PinholeCamera& camera, TimingStats* timing,
+                                           std::shared_ptr<const Undistorter> undistorter)
     : static_threshold_(segmentation.static_threshold), prepared_(std::make_unique<PreparedFrame>()) {
   segmentation::DenseFrameOptions frame_options = segmentation::DenseFrameOptions::from(segmentation, dense);
   frame_options.num_levels = std::min(2, frame_options.num_levels);  // level 1 holds the depth for Eq. 56
   frame_options.finest_solved_level = frame_options.num_levels;      // no dense solve: images and labels only
   auto kmeans = std::make_shared<segmentation::DepthKMeans>(segmentation::DepthKMeansOptions::from(segmentation));
-  worker_ = std::make_unique<SegmentationWorker>([this, frame_options, kmeans, camera, timing](
+  worker_ = std::make_unique<SegmentationWorker>([this, frame_options, kmeans, camera, timing, undistorter](
                                                      const io::RgbdImuFrame& input) {
-    prepareFrame(input, camera, frame_options, *kmeans, prepared_.get(), timing);
+    prepareFrame(input, camera, frame_options, *kmeans, prepared_.get(), timing, undistorter.get());
   });
 }
 

@@ -19,15 +19,25 @@ SegmentationOutcome OracleMaskSegmenter::segment(map::Frame& frame, const Motion
   LTLO_ASSERT(input.mask.type() == CV_8UC1 && input.mask.size() == input.color_bgr.size(),
               "oracle mask of frame " << input.index << " is not an 8-bit image of the colour image's size");
   const bool has_depth = !input.depth_m.empty();
+  const cv::Mat* mask_image = &input.mask;
+  const cv::Mat* depth_image = &input.depth_m;
+  if (undistorter_ && undistorter_->active()) {
+    undistorter_->toIdeal(input.mask, &mask_ideal_, cv::INTER_NEAREST);
+    mask_image = &mask_ideal_;
+    if (has_depth) {
+      undistorter_->toIdeal(input.depth_m, &depth_ideal_, cv::INTER_NEAREST);
+      depth_image = &depth_ideal_;
+    }
+  }
 
   map::ClusterSegmentation seg;
   seg.scale = kLabelScale;
-  seg.labels.create(input.mask.rows / kLabelScale, input.mask.cols / kLabelScale, CV_8U);
+  seg.labels.create(mask_image->rows / kLabelScale, mask_image->cols / kLabelScale, CV_8U);
   seg.gamma = {1.0, 0.0, 1.0};  // static with depth, dynamic, static without depth (cluster K)
   seg.pixel_counts.assign(seg.gamma.size(), 0);
   for (int r = 0; r < seg.labels.rows; ++r) {
-    const std::uint8_t* mask = input.mask.ptr<std::uint8_t>(r * kLabelScale);
-    const float* depth = has_depth ? input.depth_m.ptr<float>(r * kLabelScale) : nullptr;
+    const std::uint8_t* mask = mask_image->ptr<std::uint8_t>(r * kLabelScale);
+    const float* depth = has_depth ? depth_image->ptr<float>(r * kLabelScale) : nullptr;
     std::uint8_t* label = seg.labels.ptr<std::uint8_t>(r);
     for (int c = 0; c < seg.labels.cols; ++c) {
       const int u = c * kLabelScale;
@@ -47,7 +57,7 @@ SegmentationOutcome OracleMaskSegmenter::segment(map::Frame& frame, const Motion
   if (has_depth) {
     // Nearest-sample decimation to quarter resolution, in mm (0 = no reading; saturates at 65.5 m).
     cv::Mat depth_small;
-    cv::resize(input.depth_m, depth_small, cv::Size(input.depth_m.cols / kDepthScale, input.depth_m.rows / kDepthScale),
+    cv::resize(*depth_image, depth_small, cv::Size(depth_image->cols / kDepthScale, depth_image->rows / kDepthScale),
                0.0, 0.0, cv::INTER_NEAREST);
     depth_small.convertTo(seg.depth_mm, CV_16U, 1000.0);
     seg.depth_scale = kDepthScale;

@@ -4,16 +4,35 @@
 #include <optional>
 #include <utility>
 
+#include <opencv2/imgproc.hpp>
+
 #include "ltlo/core/assert.h"
 
 namespace ltlo::tracking {
 
 void prepareFrame(const io::RgbdImuFrame& input, const PinholeCamera& camera,
                   const segmentation::DenseFrameOptions& options, segmentation::DepthKMeans& kmeans,
-                  PreparedFrame* out, TimingStats* timing) {
+                  PreparedFrame* out, TimingStats* timing, const Undistorter* undistorter) {
   out->t_s = input.t_s;
   out->valid = !input.color_bgr.empty() && !input.depth_m.empty();
   if (!out->valid) return;
+  const cv::Mat* color = &input.color_bgr;
+  const cv::Mat* depth = &input.depth_m;
+  if (undistorter != nullptr && undistorter->active()) {
+    std::optional<ScopedTimer> wall;
+    if (timing != nullptr) wall.emplace(*timing, "tracking.undistort");
+    // Grey first: one channel to remap instead of three. Intensity bilinear, depth nearest (a depth
+    // is a surface's, never a blend across an edge).
+    if (input.color_bgr.channels() == 3) {
+      cv::cvtColor(input.color_bgr, out->gray_raw, cv::COLOR_BGR2GRAY);
+      undistorter->toIdeal(out->gray_raw, &out->gray_ideal, cv::INTER_LINEAR);
+    } else {
+      undistorter->toIdeal(input.color_bgr, &out->gray_ideal, cv::INTER_LINEAR);
+    }
+    undistorter->toIdeal(input.depth_m, &out->depth_ideal, cv::INTER_NEAREST);
+    color = &out->gray_ideal;
+    depth = &out->depth_ideal;
+  }
   {
     std::optional<ScopedTimer> wall;
     std::optional<ScopedThreadCpuTimer> cpu;
@@ -21,7 +40,7 @@ void prepareFrame(const io::RgbdImuFrame& input, const PinholeCamera& camera,
       wall.emplace(*timing, "tracking.pyramid");
       cpu.emplace(*timing, "tracking.pyramid_cpu");
     }
-    out->dense.build(input.color_bgr, input.depth_m, camera, options);
+    out->dense.build(*color, *depth, camera, options);
   }
   {
     std::optional<ScopedTimer> wall;

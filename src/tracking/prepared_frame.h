@@ -5,6 +5,7 @@
 
 #include "ltlo/core/camera.h"
 #include "ltlo/core/timing.h"
+#include "ltlo/core/undistorter.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/cluster_segmentation.h"
 #include "ltlo/segmentation/dense_frame.h"
@@ -19,14 +20,19 @@ struct PreparedFrame {
   /// false: the input had no colour or depth image (nothing was built; the frame is one static
   /// cluster)
   bool valid = false;
+  /// With a distorting lens: the input's grey and depth images on the ideal pinhole grid (buffers
+  /// reused from frame to frame).
+  cv::Mat gray_raw, gray_ideal, depth_ideal;
 };
 
 /// Builds the pyramid of `input` and clusters its base level (worker thread). With `timing`, the
 /// pyramid goes to "tracking.pyramid" and the clustering to "tracking.segmentation" (wall and
-/// thread CPU time, "..._cpu").
+/// thread CPU time, "..._cpu"). With an active `undistorter` the grey and depth images are first
+/// remapped onto the ideal grid of `camera` ("tracking.undistort"), so the pyramid, the clusters and
+/// their labels are those of an ideal pinhole image, where the frame's keypoints are.
 void prepareFrame(const io::RgbdImuFrame& input, const PinholeCamera& camera,
                   const segmentation::DenseFrameOptions& options, segmentation::DepthKMeans& kmeans,
-                  PreparedFrame* out, TimingStats* timing = nullptr);
+                  PreparedFrame* out, TimingStats* timing = nullptr, const Undistorter* undistorter = nullptr);
 
 /// The frame's ClusterSegmentation with scores `gamma` (K + 1): 8-bit labels at the pyramid base
 /// (scale = input px per base px), pixel counts, V_i and the depth of pyramid level 1 in mm for

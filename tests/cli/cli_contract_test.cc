@@ -151,6 +151,28 @@ TEST_F(CliContract, ReconstructionToolsExitTwoNamingTheBrokenFile) {
       << result.err;
 }
 
+TEST_F(CliContract, AMalformedDistortionKeyExitsTwoNamingTheKey) {
+  const fs::path lens = sequenceVariant(work_ / "lens", {"calib.yaml"});
+  const std::string calib = readFile(sharedSequence() / "calib.yaml");
+  {
+    std::ofstream out(lens / "calib.yaml");
+    out << calib << "Camera.k1: \"-0.1x\"\n";
+  }
+  ProgramResult result = slam(lens, {"--max-frames", "3"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find((lens / "calib.yaml").string() + ": Camera.k1 = \"-0.1x\", expected a number"),
+            std::string::npos)
+      << result.err;
+  // A lens that folds over inside the image is refused by name too, not run with two pixels per ray.
+  {
+    std::ofstream out(lens / "calib.yaml");
+    out << calib << "Camera.k1: -2.5\n";
+  }
+  result = slam(lens, {"--max-frames", "3"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("Camera.k1 = -2.5, expected a lens that can be inverted"), std::string::npos) << result.err;
+}
+
 TEST_F(CliContract, RgbdInertialWithoutImuDataIsAnErrorNamingTheAlternatives) {
   const fs::path no_imu = sequenceVariant(work_ / "no_imu", {"imu.txt"});
   ProgramResult result = slam(no_imu, {});

@@ -2,26 +2,32 @@
 /// SegmentationWriter: writes every frame's static/dynamic mask to RUN/segmentation/<timestamp>.png
 /// (8-bit, 255 = dynamic, 0 = static, at the input resolution: DATA_FORMAT.md's masks/ convention)
 /// on a thread of its own, so the tracking thread never waits for PNG encoding. Masks arrive at the
-/// label resolution and are upsampled (nearest) on the writer thread.
+/// label resolution and are upsampled (nearest) on the writer thread. With a distorting lens the
+/// labels lie on the ideal pinhole grid: each raw pixel then takes the label at its undistorted
+/// position (Undistorter::rawToIdealMap, built once per label scale), so the files stay in the raw
+/// image's grid, as the sequence's masks/ are.
 ///
 /// Threads: push() from the tracking thread, the writer thread started by the constructor and
 /// joined by finish() / the destructor; they share only the bounded queue. The queue holds
 /// `capacity` masks (label resolution, 77 kB each at QVGA); push() waits only when the writer is
 /// that far behind (a stalled disk), never for the encoding of the frame just pushed.
 #include <atomic>
+#include <memory>
 #include <string>
 #include <thread>
 
 #include <opencv2/core.hpp>
 
 #include "ltlo/core/blocking_queue.h"
+#include "ltlo/core/undistorter.h"
 
 namespace ltlo::system {
 
 class SegmentationWriter {
  public:
   /// Creates `dir` (throws InputError when it cannot) and starts the writer thread.
-  explicit SegmentationWriter(std::string dir, std::size_t capacity = 128);
+  explicit SegmentationWriter(std::string dir, std::size_t capacity = 128,
+                              std::shared_ptr<const Undistorter> undistorter = nullptr);
   /// finish()
   ~SegmentationWriter();
   SegmentationWriter(const SegmentationWriter&) = delete;
@@ -47,6 +53,9 @@ class SegmentationWriter {
   void run();
 
   std::string dir_;
+  std::shared_ptr<const Undistorter> undistorter_;
+  cv::Mat raw_to_ideal_;  // writer thread only: rawToIdealMap of raw_to_ideal_scale_
+  int raw_to_ideal_scale_ = 0;
   BlockingQueue<Item> queue_;
   std::atomic<int> written_{0};
   bool failed_ = false;  // writer thread only: stop writing after the first failure

@@ -44,7 +44,7 @@ class DenseSegmenter final : public FrameSegmenter {
   /// "tracking.dense" (the solve), wall and thread CPU time ("..._cpu").
   DenseSegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense,
                  const LocalMappingOptions& local_mapping, const PinholeCamera& camera,
-                 TimingStats* timing = nullptr);
+                 TimingStats* timing = nullptr, std::shared_ptr<const Undistorter> undistorter = nullptr);
   ~DenseSegmenter() override;
 
   void begin(const io::RgbdImuFrame& input) override;
@@ -61,6 +61,7 @@ class DenseSegmenter final : public FrameSegmenter {
   DenseOptions dense_;
   PinholeCamera camera_;
   TimingStats* timing_;
+  std::shared_ptr<const Undistorter> undistorter_;  // null or inactive: the images are ideal already
   std::unique_ptr<PreparedFrame> frames_[2];  // [current_] is being prepared / segmented
   int current_ = 0;
   bool has_previous_ = false;

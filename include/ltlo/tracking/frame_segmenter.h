@@ -23,6 +23,7 @@
 #include "ltlo/core/lie.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/core/timing.h"
+#include "ltlo/core/undistorter.h"
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/imu/inertial_residual.h"
 #include "ltlo/imu/preintegration.h"
@@ -114,7 +115,7 @@ class AllStaticSegmenter final : public FrameSegmenter {
 class ClusterOnlySegmenter final : public FrameSegmenter {
  public:
   ClusterOnlySegmenter(const SegmentationOptions& segmentation, const DenseOptions& dense, const PinholeCamera& camera,
-                       TimingStats* timing = nullptr);
+                       TimingStats* timing = nullptr, std::shared_ptr<const Undistorter> undistorter = nullptr);
   ~ClusterOnlySegmenter() override;
   void begin(const io::RgbdImuFrame& input) override;
   SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior) override;

@@ -12,6 +12,9 @@
 /// gamma prior (Eq. 56) and the static-area gate of loop closing work on them. The static area of a
 /// frame is its static pixels with depth over those plus all dynamic pixels (a dynamic pixel
 /// without depth counts as dynamic area: the gate errs on the safe side).
+#include <memory>
+
+#include "ltlo/core/undistorter.h"
 #include "ltlo/tracking/frame_segmenter.h"
 
 namespace ltlo::tracking {
@@ -19,7 +22,9 @@ namespace ltlo::tracking {
 /// Not thread-safe: one tracking thread calls begin() and segment() alternately.
 class OracleMaskSegmenter final : public FrameSegmenter {
  public:
-  explicit OracleMaskSegmenter(double static_threshold) : static_threshold_(static_threshold) {}
+  /// With an active `undistorter` the raw mask and depth are first remapped onto the ideal grid.
+  explicit OracleMaskSegmenter(double static_threshold, std::shared_ptr<const Undistorter> undistorter = nullptr)
+      : static_threshold_(static_threshold), undistorter_(std::move(undistorter)) {}
   void begin(const io::RgbdImuFrame& input) override { input_ = &input; }
   /// Throws InputError naming the frame when it has no mask (masks/ missing or not read).
   SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior) override;
@@ -35,7 +40,9 @@ class OracleMaskSegmenter final : public FrameSegmenter {
 
  private:
   double static_threshold_;
+  std::shared_ptr<const Undistorter> undistorter_;
   const io::RgbdImuFrame* input_ = nullptr;
+  cv::Mat mask_ideal_, depth_ideal_;  // reused buffers of the remapped images
 };
 
 }  // namespace ltlo::tracking
