@@ -105,6 +105,10 @@ std::string defaultVocabularyPath() {
 
 /// Settings and reader options: the calibration from DIR/calib.yaml when present, else from the
 /// settings file (then also handed to the reader, which has no calib.yaml to read).
+/// How far each frame's IMU samples reach beyond its interval (s): the online time-offset estimate
+/// is clamped to +-50 ms (TimeOffsetOptions::max_abs_shift_s), with a frame's ramp step to spare.
+constexpr double kImuMarginS = 0.06;
+
 struct RunSetup {
   Settings settings;
   io::SequenceReaderOptions reader_options;
@@ -117,8 +121,11 @@ RunSetup loadSetup(const Arguments& args) {
   for (const std::string& text : args.overrides) overrides.push_back(SettingOverride::parse(text));
   setup.settings = Settings::load(args.settings_path, has_calib_file ? calib_path.string() : "", overrides);
   setup.reader_options.sequence = setup.settings.sequence;
+  // The reader takes the calibration the settings resolved (--set on a calibration key reaches it).
+  setup.reader_options.calib_override = setup.settings.calib;
+  // Room for the online camera-IMU offset estimate to cut each frame's IMU interval elsewhere.
+  if (setup.settings.local_mapping.estimate_time_offset) setup.reader_options.imu_margin_s = kImuMarginS;
   if (!has_calib_file) {
-    setup.reader_options.calib_override = setup.settings.calib;
     log::info(kProgram, ": ", calib_path.string(), " not found; calibration (Camera.*, DepthMapFactor",
               setup.settings.calib.has_imu ? ", IMU.*" : "", ") from the settings file ", args.settings_path);
   }

@@ -143,12 +143,70 @@ void Preintegrated::append(const Preintegrated& next) {
     steps_.push_back(step);
     propagate(step);
   }
+  shift_end_s_ = next.shift_end_s_;  // the union ends where `next` does
 }
 
 Preintegrated Preintegrated::merged(const Preintegrated& first, const Preintegrated& second) {
   Preintegrated out = first;
   out.append(second);
   return out;
+}
+
+void Preintegrated::moveBoundary(Preintegrated& earlier, Preintegrated& later, double new_shift_s) {
+  const double move_s = new_shift_s - earlier.shift_end_s_;  // > 0: the boundary moves later in time
+  if (move_s == 0.0) {
+    later.shift_begin_s_ = new_shift_s;
+    return;
+  }
+  Preintegrated& giver = move_s > 0.0 ? later : earlier;
+  Preintegrated& taker = move_s > 0.0 ? earlier : later;
+  double remaining = std::abs(move_s);
+  LTLO_ASSERT(remaining < giver.dt_s_, "moving an IMU boundary by " << move_s << " s across a " << giver.dt_s_
+                                                                    << " s preintegration");
+  std::vector<Step> handed;  // in time order
+  if (move_s > 0.0) {
+    // From the front of `later` to the back of `earlier`.
+    std::size_t k = 0;
+    while (remaining > 0.0 && k < giver.steps_.size()) {
+      Step& step = giver.steps_[k];
+      if (step.dt_s <= remaining) {
+        handed.push_back(step);
+        remaining -= step.dt_s;
+        ++k;
+      } else {
+        Step piece = step;
+        piece.dt_s = remaining;
+        step.dt_s -= remaining;
+        handed.push_back(piece);
+        remaining = 0.0;
+      }
+    }
+    giver.steps_.erase(giver.steps_.begin(), giver.steps_.begin() + static_cast<std::ptrdiff_t>(k));
+    taker.steps_.insert(taker.steps_.end(), handed.begin(), handed.end());
+  } else {
+    // From the back of `earlier` to the front of `later`.
+    std::size_t k = giver.steps_.size();
+    while (remaining > 0.0 && k > 0) {
+      Step& step = giver.steps_[k - 1];
+      if (step.dt_s <= remaining) {
+        handed.insert(handed.begin(), step);
+        remaining -= step.dt_s;
+        --k;
+      } else {
+        Step piece = step;
+        piece.dt_s = remaining;
+        step.dt_s -= remaining;
+        handed.insert(handed.begin(), piece);
+        remaining = 0.0;
+      }
+    }
+    giver.steps_.resize(k);
+    taker.steps_.insert(taker.steps_.begin(), handed.begin(), handed.end());
+  }
+  earlier.shift_end_s_ = new_shift_s;
+  later.shift_begin_s_ = new_shift_s;
+  earlier.reintegrate(earlier.bias_);
+  later.reintegrate(later.bias_);
 }
 
 Mat9 Preintegrated::information() const {

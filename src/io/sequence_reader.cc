@@ -207,6 +207,7 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
                                     const SequenceReaderOptions& options) {
   SequenceReader reader;
   reader.dir_ = sequence_dir;
+  reader.imu_margin_s_ = options.imu_margin_s;
   reader.layout_ = detectLayout(sequence_dir);
 
   // Calibration first: image sizes are checked against it.
@@ -272,6 +273,12 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
     reader.imu_path_ = accel_txt;
     reader.imu_ = readOpenLorisImu(accel_txt, gyro_txt, options.sequence);
   }
+  if (reader.calib_.has_imu && reader.calib_.imu.time_offset_s != 0.0 && !reader.imu_.empty()) {
+    // IMU.TimeOffset (t_imu = t_cam + offset): every stamp onto the camera's clock, once.
+    const double offset_s = reader.calib_.imu.time_offset_s;
+    for (ImuSample& sample : reader.imu_) sample.t_s -= offset_s;
+    log::info(reader.imu_path_, ": IMU stamps moved onto the camera clock by IMU.TimeOffset = ", offset_s * 1e3, " ms");
+  }
   if (!reader.imu_path_.empty() && reader.imu_.empty()) {
     log::warn(reader.imu_path_, ": no IMU samples (only comments or blank lines)");
   } else if (reader.calib_.has_imu && reader.imu_.empty()) {
@@ -329,7 +336,10 @@ RgbdImuFrame SequenceReader::load(int index, bool with_colour) const {
   }
 
   const double previous_t_s = index > 0 ? entries_[index - 1].t_s : files.t_s;
-  frame.imu = imuSamplesBetween(imu_, previous_t_s, files.t_s);
+  frame.imu = imuSamplesBetween(imu_, previous_t_s - imu_margin_s_, files.t_s + imu_margin_s_);
+  frame.imu_begin_s = previous_t_s;
+  frame.imu_end_s = files.t_s;
+  frame.imu_has_margin = imu_margin_s_ > 0.0;
   return frame;
 }
 

@@ -12,6 +12,7 @@
 #include "ltlo/optim/bundle_adjust.h"
 #include "map_culling.h"
 #include "point_fusion.h"
+#include "time_offset_estimator.h"
 
 namespace ltlo::mapping {
 
@@ -65,6 +66,8 @@ struct LocalMapper::Impl {
   /// Initialises or refines the IMU estimate when due; true when it did.
   bool maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf);
   void publishImu(const ImuInitEstimate& estimate, const char* what);
+  /// Re-estimates the camera-IMU shift on `kf`'s chain and moves the map's IMU boundaries to it.
+  void updateTimeOffset(map::Map& map, const map::KeyFrame& kf, const ImuState& imu);
 
   map::Atlas& atlas;
   const LocalMapperOptions options;
@@ -87,6 +90,8 @@ struct LocalMapper::Impl {
   mutable std::mutex state_mutex;
   ImuState imu_state;
   LocalMapperCounters counters;
+  TimeOffsetStatus time_offset;
+  std::atomic<double> time_shift_s{0.0};  // time_offset.shift_s, for tracking's every frame
   std::function<void(const std::shared_ptr<map::KeyFrame>&)> processed_callback;
 
   // Mapping thread only (or the synchronous caller).
@@ -96,6 +101,8 @@ struct LocalMapper::Impl {
   double last_imu_estimate_t_s = 0.0;  ///< keyframe time of the last (re)estimate
   double last_imu_chain_end_t_s = -1.0;  ///< newest keyframe the last applied estimate used
   std::size_t imu_refinements = 0;  ///< refinements done (index into imu_refinement_delays_s)
+  double time_shift_logged_s = 0.0;   ///< the estimate last written to the log
+  bool time_offset_warned = false;
 };
 
 void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded) {
@@ -141,6 +148,11 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
 
     // 5. IMU initialisation and its refinements.
     if (options.use_imu && maybeInitialiseImu(*map, kf)) ++delta.imu_initialisations;
+
+    // 6. The camera-IMU time offset on the refined rotations.
+    if (options.use_imu && options.local_mapping.estimate_time_offset && !kf->isBad()) {
+      updateTimeOffset(*map, *kf, imu);
+    }
   }
   std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback;
   {
@@ -158,6 +170,53 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
   if (timer) timer->stop();
   // 6. Hand on (loop closing).
   if (callback) callback(kf);
+}
+
+void LocalMapper::Impl::updateTimeOffset(map::Map& map, const map::KeyFrame& kf, const ImuState& imu) {
+  // An estimate is used once it knows the shift to this (s); the links a few seconds of turning
+  // give reach ~0.3 ms, a straight or constant turn leaves the prior's 25 ms.
+  constexpr double kMaxUsefulSigmaS = 0.003;
+  constexpr int kMinLinks = 8;
+  // Boundaries closer than this to the estimate stay (the step it moves by, at most, unseen).
+  constexpr double kMinBoundaryMoveS = 2e-4;
+  std::optional<ScopedTimer> timer;
+  if (timing != nullptr) timer.emplace(*timing, "mapping.time_offset");
+  const std::vector<TimeOffsetLink> links = chainLinks(map, kf, options.local_mapping.time_offset_window);
+  if (static_cast<int>(links.size()) < kMinLinks) return;
+  TimeOffsetOptions estimator;
+  estimator.prior_sigma_s = options.local_mapping.time_offset_prior_sigma_s;
+  const double current = time_shift_s.load();
+  const Vec3 b_g = imu.initialised ? kf.bias().b_g : links.front().pim.bias().b_g;
+  const std::optional<TimeOffsetEstimate> estimate = estimateTimeOffset(links, current, b_g, estimator);
+  if (!estimate || estimate->sigma_s > kMaxUsefulSigmaS) return;
+  const int moved = moveChainBoundaries(map, kf.id(), estimate->shift_s, kMinBoundaryMoveS);
+  time_shift_s.store(estimate->shift_s);
+  bool first = false;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex);
+    first = !time_offset.estimated;
+    time_offset.estimated = true;
+    time_offset.shift_s = estimate->shift_s;
+    time_offset.sigma_s = estimate->sigma_s;
+    ++time_offset.updates;
+    time_offset.boundaries_moved += moved;
+    if (first) time_offset.first_estimate_t_s = kf.t_s();
+  }
+  if (first || std::abs(estimate->shift_s - time_shift_logged_s) > 1e-3) {
+    log::info("IMU time offset: ", estimate->shift_s * 1e3, " ms +- ", estimate->sigma_s * 1e3, " ms beyond IMU.TimeOffset (",
+              estimate->links, " links to t = ", kf.t_s(), " s, rotation rms ", estimate->rms_rad * 1e3, " mrad, ", moved,
+              " boundaries moved)");
+    time_shift_logged_s = estimate->shift_s;
+  } else {
+    log::debug("IMU time offset: ", estimate->shift_s * 1e3, " ms +- ", estimate->sigma_s * 1e3, " ms (", estimate->links,
+               " links, ", moved, " boundaries moved)");
+  }
+  if (!time_offset_warned && std::abs(estimate->shift_s) > 3.0 * estimator.prior_sigma_s) {
+    time_offset_warned = true;
+    log::warn("IMU.TimeOffset: the online estimate puts the IMU clock ", estimate->shift_s * 1e3,
+              " ms from the calibration's offset, beyond 3 sigma of its prior (LocalMapping.TimeOffsetPriorSigma = ",
+              estimator.prior_sigma_s * 1e3, " ms): IMU.TimeOffset is likely wrong");
+  }
 }
 
 void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf,
@@ -395,6 +454,13 @@ void LocalMapper::resume() {
 void LocalMapper::setKeyFrameProcessedCallback(std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback) {
   std::lock_guard<std::mutex> lock(impl_->state_mutex);
   impl_->processed_callback = std::move(callback);
+}
+
+double LocalMapper::timeShift() const { return impl_->time_shift_s.load(); }
+
+TimeOffsetStatus LocalMapper::timeOffset() const {
+  std::lock_guard<std::mutex> lock(impl_->state_mutex);
+  return impl_->time_offset;
 }
 
 LocalMapperCounters LocalMapper::counters() const {

@@ -258,6 +258,11 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("wall_s", report.wall_s);
   metrics.set("fps", report.wall_s > 0.0 ? c.frames / report.wall_s : 0.0);
   metrics.set("peak_memory_mb", report.peak_memory_mb);
+  if (report.time_offset_estimated) {
+    metrics.set("imu_time_offset_s", report.time_offset_s);
+    metrics.set("imu_time_offset_sigma_s", report.time_offset_sigma_s);
+    metrics.set("imu_time_offset_updates", report.time_offset_updates);
+  }
   for (const StageTiming& stage : report.timing) {
     const std::string key = metricKey(stage.stage);
     metrics.set(key + "_count", static_cast<int64_t>(stage.count));

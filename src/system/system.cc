@@ -216,7 +216,9 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   map::Frame frame = [&] {
     ScopedTimer timer(timing_, "tracking.orb");
     try {
-      return builder_->build(input, tracker_->bias());
+      // The IMU interval follows the online time-offset estimate where the reader left room for it.
+      const double shift_s = use_imu_ && input.imu_has_margin ? mapper_->timeShift() : 0.0;
+      return builder_->build(input, tracker_->bias(), imu_shift_.next(shift_s));
     } catch (...) {
       segmenter.cancel();
       throw;
@@ -494,6 +496,11 @@ RunReport System::report(double wall_s) const {
   report.wall_s = wall_s;
   report.peak_memory_mb = peakMemoryMb();
   report.oracle_masks = options_.oracle_masks;
+  const mapping::TimeOffsetStatus offset = mapper_->timeOffset();
+  report.time_offset_estimated = offset.estimated;
+  report.time_offset_s = settings_.calib.imu.time_offset_s + offset.shift_s;
+  report.time_offset_sigma_s = offset.sigma_s;
+  report.time_offset_updates = offset.updates;
   return report;
 }
 

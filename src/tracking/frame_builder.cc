@@ -1,5 +1,7 @@
 #include "ltlo/tracking/frame_builder.h"
 
+#include <algorithm>
+
 #include <opencv2/imgproc.hpp>
 
 #include "ltlo/core/assert.h"
@@ -15,7 +17,15 @@ FrameBuilder::FrameBuilder(const OrbOptions& orb, const SensorCalib& calib, cons
               "depth range [" << options_.min_depth_m << ", " << options_.max_depth_m << "] m is empty");
 }
 
-map::Frame FrameBuilder::build(const io::RgbdImuFrame& input, const imu::ImuBias& bias) const {
+ImuCut ImuShiftRamp::next(double target_shift_s) {
+  ImuCut cut;
+  cut.shift_begin_s = shift_s_;
+  shift_s_ += std::clamp(target_shift_s - shift_s_, -max_step_s_, max_step_s_);
+  cut.shift_end_s = shift_s_;
+  return cut;
+}
+
+map::Frame FrameBuilder::build(const io::RgbdImuFrame& input, const imu::ImuBias& bias, const ImuCut& cut) const {
   cv::Mat gray;
   if (input.color_bgr.channels() == 3) {
     cv::cvtColor(input.color_bgr, gray, cv::COLOR_BGR2GRAY);
@@ -35,10 +45,17 @@ map::Frame FrameBuilder::build(const io::RgbdImuFrame& input, const imu::ImuBias
   const SE3 T_b_c = calib_.has_imu ? calib_.imu.T_b_c : SE3();
   map::Frame frame(input.t_s, calib_.camera.camera, T_b_c, std::move(features), std::move(depths),
                    extractor_.scaleFactors());
-  if (calib_.has_imu && input.imu.size() >= 2) {
-    imu::Preintegrated pim(bias, imu::ImuNoise::fromCalib(calib_.imu));
-    pim.integrate(input.imu);
-    frame.imu_from_last_frame = std::move(pim);
+  if (calib_.has_imu && !input.imu.empty()) {
+    const bool exact = !input.imu_has_margin && cut.shift_begin_s == 0.0 && cut.shift_end_s == 0.0;
+    const ImuSamples shifted =
+        exact ? ImuSamples() : imuSamplesBetween(input.imu, input.imu_begin_s + cut.shift_begin_s, input.imu_end_s + cut.shift_end_s);
+    const ImuSamples& samples = exact ? input.imu : shifted;
+    if (samples.size() >= 2) {
+      imu::Preintegrated pim(bias, imu::ImuNoise::fromCalib(calib_.imu));
+      pim.integrate(samples);
+      pim.setShifts(cut.shift_begin_s, cut.shift_end_s);
+      frame.imu_from_last_frame = std::move(pim);
+    }
   }
   return frame;
 }

@@ -245,6 +245,15 @@ struct LocalMappingOptions {
   /// a keyframe is culled when this fraction of its points is seen by >= 3 other keyframes
   /// (LocalMapping.RedundantRatio, [0.5, 1])
   double redundant_ratio = 0.9;
+  /// Estimate the camera-IMU time offset online (what IMU.TimeOffset left), from the keyframe
+  /// rotations after each local BA against the gyroscope (mapping/time_offset_estimator.h); tracking
+  /// cuts the frames' IMU intervals with it (LocalMapping.EstimateTimeOffset, 0/1)
+  bool estimate_time_offset = true;
+  /// Prior sigma of that estimate around IMU.TimeOffset (s): how far the calibration may be off
+  /// (LocalMapping.TimeOffsetPriorSigma, [1e-4, 0.2]); an estimate beyond 3 sigma is warned about
+  double time_offset_prior_sigma_s = 0.025;
+  /// Keyframe links the estimate uses, newest first (LocalMapping.TimeOffsetWindow, [3, 1000])
+  int time_offset_window = 40;
 
   static LocalMappingOptions load(const SettingsFile& file);
 };

@@ -17,6 +17,13 @@
 ///
 /// Error conventions: rotation errors are right perturbations (delta_R_true = delta_R Exp(phi)); the
 /// covariance is 9x9 in the order [phi, v, p].
+///
+/// Camera-IMU time shift: the interval integrated between the frames at camera times t_i and t_j is
+/// [t_i + shift_begin, t_j + shift_end] on the IMU's clock (after the reader applied IMU.TimeOffset),
+/// where the shifts are the online estimate of the remaining offset when each end was cut. The deltas
+/// then describe the motion between the two images if the shifts are right; moveBoundary() moves
+/// the end shared by two consecutive preintegrations when the estimate changes, exactly, by handing
+/// steps from one to the other.
 #include <vector>
 
 #include "ltlo/core/eigen_types.h"
@@ -43,10 +50,28 @@ class Preintegrated {
   /// Appends `next` (the interval that starts where this one ends): its raw steps are integrated
   /// on at this preintegration's bias, so the result equals a preintegration over the union of the
   /// samples (whatever bias `next` was linearised at). Costs O(next.numSteps()), independent of the
-  /// interval already held.
+  /// interval already held. The end's time shift becomes `next`'s.
   void append(const Preintegrated& next);
   /// Merge of two consecutive preintegrations (keyframe culling); `first`'s bias is kept.
   static Preintegrated merged(const Preintegrated& first, const Preintegrated& second);
+
+  /// The time shifts of the two ends (s; see the file comment): 0 unless set.
+  double shiftBegin_s() const { return shift_begin_s_; }
+  double shiftEnd_s() const { return shift_end_s_; }
+  void setShifts(double begin_s, double end_s) {
+    shift_begin_s_ = begin_s;
+    shift_end_s_ = end_s;
+  }
+  /// Moves the boundary between two consecutive preintegrations (earlier.shiftEnd_s() ==
+  /// later.shiftBegin_s()) to `new_shift_s`: the steps between the old and the new boundary pass
+  /// from one to the other (a step cut in two keeps its readings on both sides), and both are
+  /// integrated again at their own biases. Asserts that the piece handed over is shorter than the
+  /// giving side.
+  static void moveBoundary(Preintegrated& earlier, Preintegrated& later, double new_shift_s);
+  /// Bias-free mean gyro reading of the first / last step (rad/s; zero without steps): the angular
+  /// rate at the ends, which a shift of the end rotates the delta by (d delta_R / d shift).
+  Vec3 firstGyro() const { return steps_.empty() ? Vec3::Zero() : steps_.front().gyro_mean_rad_s; }
+  Vec3 lastGyro() const { return steps_.empty() ? Vec3::Zero() : steps_.back().gyro_mean_rad_s; }
 
   const ImuBias& bias() const { return bias_; }
   const ImuNoise& noise() const { return noise_; }
@@ -86,6 +111,8 @@ class Preintegrated {
   ImuBias bias_;
   ImuNoise noise_;
   std::vector<Step> steps_;
+  double shift_begin_s_ = 0.0;
+  double shift_end_s_ = 0.0;
 
   double dt_s_ = 0.0;
   Mat3 delta_R_;

@@ -29,10 +29,17 @@ struct RgbdImuFrame {
   std::string mask_path;  ///< ground-truth mask file (masks/), empty when absent or not read
   cv::Mat mask;           ///< CV_8UC1, 255 = dynamic, 0 = static; empty when absent or not read
                           ///< (SequenceReaderOptions::read_masks)
-  /// Samples in [t of the previous frame, t_s] with interpolated samples at both ends (the
-  /// boundary sample is shared by consecutive frames). The first frame holds the single sample
-  /// at t_s. Empty without IMU or where the IMU stream does not reach.
+  /// Samples in [imu_begin_s - margin, imu_end_s + margin] (SequenceReaderOptions::imu_margin_s,
+  /// default 0) with interpolated samples at both ends (the boundary sample is shared by consecutive
+  /// frames), on the camera's clock (IMU.TimeOffset applied). The first frame holds the single
+  /// sample at t_s (without margin). Empty without IMU or where the IMU stream does not reach.
   ImuSamples imu;
+  /// The frame's own interval: from the previous frame's colour time to t_s (the first frame: t_s).
+  /// A consumer that estimates a remaining clock offset cuts [imu_begin_s + shift, imu_end_s + shift']
+  /// out of `imu` (|shift| <= margin).
+  double imu_begin_s = 0.0;
+  double imu_end_s = 0.0;
+  bool imu_has_margin = false;  ///< `imu` reaches beyond [imu_begin_s, imu_end_s] (a margin was asked for)
 };
 
 /// Where one frame's files are and which index lines named them (for messages).
@@ -64,6 +71,9 @@ struct SequenceReaderOptions {
   std::optional<SensorCalib> calib_override;
   double max_rgb_depth_dt_s = 0.02;  ///< association tolerance without associations.txt
   double max_mask_dt_s = 1e-4;       ///< mask file name vs frame timestamp tolerance
+  /// Each frame's IMU samples reach this far beyond its own interval on both sides (s): room for an
+  /// online estimate of the camera-IMU offset to cut the interval elsewhere (0: the exact interval).
+  double imu_margin_s = 0.0;
   /// Attach and decode the ground-truth masks (masks/): only for diagnostics (the --oracle-masks
   /// ablation, evaluation, tests). Off, masks/ is never opened and frames carry no mask.
   bool read_masks = false;
@@ -121,6 +131,7 @@ class SequenceReader {
   /// load() may run in several threads at once: the warn-once flag is atomic.
   std::shared_ptr<std::atomic<bool>> warned_color_conversion_ = std::make_shared<std::atomic<bool>>(false);
   int next_index_ = 0;
+  double imu_margin_s_ = 0.0;
 };
 
 }  // namespace ltlo::io

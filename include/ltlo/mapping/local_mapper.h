@@ -78,6 +78,17 @@ struct ImuState {
   std::uint64_t generation = 0;
 };
 
+/// The online camera-IMU time offset (LocalMapping.EstimateTimeOffset): the shift of the IMU
+/// intervals against the camera stamps beyond IMU.TimeOffset (mapping/time_offset_estimator.h).
+struct TimeOffsetStatus {
+  bool estimated = false;    ///< an informative estimate has been accepted
+  double shift_s = 0.0;      ///< current estimate (s; what tracking cuts with)
+  double sigma_s = 0.0;      ///< its marginal sigma at the last accepted estimate (s)
+  int updates = 0;           ///< accepted estimates
+  int boundaries_moved = 0;  ///< keyframe IMU boundaries moved to follow them
+  double first_estimate_t_s = -1.0;  ///< keyframe time of the first accepted estimate
+};
+
 struct LocalMapperCounters {
   int keyframes_processed = 0;
   int culled_keyframes = 0;
@@ -107,6 +118,9 @@ class LocalMapper {
   std::size_t queuedKeyFrames() const;
   /// The latest IMU estimate.
   ImuState imuState() const;
+  /// The current camera-IMU shift estimate (s; 0 until one is accepted). Lock-free: every frame.
+  double timeShift() const;
+  TimeOffsetStatus timeOffset() const;
   /// Replaces the published gravity with a full BA's (Loop.FullBaGravity; the loop thread calls it
   /// with local mapping paused). The biases stay: the BA wrote each keyframe's, and the newest
   /// keyframe's can be the one a long dead-reckoned gap bent. Ignored before the IMU is initialised.

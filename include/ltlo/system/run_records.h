@@ -67,6 +67,12 @@ struct RunReport {
   bool interrupted = false;     ///< stopped early (signal or error)
   /// the --oracle-masks ablation: ground-truth masks replaced the segmentation (diagnostic run)
   bool oracle_masks = false;
+  /// The camera-IMU time offset at the end (LocalMapping.EstimateTimeOffset): IMU.TimeOffset plus
+  /// the online estimate (t_imu = t_cam + offset), its sigma and the number of accepted estimates.
+  bool time_offset_estimated = false;
+  double time_offset_s = 0.0;
+  double time_offset_sigma_s = 0.0;
+  int time_offset_updates = 0;
 };
 
 /// Peak resident set size of this process so far, MB (getrusage ru_maxrss).

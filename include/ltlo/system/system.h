@@ -51,6 +51,7 @@
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/ids.h"
 #include "ltlo/system/run_records.h"
+#include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/tracker.h"
 
 namespace bow {
@@ -176,6 +177,7 @@ class System {
   TimingStats timing_;
   std::unique_ptr<map::Atlas> atlas_;  // first member built, last destroyed (after the workers)
   std::unique_ptr<tracking::FrameBuilder> builder_;
+  tracking::ImuShiftRamp imu_shift_;  // tracking thread: each frame's IMU interval against its stamps
   std::unique_ptr<tracking::Tracker> tracker_;
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;

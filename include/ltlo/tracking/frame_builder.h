@@ -18,6 +18,29 @@
 
 namespace ltlo::tracking {
 
+/// Where a frame's IMU interval lies against its camera stamps (the online camera-IMU time offset,
+/// LocalMapping.EstimateTimeOffset): [imu_begin_s + shift_begin_s, imu_end_s + shift_end_s] of the
+/// input. The begin is the previous frame's end, so consecutive intervals tile the IMU's time axis
+/// while the estimate moves; ImuShiftRamp gives them.
+struct ImuCut {
+  double shift_begin_s = 0.0;
+  double shift_end_s = 0.0;
+};
+
+/// Hands out each frame's ImuCut: the end follows the mapper's estimate by at most max_step_s per
+/// frame (a first estimate of 30 ms bends no single frame's prediction by it), the begin is the
+/// previous end. Tracking thread only.
+class ImuShiftRamp {
+ public:
+  explicit ImuShiftRamp(double max_step_s = 0.002) : max_step_s_(max_step_s) {}
+  ImuCut next(double target_shift_s);
+  double current_s() const { return shift_s_; }
+
+ private:
+  double max_step_s_;
+  double shift_s_ = 0.0;
+};
+
 struct FrameBuilderOptions {
   double min_depth_m = 0.1;   ///< depth readings below are treated as missing (m)
   double max_depth_m = 10.0;  ///< depth readings above are treated as missing (m)
@@ -28,9 +51,10 @@ class FrameBuilder {
  public:
   FrameBuilder(const OrbOptions& orb, const SensorCalib& calib, const FrameBuilderOptions& options = {});
 
-  /// Features and depths of `input`. With an IMU (calib.has_imu and >= 2 samples in input.imu) the
-  /// frame's imu_from_last_frame is the preintegration of input.imu linearised at `bias`.
-  map::Frame build(const io::RgbdImuFrame& input, const imu::ImuBias& bias = imu::ImuBias()) const;
+  /// Features and depths of `input`. With an IMU (calib.has_imu and >= 2 samples in the interval)
+  /// the frame's imu_from_last_frame is the preintegration of the interval `cut` gives (all of
+  /// input.imu when the reader gave no margin and the cut is zero) linearised at `bias`.
+  map::Frame build(const io::RgbdImuFrame& input, const imu::ImuBias& bias = imu::ImuBias(), const ImuCut& cut = {}) const;
 
   const features::OrbExtractor& extractor() const { return extractor_; }
   const SensorCalib& calib() const { return calib_; }
