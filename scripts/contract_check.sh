@@ -236,7 +236,20 @@ sed '5s/ [^ ]*$/ nan/' "$SEQ/imu.txt" > "$d/imu.txt"
 slam rgbd_inertial "imu.txt nan on line 5" 2 "$d/imu.txt:5: value 7 is not finite: 'nan'" "$d"
 d=$(variant imu_back imu.txt)
 awk 'NR == 6 { keep = $0; next } NR == 7 { print; print keep; next } { print }' "$SEQ/imu.txt" > "$d/imu.txt"
-slam rgbd_inertial "imu.txt lines 6 and 7 swapped" 2 "$d/imu.txt:7: timestamp" "$d"
+slam rgbd_inertial "imu.txt lines 6 and 7 swapped (sorted, warned)" 0 "$d/imu.txt: 0 duplicated stamps dropped, 1 samples out of order sorted (first at line 7)" "$d"
+d=$(variant imu_repeat imu.txt)
+awk 'NR == 6 { print } { print }' "$SEQ/imu.txt" > "$d/imu.txt"
+slam rgbd_inertial "imu.txt line 6 twice (dropped, warned)" 0 "$d/imu.txt: 1 duplicated stamps dropped (first at line 7)" "$d"
+d=$(variant imu_joined imu.txt)
+cat "$SEQ/imu.txt" "$SEQ/imu.txt" > "$d/imu.txt"
+slam rgbd_inertial "imu.txt twice in one file (stamps jump back)" 2 "more than Sequence.MaxImuReorder = 0.1 s" "$d"
+d=$(variant imu_split imu.txt)
+awk '/^#/ { print; next } { print $1, $2, $3, $4, "nan nan nan"; printf "%.6f nan nan nan %s %s %s\n", $1 + 0.0005, $5, $6, $7 }' \
+  "$SEQ/imu.txt" > "$d/imu.txt"
+slam rgbd_inertial "imu.txt as gyro-only and accel-only rows (benign)" 0 "$d/imu.txt: split stream" "$d"
+d=$(variant imu_half_nan imu.txt)
+sed '5s/^\([^ ]*\) [^ ]* [^ ]*/\1 nan nan/' "$SEQ/imu.txt" > "$d/imu.txt"
+slam rgbd_inertial "imu.txt line 5 gyro triple partly nan" 2 "$d/imu.txt:5: value 2 is not finite: 'nan' (the gyroscope triple" "$d"
 d=$(variant imu_gap imu.txt)
 awk 'NR < 40 || NR > 100 { print }' "$SEQ/imu.txt" > "$d/imu.txt"
 slam rgbd_inertial "imu.txt with a 0.3 s gap (warned, benign)" 0 "gap of" "$d"

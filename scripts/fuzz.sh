@@ -103,6 +103,41 @@ if [ ! -f "$SEEDS/fuzz_surfels/surfels.ply" ]; then
   } > "$SEEDS/fuzz_surfels/surfels.ply"
 fi
 
+# imu.txt as drivers write it (outside the DONE block too): gyroscope-only and accelerometer-only
+# rows ("nan nan nan" for the missing sensor, any case), full rows, a repeated and a late stamp;
+# and a file of "t x y z" rows that fuzz_imu cuts at its middle line into accel.txt + gyro.txt.
+if [ ! -f "$SEEDS/fuzz_imu/imu_split.txt" ]; then
+  mkdir -p "$SEEDS/fuzz_imu"
+  cat > "$SEEDS/fuzz_imu/imu_split.txt" <<'SEED'
+# timestamp gx gy gz ax ay az
+1.000000 0.0101 -0.0203 0.0031 0.102 9.797 0.215
+1.002512 0.0102 -0.0201 0.0032 nan nan nan
+1.003987 nan nan nan 0.104 9.801 0.213
+1.004998 0.0104 -0.0199 0.0035 NaN NaN NaN
+1.007503 0.0105 -0.0198 0.0036 nan nan nan
+1.007503 0.0105 -0.0198 0.0036 nan nan nan
+1.008011 NAN NAN NAN 0.107 9.806 0.210
+1.010021 0.0107 -0.0196 0.0038 nan nan nan
+1.006001 nan nan nan 0.105 9.803 0.212
+1.012490 0.0108 -0.0195 0.0039 0.110 9.809 0.208
+1.014999 0.0109 -0.0194 0.0041 nan nan nan
+1.016012 -nan -nan -nan 0.112 9.812 0.206
+1.017497 0.0111 -0.0192 0.0042 nan nan nan
+SEED
+  cat > "$SEEDS/fuzz_imu/openloris_accel_gyro.txt" <<'SEED'
+1.000000 0.102 9.797 0.215
+1.004000 0.104 9.801 0.213
+1.008000 0.107 9.806 0.210
+1.004000 0.104 9.801 0.213
+1.012000 0.110 9.809 0.208
+1.001000 0.0101 -0.0203 0.0031
+1.003500 0.0102 -0.0201 0.0032
+1.006000 0.0104 -0.0199 0.0035
+1.008500 0.0105 -0.0198 0.0036
+1.011000 0.0107 -0.0196 0.0038
+SEED
+fi
+
 # ---- Run each target ----------------------------------------------------------------------------
 SUMMARY=$DIR/fuzz_summary.txt
 echo "# target seconds executions exec_per_s corpus_files result" > "$SUMMARY"

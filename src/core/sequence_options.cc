@@ -15,6 +15,8 @@ SequenceOptions SequenceOptions::load(const SettingsFile& file) {
   } else {
     file.fail("Sequence.ImuGapPolicy", "\"" + policy + "\"", "\"warn\" or \"fail\"");
   }
+  options.max_imu_reorder_s =
+      file.getDouble("Sequence.MaxImuReorder", options.max_imu_reorder_s, 0.0, 10.0);
   return options;
 }
 

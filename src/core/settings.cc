@@ -489,6 +489,7 @@ std::string Settings::describe() const {
   visitImuInit(imu_init, d);
   visitRecon(recon, d);
   d.os << "Sequence.MaxImuGap = " << sequence.max_imu_gap_s << "\n";
+  d.os << "Sequence.MaxImuReorder = " << sequence.max_imu_reorder_s << "\n";
   d.os << "Sequence.ImuGapPolicy = "
        << (sequence.imu_gap_policy == ImuGapPolicy::kFail ? "fail" : "warn") << "\n";
   std::string text = d.os.str();

@@ -30,10 +30,15 @@ std::vector<ListedImage> parseImageList(std::istream& in, const std::string& dir
 std::vector<FrameFiles> parseAssociations(std::istream& in, const std::string& dir,
                                           const std::string& list_path);
 
-/// imu.txt ("t gx gy gz ax ay az", s) and EuRoC imu0/data.csv ("t_ns,wx,wy,wz,ax,ay,az").
+/// imu.txt ("t gx gy gz ax ay az", s; half rows allowed) and EuRoC imu0/data.csv
+/// ("t_ns,wx,wy,wz,ax,ay,az"), as readImuText and readEurocImuCsv.
 ImuSamples parseImuText(std::istream& in, const std::string& path, const SequenceOptions& options);
 ImuSamples parseEurocImuCsv(std::istream& in, const std::string& path,
                             const SequenceOptions& options);
+/// OpenLORIS accel.txt and gyro.txt ("t x y z", s), merged as readOpenLorisImu does.
+ImuSamples parseOpenLorisImu(std::istream& accel_in, const std::string& accel_path,
+                             std::istream& gyro_in, const std::string& gyro_path,
+                             const SequenceOptions& options);
 
 /// TUM and EuRoC trajectories (quaternions normalised, one warning per file when not unit).
 Trajectory parseTumTrajectory(std::istream& in, const std::string& path);

@@ -185,6 +185,20 @@ TEST(SettingsErrors, OutOfRangeNamesFileKeyRangeAndValue) {
             path2 + ": Seg.AlphaIntensity = 12.5, expected a number in [0.001, 10]");
 }
 
+TEST(SettingsErrors, SequenceMaxImuReorderIsOptionalAndValidated) {
+  const std::string absent = editedConfig("tum_rgbd.yaml", "Sequence.MaxImuReorder", "");
+  EXPECT_DOUBLE_EQ(Settings::load(absent).sequence.max_imu_reorder_s, 0.1);
+  const std::string set =
+      editedConfig("tum_rgbd.yaml", "Sequence.MaxImuReorder", "Sequence.MaxImuReorder: 0.25");
+  const Settings settings = Settings::load(set);
+  EXPECT_DOUBLE_EQ(settings.sequence.max_imu_reorder_s, 0.25);
+  EXPECT_NE(settings.describe().find("\nSequence.MaxImuGap = 0.05\nSequence.MaxImuReorder = 0.25\n"),
+            std::string::npos);
+  const std::string bad =
+      editedConfig("tum_rgbd.yaml", "Sequence.MaxImuReorder", "Sequence.MaxImuReorder: -0.5");
+  EXPECT_EQ(loadError(bad), bad + ": Sequence.MaxImuReorder = -0.5, expected a number in [0, 10]");
+}
+
 TEST(SettingsErrors, MissingKeyNamesExpectedRange) {
   const std::string path = editedConfig("synthetic.yaml", "KF.MaxOverlap", "");
   EXPECT_EQ(loadError(path),

@@ -1,6 +1,8 @@
-// libFuzzer target: the IMU readers, each input read as imu.txt (seconds, spaces) and as EuRoC
-// imu0/data.csv (nanoseconds, commas), with both gap policies; the samples read are then cut
-// into per-frame intervals as the sequence reader does. Bad lines must give InputError.
+// libFuzzer target: the IMU readers, each input read as imu.txt (seconds, spaces, half rows of
+// one sensor), as EuRoC imu0/data.csv (nanoseconds, commas) and, cut at the line nearest its
+// middle, as OpenLORIS accel.txt + gyro.txt, with both gap policies and two reorder limits; the
+// samples read are then cut into per-frame intervals as the sequence reader does. Bad lines must
+// give InputError.
 #include <cstddef>
 #include <cstdint>
 #include <sstream>
@@ -32,9 +34,13 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text = ltlo::fuzz::asText(data, size);
+  const size_t middle = text.find('\n', text.size() / 2);
+  const std::string first_half = middle == std::string::npos ? text : text.substr(0, middle + 1);
+  const std::string second_half = middle == std::string::npos ? text : text.substr(middle + 1);
   for (const ltlo::ImuGapPolicy policy : {ltlo::ImuGapPolicy::kWarn, ltlo::ImuGapPolicy::kFail}) {
     ltlo::SequenceOptions options;
     options.imu_gap_policy = policy;
+    options.max_imu_reorder_s = policy == ltlo::ImuGapPolicy::kWarn ? 0.1 : 0.0;
     try {
       std::istringstream in(text);
       cutIntoFrames(ltlo::io::detail::parseImuText(in, "SEQ/imu.txt", options));
@@ -43,6 +49,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     try {
       std::istringstream in(text);
       cutIntoFrames(ltlo::io::detail::parseEurocImuCsv(in, "SEQ/imu0/data.csv", options));
+    } catch (const ltlo::InputError&) {
+    }
+    try {
+      std::istringstream accel(first_half);
+      std::istringstream gyro(second_half);
+      cutIntoFrames(ltlo::io::detail::parseOpenLorisImu(accel, "SEQ/accel.txt", gyro, "SEQ/gyro.txt",
+                                                        options));
     } catch (const ltlo::InputError&) {
     }
   }

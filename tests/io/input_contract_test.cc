@@ -35,7 +35,9 @@ void makeAwkward(const std::string& path, bool with_bom) {
   test::writeText(path, text);
 }
 
-void expectSameReading(const std::string& plain_dir, const std::string& awkward_dir) {
+// `list_lines_added`: lines the awkward index files have above frame 1 that the plain ones lack.
+void expectSameReading(const std::string& plain_dir, const std::string& awkward_dir,
+                       int list_lines_added) {
   SequenceReader plain = SequenceReader::open(plain_dir);
   SequenceReader awkward = SequenceReader::open(awkward_dir);
   ASSERT_EQ(awkward.frameCount(), plain.frameCount());
@@ -57,8 +59,9 @@ void expectSameReading(const std::string& plain_dir, const std::string& awkward_
     EXPECT_EQ(awkward.frameFiles(k).color_path.substr(awkward_dir.size()),
               plain.frameFiles(k).color_path.substr(plain_dir.size()));
   }
-  // Line numbers in messages count the two added lines (after line 1, so frame 1 is below them).
-  EXPECT_EQ(awkward.frameFiles(1).color_list_line, plain.frameFiles(1).color_list_line + 2);
+  // Line numbers in messages count the added lines (after line 1, so frame 1 is below them).
+  EXPECT_EQ(awkward.frameFiles(1).color_list_line,
+            plain.frameFiles(1).color_list_line + list_lines_added);
 }
 
 TEST(InputContract, CrlfBomCommentsAndBlankLinesReadLikeThePlainFiles) {
@@ -76,8 +79,55 @@ TEST(InputContract, CrlfBomCommentsAndBlankLinesReadLikeThePlainFiles) {
     }
     makeAwkward(awkward + "/calib.yaml", /*with_bom=*/false);  // YAML: CRLF, comment, blank line
     SCOPED_TRACE(with_associations ? "associations.txt" : "rgb.txt + depth.txt");
-    expectSameReading(plain, awkward);
+    expectSameReading(plain, awkward, /*list_lines_added=*/2);
   }
+}
+
+// imu.txt as drivers write it: one sensor per row, rows repeated or slightly out of order. The
+// test signals are linear in time and each accelerometer row here shares its gyroscope row's
+// stamp, so the merged stream must equal the plain file's exactly.
+TEST(InputContract, ImuRowsAsDriversWriteThemReadLikeThePlainFile) {
+  TempDir tmp("contract_imu_rows");
+  TestSequenceSpec spec;
+  const std::string plain = tmp.file("plain");
+  test::writeDataFormatSequence(plain, spec);
+  std::vector<std::string> rows;  // data rows of the plain imu.txt
+  {
+    std::istringstream in(test::readText(plain + "/imu.txt"));
+    for (std::string line; std::getline(in, line);) {
+      if (!line.empty() && line[0] != '#') rows.push_back(line);
+    }
+  }
+  ASSERT_GE(rows.size(), 20u);
+
+  const std::string split = tmp.file("split");
+  test::writeDataFormatSequence(split, spec);
+  std::string split_text = "# timestamp gx gy gz ax ay az\n";
+  for (size_t i = 0; i < rows.size(); ++i) {
+    std::istringstream fields(rows[i]);
+    std::string t, gx, gy, gz, ax, ay, az;
+    fields >> t >> gx >> gy >> gz >> ax >> ay >> az;
+    const std::string gyro = t + " " + gx + " " + gy + " " + gz + " nan nan nan\n";
+    const std::string accel = t + " NaN NaN NaN " + ax + " " + ay + " " + az + "\n";
+    split_text += i % 2 == 0 ? gyro + accel : accel + gyro;  // either sensor first
+  }
+  test::writeText(split + "/imu.txt", split_text);
+  expectSameReading(plain, split, /*list_lines_added=*/0);
+
+  const std::string shuffled = tmp.file("shuffled");
+  test::writeDataFormatSequence(shuffled, spec);
+  std::string shuffled_text;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    if (i == 4) continue;                                 // sample 4 comes after sample 5
+    shuffled_text += rows[i] + "\n";
+    if (i == 5) shuffled_text += rows[4] + "\n";
+    if (i == 9) shuffled_text += rows[9] + "\n";         // sample 9 twice
+  }
+  test::writeText(shuffled + "/imu.txt", shuffled_text);
+  ltlo::test::LogCapture capture(log::Level::kWarn);
+  expectSameReading(plain, shuffled, /*list_lines_added=*/0);
+  EXPECT_TRUE(capture.contains(shuffled + "/imu.txt: 1 duplicated stamps dropped (first at line 11), "
+                                          "1 samples out of order sorted (first at line 6)"));
 }
 
 TEST(InputContract, CrlfSettingsFileLoadsTheSameSettings) {

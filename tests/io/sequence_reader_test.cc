@@ -348,15 +348,44 @@ class ImuFileErrors : public ::testing::Test {
   std::string imu_path_;
 };
 
-TEST_F(ImuFileErrors, DuplicatedTimestamp) {
-  test::replaceLine(imu_path_, 6, "0.983000 0 0 0 0 0 9.81");  // line 5 is 0.983000
-  LTLO_EXPECT_CONTAINS(openError(), imu_path_ + ":6: duplicated timestamp 0.983000");
+// Real drivers repeat and reorder stamps: the reader drops repeats, sorts small steps back and
+// says so in one warning; only a jump back beyond Sequence.MaxImuReorder stops it.
+TEST_F(ImuFileErrors, DuplicatedTimestampIsDroppedWithAWarning) {
+  const size_t num_written = SequenceReader::open(sequenceDir(tmp_)).imu().size();
+  test::replaceLine(imu_path_, 6, "0.983000 0 0 0 0 0 9.81");  // line 5 is 0.983000 (other values)
+  ::testing::internal::CaptureStderr();
+  const SequenceReader reader = SequenceReader::open(sequenceDir(tmp_));
+  LTLO_EXPECT_CONTAINS(::testing::internal::GetCapturedStderr(),
+                       imu_path_ + ": 1 duplicated stamps dropped (1 with values other than the "
+                                   "first's; first at line 6), 0 samples out of order sorted");
+  const ImuSamples& imu = reader.imu();
+  ASSERT_EQ(imu.size(), num_written - 1);
+  EXPECT_EQ(imu[3].t_s, 0.983);  // line 5, the first of the stamp, kept
+  EXPECT_LT((imu[3].gyro_rad_s - test::testGyro(0.983)).norm(), 1e-12);
+  EXPECT_EQ(imu[4].t_s, 1.003);
 }
 
-TEST_F(ImuFileErrors, DecreasingTimestamp) {
-  test::replaceLine(imu_path_, 6, "0.970000 0 0 0 0 0 9.81");
-  LTLO_EXPECT_CONTAINS(openError(),
-                       imu_path_ + ":6: timestamp 0.970000 is not after the previous 0.983000");
+TEST_F(ImuFileErrors, DecreasingTimestampIsSortedOrAJumpBackIsAnError) {
+  test::replaceLine(imu_path_, 6, "0.970000 0 0 0 0 0 9.81");  // 0.013 s behind line 5
+  ::testing::internal::CaptureStderr();
+  const SequenceReader reader = SequenceReader::open(sequenceDir(tmp_));
+  LTLO_EXPECT_CONTAINS(::testing::internal::GetCapturedStderr(),
+                       imu_path_ + ": 0 duplicated stamps dropped, 1 samples out of order sorted "
+                                   "(first at line 6)");
+  const ImuSamples& imu = reader.imu();
+  ASSERT_GE(imu.size(), 5u);
+  EXPECT_EQ(imu[1].t_s, 0.963);
+  EXPECT_EQ(imu[2].t_s, 0.970);
+  EXPECT_EQ(imu[2].acc_m_s2, Vec3(0, 0, 9.81));
+  EXPECT_EQ(imu[3].t_s, 0.973);
+  EXPECT_EQ(imu[4].t_s, 0.983);
+  EXPECT_EQ(imu[5].t_s, 1.003);
+
+  SequenceReaderOptions strict;
+  strict.sequence.max_imu_reorder_s = 0.01;
+  LTLO_EXPECT_CONTAINS(openError(strict),
+                       imu_path_ + ":6: timestamp 0.970000 goes back by 0.013000 s behind 0.983000 "
+                                   "(line 5), more than Sequence.MaxImuReorder = 0.01 s");
 }
 
 TEST_F(ImuFileErrors, NanValue) {
