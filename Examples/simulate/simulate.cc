@@ -2,11 +2,14 @@
 //   simulate --scenario static|stlo|mtlo|ltlo|carried --seed N --seconds S [--fps F] --out DIR
 //            [--width 640 --height 480] [--config config_yaml/simulator.yaml] [--noise-free]
 //            [--black START,DURATION]... [--no-depth START,DURATION]... [--imu-gap START,DURATION]...
+//            [--sensor ideal|realsense|kinect|FILE.yaml] [--sensor-set KEY=VALUE]...
+//            [--time-offset S] [--lens none|radtan|radtan-strong|rational|kb]
 // Exit status: 0 written, 2 bad input (options, config file, output folder), 1 any other error.
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -35,6 +38,46 @@ ltlo::sim::SensorOutage parseOutage(const std::string& option, const std::string
                            ": expected START,DURATION in seconds (START >= 0, DURATION > 0)");
   }
   return {kind, start_s, duration_s};
+}
+
+/// config_yaml/sensor_<name>.yaml of the profile `name`: under $LTLO_SOURCE_DIR, next to the build
+/// tree of this executable (<root>/build/bin/simulate), the source tree it was built from, or the
+/// working directory. A text with a '/' or ending in ".yaml" is a file path.
+std::string sensorProfilePath(const std::string& text) {
+  namespace fs = std::filesystem;
+  if (text.find('/') != std::string::npos || (text.size() > 5 && text.substr(text.size() - 5) == ".yaml"))
+    return text;
+  std::vector<fs::path> roots;
+  if (const char* env = std::getenv("LTLO_SOURCE_DIR")) roots.emplace_back(env);
+  std::error_code error;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", error);
+  if (!error) {
+    roots.push_back(exe.parent_path().parent_path().parent_path());
+    roots.push_back(exe.parent_path().parent_path());
+  }
+#ifdef LTLO_SOURCE_DIR_AT_BUILD
+  roots.emplace_back(LTLO_SOURCE_DIR_AT_BUILD);
+#endif
+  roots.push_back(fs::current_path(error));
+  const std::string name = "config_yaml/sensor_" + text + ".yaml";
+  for (const fs::path& root : roots) {
+    if (fs::is_regular_file(root / name, error)) return (root / name).string();
+  }
+  throw ltlo::InputError(name, 0, "--sensor " + text + ": no such profile (expected ideal, realsense, kinect or a FILE.yaml)");
+}
+
+/// The profile of --sensor (a shipped name or a file) with --sensor-set overrides; without either, the
+/// built-in ideal sensor (no file read, the simulator's output of before profiles).
+ltlo::sim::SensorProfile loadSensorProfile(const std::string& sensor, const std::vector<std::string>& sets) {
+  if (sensor.empty() && sets.empty()) return ltlo::sim::SensorProfile();
+  ltlo::SettingsFile file(sensorProfilePath(sensor.empty() ? "ideal" : sensor));
+  for (const std::string& set : sets) {
+    const size_t equals = set.find('=');
+    if (equals == std::string::npos || equals == 0)
+      throw ltlo::InputError("--sensor-set " + set + ": expected KEY=VALUE (e.g. Sensor.Drops.Enable=1)");
+    file.setOverride(set.substr(0, equals), set.substr(equals + 1));
+  }
+  return ltlo::sim::SensorProfile::load(file);
 }
 
 }  // namespace
@@ -68,6 +111,17 @@ int main(int argc, char** argv) {
   app.add_option("--no-depth", no_depth_outages, "START,DURATION (s): frames without depth; repeatable");
   app.add_option("--imu-gap", imu_gaps,
                  "START,DURATION (s): no IMU samples in imu.txt (dropped driver buffer); repeatable");
+  std::string sensor_text, lens_text;
+  std::vector<std::string> sensor_sets;
+  double time_offset_s = std::nan("");
+  app.add_option("--sensor", sensor_text,
+                 "sensor profile: ideal|realsense|kinect (config_yaml/sensor_NAME.yaml) or FILE.yaml; default: the "
+                 "built-in ideal sensor");
+  app.add_option("--sensor-set", sensor_sets,
+                 "KEY=VALUE: override one key of the profile (e.g. Sensor.Exposure.Enable=0); repeatable");
+  app.add_option("--time-offset", time_offset_s,
+                 "camera-IMU time offset (s, t_imu = t_cam + offset) in [-0.2, 0.2]; turns the fault on");
+  app.add_option("--lens", lens_text, "lens of the raw images: none|radtan|radtan-strong|rational|kb");
   app.add_option("--progress-every", progress_every, "progress line every N frames")
       ->check(CLI::Range(1, 1000000));
   try {
@@ -89,6 +143,24 @@ int main(int argc, char** argv) {
       std::cerr << "--scenario " << scenario_text
                 << ": expected static, stlo, mtlo, ltlo or carried\n";
       return 2;
+    }
+    options.sensor = loadSensorProfile(sensor_text, sensor_sets);
+    if (!lens_text.empty()) {
+      ltlo::sim::LensPreset preset;
+      if (!ltlo::sim::parseLensPreset(lens_text, &preset)) {
+        std::cerr << "simulate: --lens " << lens_text << ": expected none, radtan, radtan-strong, rational or kb\n";
+        return 2;
+      }
+      options.sensor.lens_enable = preset != ltlo::sim::LensPreset::kNone;
+      options.sensor.lens = ltlo::sim::lensPreset(preset);
+    }
+    if (!std::isnan(time_offset_s)) {
+      if (!(std::abs(time_offset_s) <= 0.2)) {
+        std::cerr << "simulate: --time-offset " << time_offset_s << ": expected seconds in [-0.2, 0.2]\n";
+        return 2;
+      }
+      options.sensor.time_offset_enable = true;
+      options.sensor.time_offset_s = time_offset_s;
     }
     options.seed = static_cast<uint64_t>(seed);
     options.duration_s = seconds;

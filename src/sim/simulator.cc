@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
+#include "lens_render.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 
@@ -89,6 +90,44 @@ std::ofstream openText(const std::string& path) {
   return out;
 }
 
+int numFramesOf(const SimOptions& options) {
+  return static_cast<int>(std::floor(options.duration_s * options.fps - 1e-9)) + 1;
+}
+
+double frameTimeOf(const SimOptions& options, int index) {
+  return std::round(index / options.fps * 1e6) * 1e-6;
+}
+
+SensorTruth drawTruth(const SimOptions& options) {
+  std::vector<double> frame_times(numFramesOf(options));
+  for (size_t i = 0; i < frame_times.size(); ++i) frame_times[i] = frameTimeOf(options, static_cast<int>(i));
+  return drawSensorTruth(options.sensor, options.seed, SimOptions::T_b_c(), options.imu_rate_hz, frame_times);
+}
+
+ImuFaults imuFaults(const SensorProfile& profile, const SensorTruth& truth) {
+  ImuFaults faults;
+  faults.time_offset_s = truth.time_offset_s;
+  faults.intrinsics = profile.imu_intrinsics_enable;
+  faults.M_gyro = truth.M_gyro;
+  faults.M_acc = truth.M_acc;
+  faults.jitter_s = profile.jitter_enable ? profile.imu_jitter_s : 0.0;
+  faults.separate_clocks = profile.imu_clocks_enable;
+  faults.gyro_rate_hz = truth.gyro_rate_hz;
+  faults.acc_rate_hz = truth.acc_rate_hz;
+  faults.acc_phase_s = truth.acc_phase_s;
+  faults.merged_rows = profile.merged_rows;
+  return faults;
+}
+
+// A lens or a rolling shutter needs the raw-frame renderer; the pinhole global shutter renders directly.
+std::unique_ptr<RawFrameRenderer> makeRawRenderer(const SimOptions& options, const SensorTruth& truth) {
+  const SensorProfile& profile = options.sensor;
+  if (!truth.lens.isDistorted() && !profile.rolling_shutter_enable) return nullptr;
+  return std::make_unique<RawFrameRenderer>(CameraModel(options.camera(), truth.lens),
+                                            profile.rolling_shutter_enable ? profile.readout_s : 0.0,
+                                            profile.rolling_shutter_bands);
+}
+
 }  // namespace
 
 Simulator::Simulator(const SimOptions& options)
@@ -99,8 +138,12 @@ Simulator::Simulator(const SimOptions& options, Scene room)
       camera_(options.camera()),
       trajectory_(trajectoryParams(options), options.seed),
       scene_(std::move(room)),
-      imu_(simulateImu(trajectory_, options)),
-      renderer_(std::make_unique<render::OffscreenRenderer>(options.width_px, options.height_px)) {
+      truth_(drawTruth(options)),
+      imu_(simulateImu(trajectory_, options, imuFaults(options.sensor, truth_))),
+      raw_renderer_(makeRawRenderer(options, truth_)),
+      renderer_(std::make_unique<render::OffscreenRenderer>(
+          raw_renderer_ ? raw_renderer_->bufferWidth() : options.width_px,
+          raw_renderer_ ? raw_renderer_->bufferHeight() : options.height_px)) {
   scene_.scheduleOcclusions(options_);
   for (const cv::Mat& texture : scene_.textures) renderer_->addTexture(texture);
   for (const render::Mesh& mesh : scene_.static_meshes)
@@ -115,12 +158,20 @@ Simulator::Simulator(const SimOptions& options, Scene room)
 
 Simulator::~Simulator() = default;
 
-int Simulator::numFrames() const {
-  return static_cast<int>(std::floor(options_.duration_s * options_.fps - 1e-9)) + 1;
-}
+int Simulator::numFrames() const { return numFramesOf(options_); }
 
-double Simulator::frameTime(int index) const {
-  return std::round(index / options_.fps * 1e6) * 1e-6;
+double Simulator::frameTime(int index) const { return frameTimeOf(options_, index); }
+
+SensorCalib Simulator::calib() const {
+  SensorCalib calib = options_.sensorCalib();
+  const SensorProfile& profile = options_.sensor;
+  if (profile.isIdeal()) return calib;
+  calib.camera.lens = truth_.lens;
+  calib.imu.T_b_c = truth_.T_b_c_calib;
+  calib.imu.rate_hz = truth_.gyro_rate_hz;  // readers merge the accelerometer onto the gyroscope's stamps
+  // The offset is unknown to the user unless the profile says the calibration found it.
+  if (profile.time_offset_enable && profile.time_offset_in_calib) calib.imu.time_offset_s = truth_.time_offset_s;
+  return calib;
 }
 
 SE3 Simulator::T_w_c(double t_s) const {
@@ -129,7 +180,8 @@ SE3 Simulator::T_w_c(double t_s) const {
 
 io::Trajectory Simulator::groundTruth() const {
   io::Trajectory gt;
-  for (int i = 0; i < numFrames(); ++i) gt.push_back({frameTime(i), T_w_c(frameTime(i))});
+  for (int i = 0; i < numFrames(); ++i)
+    if (!frameDropped(i)) gt.push_back({frameStamp(i), T_w_c(frameTime(i))});
   return gt;
 }
 
@@ -142,25 +194,44 @@ std::vector<render::DrawItem> Simulator::dynamicItems(double t_s) const {
   return items;
 }
 
+std::vector<render::DrawItem> Simulator::itemsAt(double t_s, float gain, bool with_static,
+                                                 bool with_dynamic) const {
+  std::vector<render::DrawItem> items;
+  if (with_static) items = static_items_;
+  if (with_dynamic)
+    for (render::DrawItem item : dynamicItems(t_s)) items.push_back(item);
+  for (render::DrawItem& item : items) item.gain = gain;
+  return items;
+}
+
+render::RenderResult Simulator::renderRaw(double t_s, float gain, bool with_static, bool with_dynamic) {
+  if (!raw_renderer_)
+    return renderer_->render({camera_, T_w_c(t_s).inverse(), kNearM, kFarM},
+                             itemsAt(t_s, gain, with_static, with_dynamic));
+  const auto view_at = [&](double t_row_s) {
+    return RawFrameRenderer::View{T_w_c(t_row_s).inverse(), itemsAt(t_row_s, gain, with_static, with_dynamic)};
+  };
+  return raw_renderer_->render(*renderer_, t_s, view_at, kNearM, kFarM);
+}
+
 SimFrame Simulator::renderFrame(int index) {
   const double t_s = frameTime(index);
   const SE3 T_w_c_now = T_w_c(t_s);
-  const float gain =
-      options_.noise_free
-          ? 1.0f
-          : static_cast<float>(1.0 + options_.exposure_jitter *
-                                         std::sin(2.0 * M_PI * t_s / 7.0 + exposure_phase_));
-  std::vector<render::DrawItem> items = static_items_;
-  for (render::DrawItem item : dynamicItems(t_s)) items.push_back(item);
-  for (render::DrawItem& item : items) item.gain = gain;
+  float gain = options_.noise_free
+                   ? 1.0f
+                   : static_cast<float>(1.0 + options_.exposure_jitter *
+                                                  std::sin(2.0 * M_PI * t_s / 7.0 + exposure_phase_));
+  // Auto-exposure scales the light reaching the sensor: the renderer's gain saturates at white.
+  if (options_.sensor.exposure_enable) gain = static_cast<float>(gain * truth_.exposureGain(t_s));
   const auto t0 = std::chrono::steady_clock::now();
-  const render::RenderResult clean =
-      renderer_->render({camera_, T_w_c_now.inverse(), kNearM, kFarM}, items);
+  const render::RenderResult clean = renderRaw(t_s, gain, true, true);
   const auto t1 = std::chrono::steady_clock::now();
   SimFrame frame = addSensorEffects(index, clean);
   render_time_s_ += std::chrono::duration<double>(t1 - t0).count();
   effects_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-  frame.t_s = t_s;
+  frame.t_s = frameStamp(index);
+  frame.t_true_s = t_s;
+  frame.gain = gain;
   frame.T_w_c = T_w_c_now;
   for (const SensorOutage& outage : options_.outages) {
     if (!outage.covers(t_s) || outage.kind == SensorOutage::Kind::kImuGap) continue;
@@ -172,13 +243,11 @@ SimFrame Simulator::renderFrame(int index) {
 }
 
 render::RenderResult Simulator::renderDynamicOnly(int index) {
-  const double t_s = frameTime(index);
-  return renderer_->render({camera_, T_w_c(t_s).inverse(), kNearM, kFarM}, dynamicItems(t_s));
+  return renderRaw(frameTime(index), 1.0f, false, true);
 }
 
 render::RenderResult Simulator::renderStaticOnly(int index) {
-  return renderer_->render({camera_, T_w_c(frameTime(index)).inverse(), kNearM, kFarM},
-                           static_items_);
+  return renderRaw(frameTime(index), 1.0f, true, false);
 }
 
 SimFrame Simulator::addSensorEffects(int index, const render::RenderResult& clean) const {
@@ -278,14 +347,18 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
                 : "procedural",
             ", ", sim.scene().boxes.size(), " dynamic boxes");
 
+  const SensorProfile& profile = options.sensor;
+  if (!profile.isIdeal()) log::info("simulate: sensor ", profile.describe());
   const std::string dir = out_dir + "/";
-  sim.options().sensorCalib().write(dir + "calib.yaml");
+  sim.calib().write(dir + "calib.yaml");
   io::writeTumTrajectory(dir + "groundtruth.txt", sim.groundTruth());
   sim.scene().writePly(dir + "scene.ply");
   {
     std::ofstream imu = openText(dir + "imu.txt");
     std::ofstream biases = openText(dir + "imu_biases.txt");
     imu << "# timestamp gx gy gz ax ay az (s, rad/s, m/s^2, body frame)\n";
+    if (profile.imu_clocks_enable && !profile.merged_rows)
+      imu << "# gyroscope and accelerometer on their own clocks: nan = that sensor has no sample at this stamp\n";
     biases << "# timestamp bgx bgy bgz bax bay baz (true biases, ground truth)\n";
     char line[256];
     const auto in_imu_gap = [&options](double t_s) {
@@ -295,9 +368,17 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
     };
     for (const ImuSample& s : sim.imu()) {
       if (!in_imu_gap(s.t_s)) {
-        std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
-                      s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(),
-                      s.acc_mps2.y(), s.acc_mps2.z());
+        if (s.has_gyro && s.has_acc) {
+          std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
+                        s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(),
+                        s.acc_mps2.y(), s.acc_mps2.z());
+        } else if (s.has_gyro) {
+          std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f nan nan nan\n", s.t_s, s.gyro_rad_s.x(),
+                        s.gyro_rad_s.y(), s.gyro_rad_s.z());
+        } else {
+          std::snprintf(line, sizeof(line), "%.6f nan nan nan %.9f %.9f %.9f\n", s.t_s, s.acc_mps2.x(),
+                        s.acc_mps2.y(), s.acc_mps2.z());
+        }
         imu << line;
       }
       std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
@@ -346,15 +427,21 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
   };
 
   SequenceStats stats;
-  stats.num_frames = sim.numFrames();
   stats.duration_s = options.duration_s;
+  std::vector<WrittenFrame> written;
   int occluded = 0, run = 0, longest_run = 0;
   double dynamic_sum = 0.0, present_sum = 0.0;
   int present = 0;
   auto last_report = std::chrono::steady_clock::now();
   try {
-    for (int i = 0; i < stats.num_frames; ++i) {
+    for (int i = 0; i < sim.numFrames(); ++i) {
+      if (sim.frameDropped(i)) {  // never rendered: the driver lost it
+        ++stats.num_dropped;
+        continue;
+      }
+      ++stats.num_frames;
       SimFrame frame = sim.renderFrame(i);
+      if (!profile.isIdeal()) written.push_back({i, frame.t_s, frame.t_true_s, frame.gain});
       const std::string name = stamp(frame.t_s);
       rgb_txt << name << " rgb/" << name << ".png\n";
       depth_txt << name << " depth/" << name << ".png\n";
@@ -374,7 +461,7 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
       if (progress_every > 0 && (i + 1) % progress_every == 0) {
         const auto now = std::chrono::steady_clock::now();
         const double dt = std::chrono::duration<double>(now - last_report).count();
-        log::info("frame ", i + 1, "/", stats.num_frames, ", ", progress_every / std::max(dt, 1e-9),
+        log::info("frame ", i + 1, "/", sim.numFrames(), ", ", progress_every / std::max(dt, 1e-9),
                   " fps");
         last_report = now;
       }
@@ -412,10 +499,19 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
       << "\ndepth_noise_at_1m_m " << options.depth_noise_at_1m_m << " (std grows with z^2)"
       << "\ndepth_edge_dropout " << options.depth_edge_dropout << "\ndepth_random_dropout "
       << options.depth_random_dropout << "\nrgb_noise_sigma " << options.rgb_noise_sigma
-      << "\nexposure_jitter " << options.exposure_jitter << "\ntextures "
+      << "\nexposure_jitter " << options.exposure_jitter;
+  if (!profile.isIdeal())
+    out << "\nsensor " << profile.describe() << " (" << stats.num_dropped << " of " << sim.numFrames()
+        << " frames dropped; true values in sensor_truth.yaml)";
+  out << "\ntextures "
       << (sim.scene().photo_textures ? "photographs" : "procedural") << "\n";
   for (const std::string& path : sim.scene().photo_paths) out << "texture_photo " << path << "\n";
   if (!out) throw InputError(dir + "stats.txt", 0, "write failed");
+  if (!profile.isIdeal()) {
+    std::vector<double> frame_times(sim.numFrames());
+    for (int i = 0; i < sim.numFrames(); ++i) frame_times[i] = sim.frameTime(i);
+    writeSensorTruth(dir + "sensor_truth.yaml", profile, sim.sensorTruth(), written, frame_times);
+  }
   log::info("simulate: wrote ", stats.num_frames, " frames to ", out_dir, " in ", elapsed_s, " s (",
             stats.frames_per_s, " frames/s after set-up); path ", stats.path_length_m,
             " m; frames > 40 % dynamic: ", 100.0 * stats.occluded_share, " % (mean ",

@@ -83,12 +83,13 @@ std::string loadError(const std::string& config, const std::string& calib = "") 
   return "(no error)";
 }
 
-// SLAM settings files; simulator.yaml holds only simulator keys and is validated by the sim tests
-// (SimOptions::load).
+// SLAM settings files; simulator.yaml and the sensor profiles sensor_*.yaml hold only simulator keys
+// and are validated by the sim tests (SimOptions::load, SensorProfile::load).
 std::vector<fs::path> configFiles() {
   std::vector<fs::path> files;
   for (const fs::directory_entry& entry : fs::directory_iterator(configDir())) {
-    if (entry.path().extension() == ".yaml" && entry.path().filename() != "simulator.yaml") {
+    if (entry.path().extension() == ".yaml" && entry.path().filename() != "simulator.yaml" &&
+        entry.path().filename().string().rfind("sensor_", 0) != 0) {
       files.push_back(entry.path());
     }
   }

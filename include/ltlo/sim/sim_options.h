@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "ltlo/core/calib.h"
+#include "ltlo/sim/sensor_profile.h"
 
 namespace ltlo {
 class SettingsFile;
@@ -85,11 +86,16 @@ struct SimOptions {
   // Forced sensor failures (command line only; ground truth and masks are unaffected)
   std::vector<SensorOutage> outages;
 
+  // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
+  // noise_free, which turns off noise, biases, holes and exposure jitter only.
+  SensorProfile sensor;
+
   /// Camera model at the configured size (fx, fy, cx, cy scaled from 640x480 when width differs).
   PinholeCamera camera() const;
   /// Camera pose in the body (IMU) frame: looks forward, tilted down, offset from the IMU.
   static SE3 T_b_c();
-  /// calib.yaml content for this configuration.
+  /// calib.yaml content of the ideal sensor for this configuration (Simulator::calib adds the
+  /// profile's faults).
   SensorCalib sensorCalib() const;
 
   /// Reads the optional keys above from a simulator YAML (defaults when absent); throws

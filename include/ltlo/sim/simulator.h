@@ -1,6 +1,8 @@
 #pragma once
 /// Synthetic RGB-D-inertial sequence generator (issue 3): renders the room and the scenario's
 /// dynamic boxes along the robot trajectory, adds sensor effects and writes DATA_FORMAT.md.
+/// A sensor profile (SimOptions::sensor, sensor_profile.h) adds the faults of a real sensor; with the
+/// ideal profile every output is exactly what the simulator wrote before profiles existed.
 #include <memory>
 #include <opencv2/core/mat.hpp>
 #include <string>
@@ -11,13 +13,18 @@
 #include "ltlo/sim/imu_simulator.h"
 #include "ltlo/sim/robot_trajectory.h"
 #include "ltlo/sim/scene.h"
+#include "ltlo/sim/sensor_profile.h"
 #include "ltlo/sim/sim_options.h"
 
 namespace ltlo::sim {
 
+class RawFrameRenderer;  // src/sim/lens_render.h
+
 struct SimFrame {
-  double t_s = 0.0;
-  SE3 T_w_c;
+  double t_s = 0.0;       ///< stamp as written (the true instant plus the profile's jitter)
+  double t_true_s = 0.0;  ///< instant the image was taken (its centre row with a rolling shutter)
+  double gain = 1.0;      ///< colour gain applied (exposure jitter times the profile's auto-exposure)
+  SE3 T_w_c;              ///< true camera pose at t_true_s
   cv::Mat bgr;        ///< CV_8UC3 with exposure jitter and noise (unless noise-free)
   cv::Mat depth_m;    ///< CV_32F metres after noise, holes and range limits; 0 = no reading
   cv::Mat depth_raw;  ///< CV_16U as written (metres * DepthMapFactor)
@@ -27,7 +34,8 @@ struct SimFrame {
 
 /// Summary of a written sequence (also in stats.txt).
 struct SequenceStats {
-  int num_frames = 0;
+  int num_frames = 0;  ///< frames written (dropped frames are not)
+  int num_dropped = 0;
   double duration_s = 0.0;
   double path_length_m = 0.0;
   double occluded_share = 0.0;  ///< frames with more than 40 % dynamic pixels
@@ -48,13 +56,28 @@ class Simulator {
   const SimOptions& options() const { return options_; }
   const Scene& scene() const { return scene_; }
   const RobotTrajectory& trajectory() const { return trajectory_; }
+  /// The ideal pinhole camera of the configured K (what the renderer sees before the lens).
   const PinholeCamera& camera() const { return camera_; }
+  /// The raw camera: K with the profile's lens (no lens: the pinhole).
+  CameraModel cameraModel() const { return CameraModel(camera_, truth_.lens); }
+  /// IMU samples in stamp order (half rows when the profile puts gyro and accelerometer on own clocks).
   const std::vector<ImuSample>& imu() const { return imu_; }
+  /// The faults drawn for this sequence (the true sensor; ideal: none).
+  const SensorTruth& sensorTruth() const { return truth_; }
+  /// calib.yaml content: the configuration's calibration with the profile's lens, its erroneous
+  /// extrinsic, the gyroscope's rate and (when the profile says so) the true time offset.
+  SensorCalib calib() const;
 
+  /// Frames of the camera clock (dropped ones included).
   int numFrames() const;
-  /// Frame timestamps are i / fps rounded to microseconds (exact in the 6-decimal file names).
+  /// True instant of frame `index`: i / fps rounded to microseconds (exact in the 6-decimal names).
   double frameTime(int index) const;
+  /// Stamp written for frame `index` (frameTime plus the profile's jitter).
+  double frameStamp(int index) const { return truth_.camera_stamp_s[index]; }
+  /// Whether the profile drops frame `index` (not written; the IMU runs on).
+  bool frameDropped(int index) const { return truth_.dropped[index] != 0; }
   SE3 T_w_c(double t_s) const;
+  /// Written frames: (stamp, true pose of the instant the image was taken).
   io::Trajectory groundTruth() const;
 
   SimFrame renderFrame(int index);
@@ -69,13 +92,18 @@ class Simulator {
 
  private:
   std::vector<render::DrawItem> dynamicItems(double t_s) const;
+  std::vector<render::DrawItem> itemsAt(double t_s, float gain, bool with_static, bool with_dynamic) const;
+  /// The raw image at true time t_s: the ideal renderer, or through the lens / rolling shutter.
+  render::RenderResult renderRaw(double t_s, float gain, bool with_static, bool with_dynamic);
   SimFrame addSensorEffects(int index, const render::RenderResult& clean) const;
 
   SimOptions options_;
   PinholeCamera camera_;
   RobotTrajectory trajectory_;
   Scene scene_;
+  SensorTruth truth_;
   std::vector<ImuSample> imu_;
+  std::unique_ptr<RawFrameRenderer> raw_renderer_;  ///< null for a pinhole global-shutter camera
   std::unique_ptr<render::OffscreenRenderer> renderer_;
   std::vector<render::DrawItem> static_items_;
   std::vector<int> box_drawables_;
