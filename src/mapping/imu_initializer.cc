@@ -39,6 +39,24 @@ ImuChain endAtStaticView(ImuChain chain, double min_static_ratio) {
   return chain;
 }
 
+double medianInertialChi2PerDof(const ImuChain& chain, const Vec3& g_w) {
+  std::vector<double> chi2;
+  for (std::size_t k = 0; k + 1 < chain.keyframes.size() && k < chain.pims.size(); ++k) {
+    const map::KeyFrame& a = *chain.keyframes[k];
+    const map::KeyFrame& b = *chain.keyframes[k + 1];
+    const imu::Preintegrated& pim = *chain.pims[k];
+    if (pim.dt_s() <= 0.0) continue;
+    const imu::NavState state_a{a.T_w_b().rotationMatrix(), a.T_w_b().translation(), a.v_w_b()};
+    const imu::NavState state_b{b.T_w_b().rotationMatrix(), b.T_w_b().translation(), b.v_w_b()};
+    const Vec9 r = imu::inertialResidual(state_a, state_b, a.bias(), pim, g_w);
+    const double value = r.dot(pim.information() * r) / 9.0;
+    if (std::isfinite(value)) chi2.push_back(value);
+  }
+  if (chi2.empty()) return 0.0;
+  std::nth_element(chi2.begin(), chi2.begin() + static_cast<std::ptrdiff_t>(chi2.size() / 2), chi2.end());
+  return chi2[chi2.size() / 2];
+}
+
 std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const ImuInitOptions& options,
                                                     const imu::ImuBias& bias_init) {
   LTLO_ASSERT(chain.keyframes.size() >= 3 && chain.pims.size() + 1 == chain.keyframes.size(),

@@ -46,6 +46,12 @@ struct ImuInitEstimate {
   Mat3 acceleration_covariance_w = Mat3::Zero();
 };
 
+/// Median over the chain's links of the inertial residual's whitened chi2 per degree of freedom
+/// (r^T Sigma^-1 r / 9, the preintegration's own covariance) at the keyframes' current states, the
+/// earlier keyframe's bias and gravity `g_w`: about 1 when the IMU behaves as IMU.Noise* say and the
+/// calibration (IMU.T_b_c1, the clock) is right; 0 without links.
+double medianInertialChi2PerDof(const ImuChain& chain, const Vec3& g_w);
+
 /// Runs optim::initializeImu on `chain` from `bias_init` (priors and iterations from `options`) and,
 /// on a finite result, sets every chain keyframe's velocity and bias. nullopt on a non-finite result.
 std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const ImuInitOptions& options,

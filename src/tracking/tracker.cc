@@ -168,6 +168,7 @@ TrackingState Tracker::track(map::Frame& frame) {
     if (!imu_initialised_) frame.setVelocity(Vec3::Zero());
   } else {
     velocity_T_last_cur_ = last_frame_->T_w_c().inverse() * T_w_c;
+    velocity_dt_s_ = frame.t_s() - last_frame_->t_s();
   }
   if (was_lost) resumed_without_keyframe_ = true;
   last_frame_ = frame;

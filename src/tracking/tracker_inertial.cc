@@ -105,7 +105,14 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
   SE3 T_w_c = prev_T_w_b_ * frame.T_b_c();
   const bool keep_moving = velocity_T_last_cur_.has_value() &&
                            frame.t_s() - last_tracked_t_s_ <= options_.max_prediction_s;
-  if (keep_moving) T_w_c = T_w_c * *velocity_T_last_cur_;
+  if (keep_moving) {
+    // The motion of the last interval, scaled to this one's length where they differ (a dropped
+    // frame doubles it); evenly spaced frames (stamps within 1 %) repeat it exactly.
+    const double dt_s = frame.t_s() - prev_t_s_;
+    const double ratio = velocity_dt_s_ > 0.0 && dt_s > 0.0 ? dt_s / velocity_dt_s_ : 1.0;
+    T_w_c = std::abs(ratio - 1.0) <= 0.01 ? T_w_c * *velocity_T_last_cur_
+                                          : T_w_c * SE3::exp(ratio * velocity_T_last_cur_->log());
+  }
   frame.setVelocity(keep_moving ? prev_v_w_b_ : Vec3::Zero());
   return T_w_c * frame.T_b_c().inverse();
 }

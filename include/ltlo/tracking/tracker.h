@@ -300,6 +300,7 @@ class Tracker {
   std::optional<map::Frame> last_frame_;  ///< last successfully tracked frame
   SE3 last_T_w_c_;
   std::optional<SE3> velocity_T_last_cur_;  ///< constant-velocity model: T_c_last^-1 motion
+  double velocity_dt_s_ = 0.0;              ///< the time that motion took (s)
   int frames_since_keyframe_ = 0;
   /// tracked again after a loss, no keyframe since (KF.MinInliersInertial applies)
   bool resumed_without_keyframe_ = false;
