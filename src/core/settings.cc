@@ -54,6 +54,8 @@ void visitSegmentation(O& o, V& v) {
   v.real("Seg.LambdaP", o.lambda_p, 0.0, 1000.0);
   v.real("Seg.LambdaPhi", o.lambda_phi, 0.0, 0.99);
   v.real("Seg.StaticThreshold", o.static_threshold, 0.0, 1.0);
+  v.boolean("Seg.AffineBrightness", o.affine_brightness);
+  v.real("Seg.AffineBrightnessPrior", o.affine_brightness_prior, 0.0, 100.0);
 }
 
 template <typename O, typename V>

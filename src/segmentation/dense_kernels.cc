@@ -11,6 +11,17 @@ namespace {
 constexpr float kMinWarpDepth_m = 0.05f;
 /// A bilinear depth sample counts only when all four taps have depth.
 constexpr float kAllTapsValid = 0.999f;
+/// Intensities at or beyond these are taken as clipped by the sensor (8-bit 5 and 250 of 255, or a
+/// pyramid pixel averaging clipped ones): no evidence for the brightness fit.
+constexpr float kDarkestUnclipped = 5.0f / 255.0f;
+constexpr float kBrightestUnclipped = 250.0f / 255.0f;
+
+inline float unclipped(float I_current, float I_previous) {
+  return I_current > kDarkestUnclipped && I_current < kBrightestUnclipped && I_previous > kDarkestUnclipped &&
+                 I_previous < kBrightestUnclipped
+             ? 1.0f
+             : 0.0f;
+}
 
 /// The current pixel's point p (camera frame) in the previous camera and its projection there
 /// (Eq. 63); false when it falls behind the camera or outside the bilinear domain.
@@ -123,6 +134,77 @@ void accumulateRows(const RowScratch& rows, std::size_t num_rows, ImageNormalEqu
   }
 }
 
+/// The brightness fit's block statistics from the gathered pixels [0, m) (scores, samples
+/// s[kLookupI], current intensities I, blocks): a scatter over the blocks, one pass.
+void accumulateBrightnessBlocks(const RowScratch& rows, std::size_t m, BrightnessBlocks* out) {
+  const float* gamma = rows.gamma.data();
+  const float* I = rows.I.data();
+  const float* s = rows.s[kLookupI].data();
+  const float* one_surface = rows.s[kLookupValid].data();
+  const int* block = rows.block.data();
+  double* w = out->w.data();
+  double* x = out->x.data();
+  double* sum_s = out->s.data();
+  for (std::size_t j = 0; j < m; ++j) {
+    const float wu = gamma[j] * one_surface[j] * unclipped(I[j], s[j]);
+    const std::size_t b = static_cast<std::size_t>(block[j]);
+    w[b] += wu;
+    x[b] += wu * (I[j] - 0.5f);
+    sum_s[b] += wu * s[j];
+  }
+}
+
+/// The rows of the gathered pixels [0, m) (see accumulateImageTerm); kBrightness: the intensity
+/// residual predicts the previous intensity as gain I_i(u) + offset.
+template <bool kBrightness>
+void buildRows(const Warp& warp, const LevelCamera& camera, const ResidualParams& params, const Brightness& brightness,
+               std::size_t m, RowScratch* scratch) {
+  RowScratch& rows = *scratch;
+  const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
+  const float alpha = params.alpha_intensity;
+  const float fx = camera.fx, fy = camera.fy;
+  const float gain = brightness.gain, offset = brightness.offset;
+  float* const J[6] = {rows.J[0].data(), rows.J[1].data(), rows.J[2].data(),
+                        rows.J[3].data(), rows.J[4].data(), rows.J[5].data()};
+  float* r_out = rows.r.data();
+  float* w_out = rows.w.data();
+  const float *x = rows.x.data(), *y = rows.y.data(), *z = rows.z.data();
+  const float *X = rows.X.data(), *Y = rows.Y.data(), *Z = rows.Z.data(), *inv_Z = rows.inv_Z.data();
+  const float *sI = rows.s[kLookupI].data(), *sIu = rows.s[kLookupIu].data(), *sIv = rows.s[kLookupIv].data();
+  const float *sD = rows.s[kLookupD].data(), *sDu = rows.s[kLookupDu].data(), *sDv = rows.s[kLookupDv].data();
+  const float* valid = rows.s[kLookupValid].data();
+  const float *I = rows.I.data(), *wI = rows.wI.data(), *wD = rows.wD.data(), *gamma = rows.gamma.data();
+  // The row columns and the gathered columns are separate buffers: no iteration reads what another
+  // writes, which the compiler cannot prove through the many pointers (it would not vectorise).
+#pragma GCC ivdep
+  for (std::size_t j = 0; j < m; ++j) {
+    const float iz = inv_Z[j];
+    // intensity row
+    {
+      const float r = kBrightness ? sI[j] - (gain * I[j] + offset) : sI[j] - I[j];
+      const float aw = alpha * wI[j];
+      const float scaled = aw * r;
+      const float gx = sIu[j] * fx * iz, gy = sIv[j] * fy * iz;
+      const float gz = -(gx * X[j] + gy * Y[j]) * iz;
+      writeRow(warp, x[j], y[j], z[j], gx, gy, gz, j, J);
+      r_out[j] = r;
+      w_out[j] = gamma[j] * cauchyWeight(scaled, inv_c2) * aw * aw;
+    }
+    // depth row
+    {
+      const std::size_t k = m + j;
+      const float r = sD[j] - Z[j];
+      const float wd = wD[j];
+      const float scaled = wd * r;
+      const float gx = sDu[j] * fx * iz, gy = sDv[j] * fy * iz;
+      const float gz = -(gx * X[j] + gy * Y[j]) * iz - 1.0f;
+      writeRow(warp, x[j], y[j], z[j], gx, gy, gz, k, J);
+      r_out[k] = r;
+      w_out[k] = valid[j] * gamma[j] * cauchyWeight(scaled, inv_c2) * wd * wd;
+    }
+  }
+}
+
 }  // namespace
 
 void RowScratch::reserve(std::size_t pixels) {
@@ -134,6 +216,16 @@ void RowScratch::reserve(std::size_t pixels) {
   for (std::vector<float>& column : J) grow(column, 2 * pixels);
   grow(r, 2 * pixels);
   grow(w, 2 * pixels);
+  if (block.size() < pixels) block.resize(pixels);
+}
+
+void BrightnessBlocks::reset(const LevelCamera& camera) {
+  blocks_per_row = (camera.width + kBrightnessBlockPx - 1) / kBrightnessBlockPx;
+  const std::size_t n = static_cast<std::size_t>(blocks_per_row) *
+                        ((camera.height + kBrightnessBlockPx - 1) / kBrightnessBlockPx);
+  w.assign(n, 0.0);  // no allocation once the buffers have held the largest level
+  x.assign(n, 0.0);
+  s.assign(n, 0.0);
 }
 
 void ClusterEvidence::reset(int num_labels) {
@@ -145,12 +237,13 @@ void ClusterEvidence::reset(int num_labels) {
 
 void accumulateImageTerm(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
                          const float* gamma_of_label, const ResidualParams& params, RowScratch* scratch,
-                         ImageNormalEquations* out) {
+                         ImageNormalEquations* out, const Brightness* brightness, BrightnessBlocks* blocks) {
   const LevelCamera& camera = previous.camera;
   const std::size_t n = current.pixel.size();
   scratch->reserve(n);
   RowScratch& rows = *scratch;
   const float* lookup = previous.lookup.data();
+  if (blocks != nullptr) blocks->reset(current.camera);
   // Gather: the pixels that take part (weight > 0, warped into the previous image, not hidden
   // there), with their warped points and the previous frame's samples.
   std::size_t m = 0;
@@ -181,61 +274,28 @@ void accumulateImageTerm(const DenseLevel& previous, const DenseLevel& current, 
     rows.wI[m] = current.weight_I[i];
     rows.wD[m] = current.weight_D[i];
     rows.gamma[m] = gamma;
+    if (blocks != nullptr) rows.block[m] = blocks->blockOf(current.pixel[i], camera.width);
     num_depth_rows += depth_row ? 1 : 0;
     ++m;
   }
-  // Rows, branch-free over the gathered pixels: intensity (Eq. 61, r_I = I_{i-1}(W(u, T)) - I_i(u))
-  // in [0, m), depth (Eq. 62, r_D = D_{i-1}(W(u, T)) - |T p|_z, weight 0 where the previous frame
-  // has no depth) in [m, 2m). d/d eps of a residual with gradient g at the warped point P is
-  // [p x h, h], h = R^T g (writeRow).
-  const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
-  const float alpha = params.alpha_intensity;
-  const float fx = camera.fx, fy = camera.fy;
-  float* const J[6] = {rows.J[0].data(), rows.J[1].data(), rows.J[2].data(),
-                        rows.J[3].data(), rows.J[4].data(), rows.J[5].data()};
-  float* r_out = rows.r.data();
-  float* w_out = rows.w.data();
-  const float *x = rows.x.data(), *y = rows.y.data(), *z = rows.z.data();
-  const float *X = rows.X.data(), *Y = rows.Y.data(), *Z = rows.Z.data(), *inv_Z = rows.inv_Z.data();
-  const float *sI = rows.s[kLookupI].data(), *sIu = rows.s[kLookupIu].data(), *sIv = rows.s[kLookupIv].data();
-  const float *sD = rows.s[kLookupD].data(), *sDu = rows.s[kLookupDu].data(), *sDv = rows.s[kLookupDv].data();
-  const float* valid = rows.s[kLookupValid].data();
-  const float *I = rows.I.data(), *wI = rows.wI.data(), *wD = rows.wD.data(), *gamma = rows.gamma.data();
-  // The row columns and the gathered columns are separate buffers: no iteration reads what another
-  // writes, which the compiler cannot prove through the many pointers (it would not vectorise).
-#pragma GCC ivdep
-  for (std::size_t j = 0; j < m; ++j) {
-    const float iz = inv_Z[j];
-    // intensity row
-    {
-      const float r = sI[j] - I[j];
-      const float aw = alpha * wI[j];
-      const float scaled = aw * r;
-      const float gx = sIu[j] * fx * iz, gy = sIv[j] * fy * iz;
-      const float gz = -(gx * X[j] + gy * Y[j]) * iz;
-      writeRow(warp, x[j], y[j], z[j], gx, gy, gz, j, J);
-      r_out[j] = r;
-      w_out[j] = gamma[j] * cauchyWeight(scaled, inv_c2) * aw * aw;
-    }
-    // depth row
-    {
-      const std::size_t k = m + j;
-      const float r = sD[j] - Z[j];
-      const float wd = wD[j];
-      const float scaled = wd * r;
-      const float gx = sDu[j] * fx * iz, gy = sDv[j] * fy * iz;
-      const float gz = -(gx * X[j] + gy * Y[j]) * iz - 1.0f;
-      writeRow(warp, x[j], y[j], z[j], gx, gy, gz, k, J);
-      r_out[k] = r;
-      w_out[k] = valid[j] * gamma[j] * cauchyWeight(scaled, inv_c2) * wd * wd;
-    }
+  // Rows, branch-free over the gathered pixels: intensity (Eq. 61, r_I = I_{i-1}(W(u, T)) - I_i(u),
+  // or with the brightness change r_I = I_{i-1}(W(u, T)) - (gain I_i(u) + offset)) in [0, m), depth
+  // (Eq. 62, r_D = D_{i-1}(W(u, T)) - |T p|_z, weight 0 where the previous frame has no depth) in
+  // [m, 2m). d/d eps of a residual with gradient g at the warped point P is [p x h, h], h = R^T g
+  // (writeRow).
+  if (brightness != nullptr) {
+    buildRows<true>(warp, camera, params, *brightness, m, &rows);
+  } else {
+    buildRows<false>(warp, camera, params, Brightness(), m, &rows);
   }
   accumulateRows(rows, 2 * m, out);
   out->num_residuals += static_cast<int>(m) + num_depth_rows;
+  if (brightness != nullptr && blocks != nullptr) accumulateBrightnessBlocks(rows, m, blocks);
 }
 
 void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
-                     const float* previous_gamma_of_label, const ResidualParams& params, ClusterEvidence* out) {
+                     const float* previous_gamma_of_label, const ResidualParams& params, const Brightness& brightness,
+                     ClusterEvidence* out) {
   const LevelCamera& camera = previous.camera;
   const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
   const float half_c2 = 0.5f * params.cauchy_c * params.cauchy_c;
@@ -255,10 +315,39 @@ void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, cons
     out->prior_sum[k] += previous_gamma_of_label[previous_labels[static_cast<std::size_t>(r) * camera.width + c]];
     ++out->prior_count[k];
     if (!has_depth) continue;
-    const float scaled_I = params.alpha_intensity * current.weight_I[i] * (s[kLookupI] - current.intensity_at[i]);
+    // gain 1, offset 0: 1 * I + 0 is I exactly, Eq. 61 as it stands
+    const float predicted_I = brightness.gain * current.intensity_at[i] + brightness.offset;
+    const float scaled_I = params.alpha_intensity * current.weight_I[i] * (s[kLookupI] - predicted_I);
     const float scaled_D = current.weight_D[i] * (s[kLookupD] - p.Z);
     out->cost_sum[k] += cauchy(scaled_I, inv_c2, half_c2) + cauchy(scaled_D, inv_c2, half_c2);
     ++out->num_pixels[k];
+  }
+}
+
+void accumulateBrightness(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
+                          const float* previous_gamma_of_label, const ResidualParams& params,
+                          BrightnessBlocks* blocks) {
+  const LevelCamera& camera = previous.camera;
+  blocks->reset(current.camera);
+  const float* lookup = previous.lookup.data();
+  const std::uint8_t* previous_labels = previous.labels.ptr<std::uint8_t>(0);
+  const std::size_t n = current.pixel.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    Warped p;
+    if (!warpPoint(warp, camera, current.x_m[i], current.y_m[i], current.z_m[i], &p)) continue;
+    float s[kLookupChannels];
+    bilinear(lookup, camera.width, p.u, p.v, s);
+    const bool has_depth = s[kLookupValid] > kAllTapsValid;
+    if (has_depth && s[kLookupD] < p.Z - params.occlusion_gap_m) continue;  // hidden
+    if (!has_depth || !smoothCellAt(lookup, camera.width, p.u, p.v)) continue;  // mixes two surfaces
+    const int c = static_cast<int>(p.u + 0.5f), r = static_cast<int>(p.v + 0.5f);
+    const float prior_gamma = previous_gamma_of_label[previous_labels[static_cast<std::size_t>(r) * camera.width + c]];
+    const float I = current.intensity_at[i];
+    const float wu = prior_gamma * unclipped(I, s[kLookupI]);
+    const std::size_t b = static_cast<std::size_t>(blocks->blockOf(current.pixel[i], camera.width));
+    blocks->w[b] += wu;
+    blocks->x[b] += wu * (I - 0.5f);
+    blocks->s[b] += wu * s[kLookupI];
   }
 }
 

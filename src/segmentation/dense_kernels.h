@@ -28,6 +28,42 @@ struct ResidualParams {
   float occlusion_gap_m = 0.1f;
 };
 
+/// Affine brightness change between the two frames (auto-exposure, issue 28): the previous frame's
+/// intensity at the warped point is predicted from the current frame's,
+///   I_{i-1}(W(u, T)) ~ gain I_i(u) + offset,
+/// so the intensity residual of Eq. 61 becomes r_I = I_{i-1}(W(u, T)) - (gain I_i(u) + offset).
+/// gain is the previous exposure over the current one (0.8 after a +25 % step), offset in
+/// intensity units ([0, 1]). In this direction the residual's derivative by the warp (the
+/// previous frame's gradient) does not change, and the fit regresses samples on the current
+/// frame's fixed intensities. (DSO writes the mirror, the target predicted from the reference.)
+struct Brightness {
+  float gain = 1.0f;
+  float offset = 0.0f;
+};
+
+/// Side of the square blocks of the brightness fit, px of the level.
+constexpr int kBrightnessBlockPx = 8;
+
+/// Per-block statistics of the brightness fit ("affine brightness fit", dense_solver.cc): the
+/// current level's image cut into blocks of kBrightnessBlockPx; per block b, over its
+/// correspondences u with weight w_u (the pixel's score, 0 where either intensity is clipped: a
+/// saturated pixel does not follow the affine model), centred current intensities
+/// x_u = I_i(u) - 1/2 and samples s_u = I_{i-1}(W(u, T)):
+///   w[b] = sum w_u, x[b] = sum w_u x_u, s[b] = sum w_u s_u.
+/// The fit compares block means, not pixels: a bilinear sample at a fractional position is a local
+/// average, which flattens a texture's peaks and troughs, so a pixel-wise regression of s on I
+/// reads every textured pair as a gain below 1 (0.94 on the test room with no change at all),
+/// while a block's mean keeps the mean of what it covers.
+struct BrightnessBlocks {
+  std::vector<double> w, x, s;
+  int blocks_per_row = 0;
+  /// Zeroes the blocks of a level of `camera`'s size (reuses the buffers).
+  void reset(const LevelCamera& camera);
+  int blockOf(int pixel, int width) const {
+    return (pixel / width) / kBrightnessBlockPx * blocks_per_row + (pixel % width) / kBrightnessBlockPx;
+  }
+};
+
 /// Gauss-Newton normal equations of the image term of Eq. 60 in the right perturbation eps =
 /// [phi; rho] of the current camera pose (T_w_c <- T_w_c Exp(eps)), Cauchy IRLS weights:
 ///   H = sum gamma w J^T J, b = sum gamma w J^T r.
@@ -50,14 +86,27 @@ struct RowScratch {
   /// rows: the intensity rows first, then one depth row per pixel (weight 0 without depth)
   std::vector<float> J[6];
   std::vector<float> r, w;
+  /// with a brightness change: the pixel's block of the brightness fit
+  std::vector<int> block;
   void reserve(std::size_t pixels);
 };
 
 /// The image term at `warp` over the current level's pixels with depth; gamma_of_label[label]
-/// weights each pixel (256 entries).
+/// weights each pixel (256 entries). With `brightness` (not null), the intensity residuals carry
+/// the brightness change and `blocks` (not null; reset for the level first) gets the brightness
+/// fit's statistics at `warp` from the same pass; without, the residual of Eq. 61 as it stands.
 void accumulateImageTerm(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
                          const float* gamma_of_label, const ResidualParams& params, RowScratch* scratch,
-                         ImageNormalEquations* out);
+                         ImageNormalEquations* out, const Brightness* brightness = nullptr,
+                         BrightnessBlocks* blocks = nullptr);
+
+/// The brightness fit's statistics alone (no normal equations, no scratch), for the fit at the
+/// predicted state before the first Gamma step: each pixel weighted by the previous frame's score
+/// at W(u, T) (the temporal prior of Eq. 29-30: the current scores are not known yet) instead of
+/// its own. `blocks` is reset for the level first.
+void accumulateBrightness(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
+                          const float* previous_gamma_of_label, const ResidualParams& params,
+                          BrightnessBlocks* blocks);
 
 /// Per-cluster evidence at `warp`: for every current cluster, the Eq. 60 cost of its pixels that
 /// have both residuals (sum and count), and the temporal prior of Eq. 29-30: the mean previous
@@ -70,7 +119,9 @@ struct ClusterEvidence {
   std::vector<int> prior_count;
   void reset(int num_labels);
 };
+/// The intensity residual carries `brightness` (gain 1 and offset 0: exactly Eq. 61).
 void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
-                     const float* previous_gamma_of_label, const ResidualParams& params, ClusterEvidence* out);
+                     const float* previous_gamma_of_label, const ResidualParams& params, const Brightness& brightness,
+                     ClusterEvidence* out);
 
 }  // namespace ltlo::segmentation::detail

@@ -31,6 +31,26 @@ constexpr float kSameStateWeight = 1e-3f;
 /// left of them: the solve goes on.
 constexpr double kMaxContraction = 0.9;
 
+/// A Gauss-Newton step whose brightness fit moved the predicted intensity of some grey level by
+/// more than this has not converged (intensities in [0, 1]: about half an 8-bit level, a fifth of
+/// the intensity noise sigma_I of 0.01-0.02 and so of no weight for the state).
+constexpr double kBrightnessTolerance = 2.5e-3;
+/// IRLS rounds of the brightness fit over the blocks.
+constexpr int kBrightnessRounds = 3;
+/// Cauchy scale of a block's residual in the brightness fit, intensity in [0, 1]: a block mean
+/// that misses the affine model by several 8-bit levels is an outlier.
+constexpr double kBlockResidualScale = 0.02;
+/// A block takes part in the fit with at least this weight (about 4 pixels of score 1).
+constexpr double kMinBlockWeight = 4.0;
+/// The gain needs a weighted variance of the blocks' mean intensities (plus the prior's share) of
+/// at least this (with Seg.AffineBrightnessPrior = 0 a flat image leaves the gain undetermined).
+constexpr double kMinBrightnessVariance = 1e-6;
+/// Bounds of the estimate: beyond them no auto-exposure step between two frames, rather a fit gone
+/// wrong (e.g. a frame that is almost all one dynamic surface).
+constexpr double kMinGain = 0.5;
+constexpr double kMaxGain = 2.0;
+constexpr double kMaxOffset = 0.5;
+
 using Mat15 = Eigen::Matrix<double, 15, 15>;
 using Vec15 = Eigen::Matrix<double, 15, 1>;
 
@@ -99,11 +119,83 @@ double priorChi2(const DensePrior& prior, const State& state, const Mat9& imu_in
   return r.dot(prior.pose_information * r);
 }
 
+/// Affine brightness fit, closed form over the blocks of the current image (BrightnessBlocks).
+/// Block b gives the mean current intensity X_b = 1/2 + x_b / w_b and the mean sample
+/// S_b = s_b / w_b; with the weighted means X^ and S^ of the blocks, the model is
+/// S_b = m + a (X_b - X^), m = a X^ + b the previous intensity of the current mean grey, and the
+/// fit minimises
+///   sum_b w_b rho_b (S_b - m - a (X_b - X^))^2 + lambda W [(a - 1)^2 + (m - X^)^2],
+///   W = sum_b w_b rho_b,
+/// a weak prior towards a = 1, b = 0 (where both terms vanish) whose weight is a share lambda of
+/// the data's own, so it means the same on every level. Centred at the data's mean, the two
+/// parameters separate:
+///   a = (sum w rho (X - X^)(S - S^) + lambda W) / (sum w rho (X - X^)^2 + lambda W),
+///   m = (S^ + lambda X^) / (1 + lambda):
+/// the mean grey is always measured, the gain only as far as the blocks' spread of intensities
+/// allows (a texture-poor frame keeps a ~ 1 and takes the change as offset). rho_b is the Cauchy
+/// IRLS weight of the block's residual (scale kBlockResidualScale: a block on a surface the scores
+/// missed, or misaligned across an edge, is an outlier), kBrightnessRounds rounds from the current
+/// estimate; with `plain_first_round` (no estimate to be robust about yet, e.g. before an exposure
+/// step is known) the first round weighs every block by w_b alone. The result is kept within
+/// [kMinGain, kMaxGain] x [-kMaxOffset, kMaxOffset].
+detail::Brightness solveBrightness(const detail::BrightnessBlocks& blocks, const detail::Brightness& current,
+                                   double lambda, bool plain_first_round) {
+  double a = current.gain, b = current.offset;
+  const double inv_scale2 = 1.0 / (kBlockResidualScale * kBlockResidualScale);
+  for (int round = 0; round < kBrightnessRounds; ++round) {
+    const double round_inv_scale2 = plain_first_round && round == 0 ? 0.0 : inv_scale2;
+    double sum_w = 0.0, sum_X = 0.0, sum_S = 0.0;
+    auto weight = [&](std::size_t k, double* X, double* S) {
+      const double w_k = blocks.w[k];
+      if (!(w_k >= kMinBlockWeight)) return 0.0;
+      *X = 0.5 + blocks.x[k] / w_k;
+      *S = blocks.s[k] / w_k;
+      const double residual = *S - (a * *X + b);
+      return w_k / (1.0 + residual * residual * round_inv_scale2);
+    };
+    for (std::size_t k = 0; k < blocks.w.size(); ++k) {
+      double X = 0.0, S = 0.0;
+      const double w = weight(k, &X, &S);
+      sum_w += w;
+      sum_X += w * X;
+      sum_S += w * S;
+    }
+    if (!(sum_w > 0.0)) break;
+    const double mean_X = sum_X / sum_w, mean_S = sum_S / sum_w;
+    double sum_xx = 0.0, sum_xs = 0.0;
+    for (std::size_t k = 0; k < blocks.w.size(); ++k) {
+      double X = 0.0, S = 0.0;
+      const double w = weight(k, &X, &S);
+      sum_xx += w * (X - mean_X) * (X - mean_X);
+      sum_xs += w * (X - mean_X) * (S - mean_S);
+    }
+    const double prior = lambda * sum_w;
+    if (sum_xx + prior > kMinBrightnessVariance * sum_w) {
+      a = std::clamp((sum_xs + prior) / (sum_xx + prior), kMinGain, kMaxGain);
+    }
+    const double m = (mean_S + lambda * mean_X) / (1.0 + lambda);
+    b = std::clamp(m - a * mean_X, -kMaxOffset, kMaxOffset);
+  }
+  detail::Brightness out;
+  out.gain = static_cast<float>(a);
+  out.offset = static_cast<float>(b);
+  return out;
+}
+
+/// The largest change of a predicted intensity in [0, 1] between two brightness estimates (the
+/// change is affine in I: largest at I = 0 or 1).
+double brightnessChange(const detail::Brightness& a, const detail::Brightness& b) {
+  const double d_offset = static_cast<double>(b.offset) - a.offset;
+  const double d_gain = static_cast<double>(b.gain) - a.gain;
+  return std::max(std::abs(d_offset), std::abs(d_gain + d_offset));
+}
+
 }  // namespace
 
 struct detail::DenseSolverBuffers {
   RowScratch rows;
   ClusterEvidence evidence;
+  BrightnessBlocks blocks;
 };
 
 DenseSolverOptions DenseSolverOptions::from(const SegmentationOptions& segmentation, const DenseOptions& dense,
@@ -121,6 +213,8 @@ DenseSolverOptions DenseSolverOptions::from(const SegmentationOptions& segmentat
   options.finest_level = dense.finest_level;
   options.step_tolerance_px = dense.step_tolerance_px;
   options.max_prior_chi2 = dense.max_prior_chi2;
+  options.affine_brightness = segmentation.affine_brightness;
+  options.brightness_prior = segmentation.affine_brightness_prior;
   return options;
 }
 
@@ -131,6 +225,7 @@ DenseSolver::DenseSolver(const DenseSolverOptions& options)
   LTLO_ASSERT(options.step_tolerance_px >= 0.0, "step tolerance " << options.step_tolerance_px << " px");
   LTLO_ASSERT(options.cauchy_c > 0.0 && options.lambda_d >= 0.0, "cauchy_c " << options.cauchy_c << ", lambda_d "
                                                                              << options.lambda_d);
+  LTLO_ASSERT(options.brightness_prior >= 0.0, "brightness prior " << options.brightness_prior);
 }
 
 DenseSolver::~DenseSolver() = default;
@@ -172,11 +267,23 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
   problem.data.assign(static_cast<std::size_t>(K), 0.0);
   problem.prior.assign(static_cast<std::size_t>(K), 1.0);
 
+  // The brightness change (gain 1, offset 0 and never updated with Seg.AffineBrightness off).
+  const bool with_brightness = options_.affine_brightness;
+  detail::Brightness brightness;
+  double brightness_change = 0.0;  // of the last state step's fit
+
+  // Brightness fit alone at the state on `level`, weighted by the previous scores at W(u, T).
+  auto fitBrightness = [&](int level) {
+    detail::accumulateBrightness(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
+                                 previous_gamma_of_label.data(), params, &buffers.blocks);
+    brightness = solveBrightness(buffers.blocks, brightness, options_.brightness_prior, /*plain_first_round=*/true);
+  };
+
   // Gamma step at the state, on `level`: Eq. 60 evidence per cluster and the warped prior.
   auto gammaStep = [&](int level, bool record_prediction_cost) {
     buffers.evidence.reset(K + 1);
     detail::clusterEvidence(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
-                            previous_gamma_of_label.data(), params, &buffers.evidence);
+                            previous_gamma_of_label.data(), params, brightness, &buffers.evidence);
     if (record_prediction_cost) result.cost_at_prediction.assign(static_cast<std::size_t>(K) + 1, -1.0);
     for (int k = 0; k < K; ++k) {
       const auto kk = static_cast<std::size_t>(k);
@@ -212,10 +319,22 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
   state_weight_of_label.fill(0.0f);
 
   // Gauss-Newton step on the state at `level` (Gamma fixed); returns the step's image motion, px.
+  // With the brightness change, the same pass gives the brightness fit at the step's start (both
+  // updates from one linearisation point).
   auto stateStep = [&](int level) {
     detail::ImageNormalEquations image;
-    detail::accumulateImageTerm(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
-                                state_weight_of_label.data(), params, &buffers.rows, &image);
+    if (with_brightness) {
+      detail::accumulateImageTerm(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
+                                  state_weight_of_label.data(), params, &buffers.rows, &image, &brightness,
+                                  &buffers.blocks);
+      const detail::Brightness fitted =
+          solveBrightness(buffers.blocks, brightness, options_.brightness_prior, /*plain_first_round=*/false);
+      brightness_change = brightnessChange(brightness, fitted);
+      brightness = fitted;
+    } else {
+      detail::accumulateImageTerm(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
+                                  state_weight_of_label.data(), params, &buffers.rows, &image);
+    }
     ++result.gauss_newton_steps;
     const Mat6 H_pose = A.transpose() * image.H * A;
     const Vec6 b_pose = A.transpose() * image.b;
@@ -259,6 +378,9 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
     // Gamma was last solved at the current state on the finest level (the final Gamma step would
     // repeat it).
     bool gamma_at_final_state = false;
+    // The brightness change before the first Gamma step judges the clusters: an exposure step
+    // would otherwise raise every cluster's cost at the prediction.
+    if (with_brightness) fitBrightness(coarsest);
     for (int level = coarsest; level >= finest; --level) {
       bool converged = false;
       double previous_step_px = -1.0;  // the level's last step, px (< 0: none yet)
@@ -274,7 +396,8 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
         converged = false;
         for (int iteration = 0; iteration < options_.iterations_per_level && !converged; ++iteration) {
           const double step_px = stateStep(level);
-          converged = remainingPx(step_px, previous_step_px) <= options_.step_tolerance_px;
+          converged = remainingPx(step_px, previous_step_px) <= options_.step_tolerance_px &&
+                      brightness_change <= kBrightnessTolerance;
           previous_step_px = step_px;
         }
       }
@@ -288,6 +411,7 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
       state.bias = prior.bias_prev;
       result.prior_chi2 = priorChi2(prior, state, imu_information);
       gamma_at_final_state = false;
+      if (with_brightness) fitBrightness(finest);  // the brightness change at the kept prediction
     }
     if (!gamma_at_final_state) gammaStep(finest, false);
   }
@@ -295,6 +419,8 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
   result.T_w_b = state.T_w_b;
   result.v_w_b = state.v_w_b;
   result.bias = state.bias;
+  result.brightness_gain = brightness.gain;
+  result.brightness_offset = brightness.offset;
   result.gamma = gamma;
   result.gamma.push_back(1.0);  // the no-depth cluster K
   result.prior_gamma = problem.prior;

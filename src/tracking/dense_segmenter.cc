@@ -165,7 +165,8 @@ SegmentationOutcome DenseSegmenter::segment(map::Frame& frame, const MotionPrior
                last_result_.prior_chi2, last_result_.prior_rejected ? " (rejected)" : "", ", moved ",
                (last_result_.T_w_b.translation() - prior.T_w_b_pred.translation()).norm(), " m, dynamic ",
                outcome.dynamic_share, ", gamma min ", *std::min_element(gamma.begin() + 1, gamma.end()), ", ",
-               last_result_.gauss_newton_steps, " GN steps");
+               last_result_.gauss_newton_steps, " GN steps, brightness gain ", last_result_.brightness_gain,
+               " offset ", last_result_.brightness_offset);
   }
   frame.setSegmentation(std::move(seg), segmentation_.static_threshold);
   previous_gamma_ = std::move(gamma);

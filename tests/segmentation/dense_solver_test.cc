@@ -7,86 +7,18 @@
 
 #include <gtest/gtest.h>
 
-#include <opencv2/imgproc.hpp>
-
-#include "ltlo/segmentation/dense_frame.h"
-#include "ltlo/segmentation/depth_kmeans.h"
-#include "segmentation/synthetic_rgbd.h"
+#include "segmentation/dense_scene.h"
 
 namespace ltlo::segmentation {
 namespace {
 
-constexpr double kDt = 1.0 / 30.0;
-
-struct Prepared {
-  DenseFrame dense;
-  DepthClusters clusters;
-  cv::Mat dynamic;  // ground truth at the input resolution
-};
-
-/// A box 0.8 m in front of the first camera, 0.7 x 0.9 m, rigidly attached to the body.
-struct Scene {
-  PinholeCamera camera = PinholeCamera(525.0, 525.0, 319.5, 239.5, 640, 480);
-  /// camera in the body frame: rotated and offset, as on a robot
-  SE3 T_b_c = SE3(so3ExpQuat(Vec3(0.04, -0.08, 0.02)), Vec3(0.05, -0.02, 0.10));
-  SE3 T_b_o;  // the box in the body frame
-  /// body motion over one frame: constant world velocity and body angular rate
-  Vec3 v_w_b = Vec3(0.25, 0.02, 0.85);
-  Vec3 omega_b = Vec3(0.03, 0.45, -0.05);
-
-  Scene() {
-    const SE3 T_c_o(Quat::Identity(), Vec3(0.05, 0.15, 1.1));
-    T_b_o = T_b_c * T_c_o;
-  }
-  /// Body pose at time t (the first camera at the world origin at t = 0).
-  SE3 T_w_b(double t_s) const {
-    const SE3 T_w_b0 = T_b_c.inverse();
-    return SE3(Quat(T_w_b0.rotationMatrix() * so3Exp(omega_b * t_s)), T_w_b0.translation() + v_w_b * t_s);
-  }
-  test::RgbdFrame render(double t_s) const {
-    test::BoxInWorld box;
-    box.T_w_o = T_w_b(t_s) * T_b_o;
-    box.half_size_m = Vec3(0.35, 0.45, 0.3);
-    return test::renderRoom(camera, T_w_b(t_s) * T_b_c, box);
-  }
-};
-
-DenseOptions denseOptions() {
-  DenseOptions dense;  // DESIGN.md defaults: 320x240, 3 levels
-  dense.finest_level = 1;
-  return dense;
-}
-
-SegmentationOptions segmentationOptions() { return SegmentationOptions(); }
-
-void prepare(const Scene& scene, double t_s, DepthKMeans& kmeans, Prepared* out) {
-  const test::RgbdFrame frame = scene.render(t_s);
-  out->dense.build(frame.color_bgr, frame.depth_m, scene.camera,
-                   DenseFrameOptions::from(segmentationOptions(), denseOptions()));
-  const DenseLevel& base = out->dense.level(0);
-  kmeans.cluster(base.depth_m,
-                 PinholeCamera(base.camera.fx, base.camera.fy, base.camera.cx, base.camera.cy, base.camera.width,
-                               base.camera.height),
-                 &out->clusters);
-  out->dense.setLabels(out->clusters.labels, out->clusters.num_clusters);
-  out->dynamic = frame.dynamic;
-}
-
-/// Static-background IoU of the segmentation (labels + gamma, threshold 0.5) against the truth.
-double staticIou(const Prepared& frame, const std::vector<double>& gamma) {
-  cv::Mat truth;
-  cv::resize(frame.dynamic, truth, frame.clusters.labels.size(), 0.0, 0.0, cv::INTER_NEAREST);
-  int intersection = 0, union_count = 0;
-  for (int r = 0; r < truth.rows; ++r) {
-    for (int c = 0; c < truth.cols; ++c) {
-      const bool est_static = gamma[frame.clusters.labels.at<std::uint8_t>(r, c)] >= 0.5;
-      const bool true_static = truth.at<std::uint8_t>(r, c) == 0;
-      intersection += est_static && true_static;
-      union_count += est_static || true_static;
-    }
-  }
-  return static_cast<double>(intersection) / union_count;
-}
+using test::denseOptions;
+using test::kDt;
+using test::prepare;
+using test::Prepared;
+using test::Scene;
+using test::segmentationOptions;
+using test::staticIou;
 
 class DenseSolverOnPushedBox : public ::testing::Test {
  protected:
@@ -105,37 +37,11 @@ class DenseSolverOnPushedBox : public ::testing::Test {
     return solver.solve(previous_.dense, previous_gamma_, current_.dense, current_.clusters.edges, prior);
   }
 
-  /// The preintegration of the true motion over the frame.
-  imu::Preintegrated truePreintegration() const {
-    imu::Preintegrated pim(imu::ImuBias{}, imu::ImuNoise{});
-    constexpr int kSteps = 40;
-    for (int k = 0; k < kSteps; ++k) {
-      const double t_mid = (k + 0.5) * kDt / kSteps;
-      const Vec3 specific_force_b = scene_.T_w_b(t_mid).rotationMatrix().transpose() * (Vec3::Zero() - kG_w);
-      pim.integrateStep(scene_.omega_b, specific_force_b, kDt / kSteps);
-    }
-    return pim;
-  }
-
-  /// The IMU prior with the previous velocity off by velocity_error (uncertain by 0.2 m/s) and the
-  /// prediction from that wrong previous state: what the tracker would hand over.
+  imu::Preintegrated truePreintegration() const { return test::truePreintegration(scene_); }
   DensePrior imuPrior(const imu::Preintegrated& pim, const Vec3& velocity_error) const {
-    DensePrior prior;
-    prior.kind = DensePrior::Kind::kImu;
-    prior.T_b_c = scene_.T_b_c;
-    prior.T_w_b_prev = scene_.T_w_b(0.0);
-    prior.v_w_b_prev = scene_.v_w_b + velocity_error;
-    prior.g_w = kG_w;
-    prior.pim = &pim;
-    prior.prev_velocity_sigma_m_s = 0.2;
-    prior.T_w_b_pred = SE3(Quat(prior.T_w_b_prev.rotationMatrix() * pim.deltaR()),
-                           prior.T_w_b_prev.translation() + prior.v_w_b_prev * kDt + 0.5 * kG_w * kDt * kDt +
-                               prior.T_w_b_prev.rotationMatrix() * pim.deltaP());
-    prior.v_w_b_pred = prior.v_w_b_prev;
-    return prior;
+    return test::imuPrior(scene_, pim, velocity_error);
   }
 
-  const Vec3 kG_w = Vec3(0.0, 9.81, 0.0);  // the world's y axis points down
   Scene scene_;
   Prepared previous_, current_;
   std::vector<double> previous_gamma_;
@@ -262,23 +168,13 @@ TEST_F(DenseSolverOnPushedBox, StoppingOnTheRemainingMotionKeepsTheConvergedSolu
 // hundredths of a millimetre at 1 m on level 1 (f = 131 px). The room without the box (it stays
 // behind the camera), where the steps converge within the schedule.
 TEST(DenseSolver, StoppingAtTheStepToleranceKeepsTheFullScheduleResult) {
-  const Scene scene;
+  Scene scene;
+  scene.with_box = false;
   DepthKMeans kmeans(DepthKMeansOptions::from(segmentationOptions()));
   Prepared previous, current;
   for (Prepared* frame : {&previous, &current}) {
-    const double t_s = frame == &previous ? 0.0 : kDt;
-    test::BoxInWorld box;
-    box.T_w_o = SE3(Quat::Identity(), Vec3(0.0, 0.0, -50.0));
-    const test::RgbdFrame rgbd = test::renderRoom(scene.camera, scene.T_w_b(t_s) * scene.T_b_c, box);
-    frame->dense.build(rgbd.color_bgr, rgbd.depth_m, scene.camera,
-                       DenseFrameOptions::from(segmentationOptions(), denseOptions()));
-    const DenseLevel& base = frame->dense.level(0);
-    kmeans.cluster(base.depth_m,
-                   PinholeCamera(base.camera.fx, base.camera.fy, base.camera.cx, base.camera.cy, base.camera.width,
-                                 base.camera.height),
-                   &frame->clusters);
-    frame->dense.setLabels(frame->clusters.labels, frame->clusters.num_clusters);
-    ASSERT_EQ(cv::countNonZero(rgbd.dynamic), 0);
+    prepare(scene, frame == &previous ? 0.0 : kDt, kmeans, frame);
+    ASSERT_EQ(cv::countNonZero(frame->dynamic), 0);
   }
   const std::vector<double> previous_gamma(static_cast<std::size_t>(previous.clusters.num_clusters) + 1, 1.0);
   DensePrior prior;

@@ -7,7 +7,9 @@
 //   BM_CvKmeansSamePoints   reference: cv::kmeans on all the same 320x240 points (3 iterations, one
 //                           attempt, one thread), which gives labels only.
 //   BM_DenseSolve           DenseSolver on a generated pushed-box pair (dense_solver_test.cc's scene)
-//                           with the default schedule (state on levels 2-1).
+//                           with the default schedule (state on levels 2-1) and the brightness change.
+//   BM_DenseSolveNoBrightness  reference: the same solve with Seg.AffineBrightness 0 (Eq. 61 as it
+//                           stands).
 //   BM_DenseSolveFullSchedule  reference: the same solve without the early stop (Dense.StepTolerance 0:
 //                           every level and alternation runs Dense.IterationsPerLevel steps).
 //   BM_DenseSolveQvga       reference: the same solve with the state also on level 0 (Dense.FinestLevel 0).
@@ -103,12 +105,14 @@ struct DensePair {
   }
 };
 
-void denseSolve(benchmark::State& state, int finest_level, double step_tolerance_px) {
+void denseSolve(benchmark::State& state, int finest_level, double step_tolerance_px, bool affine_brightness = true) {
   const DensePair pair(finest_level);
   DenseOptions dense;
   dense.finest_level = finest_level;
   dense.step_tolerance_px = step_tolerance_px;
-  DenseSolver solver(DenseSolverOptions::from(SegmentationOptions(), dense, LocalMappingOptions()));
+  SegmentationOptions segmentation;
+  segmentation.affine_brightness = affine_brightness;
+  DenseSolver solver(DenseSolverOptions::from(segmentation, dense, LocalMappingOptions()));
   int steps = 0;
   for (auto _ : state) {
     const DenseResult result = solver.solve(pair.previous, pair.previous_gamma, pair.current, pair.clusters.edges, pair.prior);
@@ -118,9 +122,13 @@ void denseSolve(benchmark::State& state, int finest_level, double step_tolerance
   state.counters["gn_steps"] = steps;
 }
 void BM_DenseSolve(benchmark::State& state) { denseSolve(state, 1, DenseOptions().step_tolerance_px); }
+void BM_DenseSolveNoBrightness(benchmark::State& state) {
+  denseSolve(state, 1, DenseOptions().step_tolerance_px, /*affine_brightness=*/false);
+}
 void BM_DenseSolveFullSchedule(benchmark::State& state) { denseSolve(state, 1, 0.0); }
 void BM_DenseSolveQvga(benchmark::State& state) { denseSolve(state, 0, DenseOptions().step_tolerance_px); }
 BENCHMARK(BM_DenseSolve)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DenseSolveNoBrightness)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DenseSolveFullSchedule)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DenseSolveQvga)->Unit(benchmark::kMillisecond);
 

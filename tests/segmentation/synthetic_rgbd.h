@@ -33,7 +33,10 @@ inline double texture(double a, double b, double phase) {
          0.08 * std::cos(41.0 * b - 11.0 * a + phase);
 }
 
-inline RgbdFrame renderRoom(const PinholeCamera& camera, const SE3& T_w_c, const BoxInWorld& box) {
+/// `contrast` scales every surface's texture about mid-grey (1: as texture(); below 1: the
+/// weakly textured walls of a real room).
+inline RgbdFrame renderRoom(const PinholeCamera& camera, const SE3& T_w_c, const BoxInWorld& box,
+                            double contrast = 1.0) {
   RgbdFrame frame;
   frame.color_bgr.create(camera.height(), camera.width(), CV_8UC3);
   frame.depth_m.create(camera.height(), camera.width(), CV_32F);
@@ -87,6 +90,7 @@ inline RgbdFrame renderRoom(const PinholeCamera& camera, const SE3& T_w_c, const
       }
       const double z_m = best_t * ray_c.z();  // ray_c.z = 1: t is the depth along the optical axis
       frame.depth_m.at<float>(v, u) = best_t < 1e6 ? static_cast<float>(z_m) : 0.0f;
+      if (contrast != 1.0) intensity = 0.5 + contrast * (intensity - 0.5);
       const auto grey = static_cast<std::uint8_t>(std::clamp(255.0 * intensity, 0.0, 255.0));
       frame.color_bgr.at<cv::Vec3b>(v, u) = cv::Vec3b(grey, grey, grey);
       frame.dynamic.at<std::uint8_t>(v, u) = dynamic ? 255 : 0;

@@ -82,6 +82,17 @@ struct SegmentationOptions {
   /// clusters with gamma above this give tracking features and new map points (Seg.StaticThreshold,
   /// [0, 1])
   double static_threshold = 0.5;
+  /// Estimate a per-frame affine brightness change (gain and offset, auto-exposure) inside the
+  /// dense initial state and segmentation: the intensity residual of Eq. 61 becomes
+  /// I_{i-1}(W(u, T)) - (a I_i(u) + b) (Seg.AffineBrightness, 0/1). 0: Eq. 61 as it stands, an
+  /// exposure step then reads as motion or as dynamic clusters.
+  bool affine_brightness = true;
+  /// weight of the brightness change's prior towards gain 1, offset 0, as a share of the fit's own
+  /// weight. The fit measures the mean grey always and the gain from the spread of the image's
+  /// 8 x 8 block means: the prior shrinks a gain step by about prior / (prior + var), so at 1e-5 it
+  /// matters only below a spread (std) of about one 8-bit level (a texture-poor frame, whose gain
+  /// then stays near 1 and its change goes to the offset) (Seg.AffineBrightnessPrior, [0, 100])
+  double affine_brightness_prior = 1e-5;
 
   static SegmentationOptions load(const SettingsFile& file);
 };

@@ -33,6 +33,22 @@
 /// (the images pulled it away from the IMU): the state falls back to the prediction and Gamma is
 /// solved again there.
 ///
+/// Brightness (Seg.AffineBrightness, issue 28): auto-exposure changes the intensities between the
+/// frames, which Eq. 61 would read as motion or as dynamic clusters. With the switch on, the
+/// intensity residual carries a per-frame affine change, r_I = I_{i-1}(W(u, T)) - (a I_i(u) + b)
+/// (gain a = previous over current exposure, offset b, intensities in [0, 1]), estimated inside
+/// the solve in closed form ("affine brightness fit", dense_solver.cc): a weighted least-squares
+/// line through the 8 x 8 block means of the current intensities and of the warped samples (block
+/// means, because a bilinear sample flattens a texture's peaks, and a pixel-wise fit would read
+/// every textured pair as a gain below 1), weighted by the clusters' scores, robust (Cauchy) per
+/// block, with a weak prior towards a = 1, b = 0 (Seg.AffineBrightnessPrior) so that a
+/// texture-poor frame keeps its gain. It is fitted first at the predicted state on the coarsest
+/// level (weighted by the previous scores at W(u, T)), before the first Gamma step judges the
+/// clusters, then after every Gauss-Newton step from that step's own pass, carried from coarse to
+/// fine like the state; a level's Gauss-Newton steps go on while the fit still moves a predicted
+/// intensity by more than about half an 8-bit level. With the switch off the solve is Eq. 61 as
+/// it stands, bit for bit the same as before the brightness change existed.
+///
 /// Before the IMU is initialised and without an IMU, the IMU term is replaced by a Gaussian prior on
 /// the relative pose (kRelativePose: gyroscope rotation or constant angular rate, constant-velocity
 /// translation); velocity and biases are then not estimated.
@@ -76,6 +92,11 @@ struct DenseSolverOptions {
   double step_tolerance_px = 0.01;
   /// prior residual (chi^2, whitened) above which the refined state is rejected (Dense.MaxPriorChi2)
   double max_prior_chi2 = 30.0;
+  /// estimate the affine brightness change between the frames (Seg.AffineBrightness)
+  bool affine_brightness = true;
+  /// weight of the brightness prior towards gain 1, offset 0, as a share of the fit's total weight
+  /// (Seg.AffineBrightnessPrior)
+  double brightness_prior = 1e-5;
 
   static DenseSolverOptions from(const SegmentationOptions& segmentation, const DenseOptions& dense,
                                  const LocalMappingOptions& local_mapping);
@@ -127,6 +148,10 @@ struct DenseResult {
   bool prior_rejected = false;
   /// whitened prior residual of the final state
   double prior_chi2 = 0.0;
+  /// the brightness change found, I_{i-1}(W(u, T)) ~ gain I_i(u) + offset (1 and 0 with
+  /// Seg.AffineBrightness off)
+  double brightness_gain = 1.0;
+  double brightness_offset = 0.0;
   int gauss_newton_steps = 0;
 };
 
