@@ -125,10 +125,16 @@ TEST(ConfigYaml, SensorSpecificValues) {
   EXPECT_DOUBLE_EQ(tum.calib.camera.depth_map_factor, 5000.0);
   EXPECT_DOUBLE_EQ(tum.calib.camera.camera.fx(), 517.306408);
   EXPECT_EQ(tum.calib.camera.camera.width(), 640);
+  // The fr1 Kinect's published radial-tangential distortion.
+  EXPECT_EQ(tum.calib.camera.lens.model, LensModel::kRadTan);
+  EXPECT_DOUBLE_EQ(tum.calib.camera.lens.k1, 0.262383);
+  EXPECT_DOUBLE_EQ(tum.calib.camera.lens.k3, 1.163314);
 
   const Settings loris = Settings::load((configDir() / "openloris_d400.yaml").string());
   ASSERT_TRUE(loris.calib.has_imu);
-  EXPECT_DOUBLE_EQ(loris.calib.camera.camera.fx(), 611.45);
+  EXPECT_DOUBLE_EQ(loris.calib.camera.camera.fx(), 611.4509887695312);
+  EXPECT_EQ(loris.calib.camera.lens.model, LensModel::kPinhole);  // zero coefficients: the pinhole path
+  EXPECT_DOUBLE_EQ(loris.calib.imu.time_offset_s, 0.0);
   EXPECT_EQ(loris.calib.camera.camera.width(), 848);
   EXPECT_DOUBLE_EQ(loris.calib.camera.depth_map_factor, 1000.0);
   EXPECT_EQ(loris.dense.width, 424);
@@ -137,6 +143,8 @@ TEST(ConfigYaml, SensorSpecificValues) {
   const Settings azure = Settings::load((configDir() / "azure_kinect.yaml").string());
   ASSERT_TRUE(azure.calib.has_imu);
   EXPECT_DOUBLE_EQ(azure.calib.imu.rate_hz, 1600.0);
+  EXPECT_EQ(azure.calib.camera.lens.model, LensModel::kRational);
+  EXPECT_DOUBLE_EQ(azure.calib.camera.lens.k6, 1.48);
   // The camera's optical axis points along -x of the IMU frame.
   EXPECT_NEAR(
       (azure.calib.imu.T_b_c.rotationMatrix() * Vec3::UnitZ() - Vec3(-0.99452190, 0.0, 0.10452846))
