@@ -49,7 +49,6 @@ void visitSegmentation(O& o, V& v) {
   v.real("Seg.SigmaIntensity", o.sigma_intensity, 1e-6, 1.0);
   v.real("Seg.SigmaDepth", o.sigma_depth_m, 1e-6, 1.0);
   v.real("Seg.CauchyC", o.cauchy_c, 1e-6, 1000.0);
-  v.real("Seg.LambdaD", o.lambda_d, 0.0, 1e6);
   v.real("Seg.LambdaS", o.lambda_s, 0.0, 1e6);
   v.real("Seg.LambdaP", o.lambda_p, 0.0, 1000.0);
   v.real("Seg.LambdaPhi", o.lambda_phi, 0.0, 0.99);
@@ -299,6 +298,26 @@ bool isCalibrationKey(const std::string& key) {
   return key.rfind("Camera.", 0) == 0 || key.rfind("IMU.", 0) == 0 || key == "DepthMapFactor";
 }
 
+// Keys the settings had once and read no more. A file that still has one loads with one note per
+// key (its value changes nothing), not the typo warning; --set of one is a ConfigError, since it
+// would change nothing either.
+struct RetiredKey {
+  const char* key;
+  const char* note;  // what took its place
+};
+constexpr RetiredKey kRetiredKeys[] = {
+    {"Seg.LambdaD",
+     "tracking's dense initial segmentation weighs R_d with Dense.LambdaD, local mapping with "
+     "LocalMapping.LambdaD"},
+};
+
+const RetiredKey* retiredKey(const std::string& key) {
+  for (const RetiredKey& retired : kRetiredKeys) {
+    if (key == retired.key) return &retired;
+  }
+  return nullptr;
+}
+
 }  // namespace
 
 OrbOptions OrbOptions::load(const SettingsFile& file) {
@@ -419,6 +438,10 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
                               const std::string& expected) { config.fail(key, value, expected); });
 
   for (const SettingOverride& o : overrides) {
+    if (const RetiredKey* retired = retiredKey(o.key)) {
+      throw ConfigError(config_path + " (--set): " + o.key + " = " + o.value + ": the key is no longer used (" +
+                        retired->note + ")");
+    }
     if (!config.wasRead(o.key) && !(calib && calib->wasRead(o.key))) {
       throw ConfigError(config_path + " (--set): unknown key " + o.key + " = " + o.value +
                         ", expected a key of the settings (config_yaml/*.yaml lists them)");
@@ -429,6 +452,10 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
   for (const std::string& key : config.unreadKeys()) {
     if (!calib_path.empty() && isCalibrationKey(key)) {
       ignored_calibration = true;  // expected: configs may carry a default calibration
+      continue;
+    }
+    if (const RetiredKey* retired = retiredKey(key)) {
+      log::warn(config_path, ": ", key, " is no longer used (ignored; ", retired->note, ")");
       continue;
     }
     log::warn(config_path, ": unknown key ", key, " (ignored; a typo?)");

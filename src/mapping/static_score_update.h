@@ -37,7 +37,7 @@
 namespace ltlo::mapping {
 
 struct StaticScoreOptions {
-  double lambda_d = 1.0;    ///< weight of R_d (gamma prior and smoothness), Eq. 54 (Seg.LambdaD)
+  double lambda_d = 1.0;    ///< weight of R_d (gamma prior and smoothness), Eq. 54 (LocalMapping.LambdaD)
   double lambda_s = 1.0;    ///< weight of R_s (beta prior), Eq. 55 (Seg.LambdaS)
   double lambda_p = 2.0;    ///< 1/m, depth disagreement to gamma prior, Eq. 56 (Seg.LambdaP)
   double lambda_phi = 0.5;  ///< Eq. 57 (Seg.LambdaPhi)

@@ -309,6 +309,30 @@ TEST(SettingsErrors, UnknownKeyIsReportedNotFatal) {
   EXPECT_EQ(std::count(unread.begin(), unread.end(), "Seg.Clusters"), 0);
 }
 
+// Seg.LambdaD was read and validated but fed nothing (tracking weighs R_d with Dense.LambdaD, local
+// mapping with LocalMapping.LambdaD): the shipped files no longer have it, and an old file that
+// still does loads exactly as without it, with one line saying so, not the typo warning.
+TEST(SettingsErrors, RetiredKeyIsNotedOnceNotFatalAndNotAnUnknownKey) {
+  EXPECT_FALSE(SettingsFile((configDir() / "synthetic.yaml").string()).has("Seg.LambdaD"));
+  const std::string path = editedConfig("synthetic.yaml", "", "", "Seg.LambdaD: 1.0\n");
+  test::LogCapture capture;
+  const Settings settings = Settings::load(path);
+  EXPECT_EQ(capture.lines(),
+            std::vector<std::string>{"[main] warn " + path +
+                                     ": Seg.LambdaD is no longer used (ignored; tracking's dense initial "
+                                     "segmentation weighs R_d with Dense.LambdaD, local mapping with "
+                                     "LocalMapping.LambdaD)"});
+  EXPECT_TRUE(settings.unknown_keys.empty());
+  EXPECT_EQ(settings.describe().find("Seg.LambdaD"), std::string::npos);
+  // The same settings as the shipped file: the descriptions (every value) differ in the paths only.
+  const std::string shipped_path = (configDir() / "synthetic.yaml").string();
+  std::string described = settings.describe();
+  for (size_t at = described.find(path); at != std::string::npos; at = described.find(path, at)) {
+    described.replace(at, path.size(), shipped_path);
+  }
+  EXPECT_EQ(described, Settings::load(shipped_path).describe());
+}
+
 TEST(SettingsErrors, ValidateChecksValuesBuiltInCode) {
   Settings settings = Settings::load((configDir() / "synthetic.yaml").string());
   settings.segmentation.num_clusters = 1;
@@ -576,6 +600,9 @@ TEST(SettingOverrides, ValidatedLikeTheFile) {
   EXPECT_EQ(loadErrorWith(config, {"Seg.Clustres=24"}),
             config + " (--set): unknown key Seg.Clustres = 24, expected a key of the settings "
                      "(config_yaml/*.yaml lists them)");
+  EXPECT_EQ(loadErrorWith(config, {"Seg.LambdaD=2"}),
+            config + " (--set): Seg.LambdaD = 2: the key is no longer used (tracking's dense initial segmentation "
+                     "weighs R_d with Dense.LambdaD, local mapping with LocalMapping.LambdaD)");
   EXPECT_EQ(loadErrorWith(config, {"Seg.Enable"}), "--set Seg.Enable: expected Key=Value (e.g. Seg.Enable=0)");
   EXPECT_EQ(loadErrorWith(config, {"=1"}), "--set =1: expected Key=Value (e.g. Seg.Enable=0)");
   EXPECT_EQ(loadErrorWith(config, {"Seg Enable=1"}),

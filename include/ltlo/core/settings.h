@@ -8,7 +8,9 @@
 /// list every one with a comment); only the Sequence.* keys are optional. A missing, mistyped or
 /// out-of-range key throws ConfigError naming file, key, expected range and value found:
 ///   "config_yaml/tum_rgbd.yaml: Seg.Clusters = 1, expected an integer in [2, 256]"
-/// An unknown key (usually a typo) is logged as a warning and listed in Settings::unknown_keys.
+/// An unknown key (usually a typo) is logged as a warning and listed in Settings::unknown_keys. A
+/// retired key (one the settings no longer read, e.g. Seg.LambdaD) still found in a file is
+/// logged with one line saying it is no longer used and what replaced it; it is not an unknown key.
 #include <string>
 #include <vector>
 
@@ -66,10 +68,6 @@ struct SegmentationOptions {
   /// c, inflection point of the Cauchy penalty F, in weighted residual units
   /// (Seg.CauchyC, [1e-6, 1000])
   double cauchy_c = 0.5;
-  /// lambda_d, weight of R_d (gamma prior and smoothness over V_i), Eq. 54, in tracking's dense
-  /// initial segmentation (Eq. 59); local mapping has LocalMappingOptions::lambda_d (Seg.LambdaD,
-  /// [0, 1e6])
-  double lambda_d = 1.0;
   /// lambda_s, weight of R_s (beta prior), Eq. 55, in units of the Huber cost of whitened
   /// reprojection errors: with its clusters voting static, a point is half dynamic when its window
   /// observations cost lambda_s (Seg.LambdaS, [0, 1e6])
@@ -352,8 +350,9 @@ struct DenseOptions {
   /// (Dense.OcclusionGap, [0.01, 10])
   double occlusion_gap_m = 0.1;
   /// lambda_d of the tracking initialisation (Eq. 59): the weight of R_d (Eq. 54: temporal prior
-  /// and smoothness over V_i) against the per-pixel mean of Eq. 60; Seg.LambdaD weighs the same
-  /// term in local mapping's Eq. 50, whose data term has another scale (Dense.LambdaD, [0, 1e6])
+  /// and smoothness over V_i) against the per-pixel mean of Eq. 60; LocalMapping.LambdaD weighs
+  /// the same term in local mapping's Eq. 50, whose data term has another scale (Dense.LambdaD,
+  /// [0, 1e6])
   double lambda_d = 0.1;
   /// whitened motion-prior residual (chi^2) above which the dense state is rejected and the
   /// prediction kept (Dense.MaxPriorChi2, [0.1, 1e9])
@@ -509,8 +508,9 @@ struct Settings {
   /// sequence's calib.yaml) when it is not empty, otherwise from the Camera.* / DepthMapFactor /
   /// IMU.* keys of the config file itself (TUM / OpenLORIS style); with a calib.yaml, those keys
   /// in the config are ignored with one info line. `overrides` replace keys of the files first
-  /// (SettingsFile::setOverride; a later one wins); an override no setting reads is a ConfigError
-  /// (a typo on the command line would otherwise change nothing). Throws ConfigError.
+  /// (SettingsFile::setOverride; a later one wins); an override no setting reads (a retired key
+  /// too) is a ConfigError (a typo on the command line would otherwise change nothing). Throws
+  /// ConfigError.
   static Settings load(const std::string& config_path, const std::string& calib_path = "",
                        const std::vector<SettingOverride>& overrides = {});
 

@@ -21,7 +21,7 @@ struct GammaProblem {
   std::vector<double> data;   ///< a_k, K entries
   std::vector<double> prior;  ///< gamma~_k in [0, 1], K entries
   std::vector<ClusterEdge> edges;  ///< V_i over [0, K)
-  double lambda_d = 1.0;      ///< Seg.LambdaD, >= 0
+  double lambda_d = 1.0;      ///< Dense.LambdaD (DenseSolverOptions::lambda_d), >= 0
 };
 
 /// E(Gamma) of the problem (gamma: K entries).
