@@ -2,7 +2,8 @@
 # Throws malformed and odd-but-valid inputs at every program in build/bin and prints a table
 #   program | input | exit (expected) | first line of the message
 # Fails when a program exits by a signal or with a code >= 128, when an exit code differs from
-# the contract (0 done, 2 bad input, 1 other error) or when a bad-input message does not name the
+# the contract (0 done, 2 bad input, 1 other error; rgbd_inertial/rgbd: 3 evaluation failed, i.e. a
+# malformed groundtruth.txt or masks/ after a complete run) or when a bad-input message does not name the
 # file/key it should. Needs a built tree (scripts/build.sh); generates a 1 s VGA sequence.
 #   scripts/contract_check.sh [OUT_DIR]       default out/contract
 set -uo pipefail
@@ -105,6 +106,14 @@ check() {
   [ "$verdict" != ok ] && failures=$((failures + 1))
   printf '%-16s | %-52s | %3d %-4s | %s\n' "$program" "$input" "$rc" "$([ "$verdict" = ok ] && echo ok || echo "$verdict")" \
     "$message" | tee -a "$TABLE"
+}
+
+evaluation_only() {  # evaluation_only RUN: a malformed evaluation input left the run's outputs whole
+  local run=$1
+  if [ ! -s "$run/trajectory.txt" ] || ! grep -q '"evaluation_error"' "$run/metrics.json" 2>/dev/null; then
+    echo "contract_check: $run: no trajectory.txt or no evaluation_error in metrics.json" | tee -a "$TABLE"
+    failures=$((failures + 1))
+  fi
 }
 
 slam() {  # slam PROGRAM "INPUT" EXPECTED MUST SEQUENCE [extra args]; SLAM_SETTINGS overrides
@@ -266,11 +275,13 @@ d=$(variant no_calib calib.yaml)
 slam rgbd_inertial "calib.yaml missing (settings calibration, logged)" 0 "calibration (Camera.*, DepthMapFactor, IMU.*) from the settings file" "$d"
 d=$(variant gt_bad groundtruth.txt)
 sed '4s/ [^ ]*$/ x/' "$SEQ/groundtruth.txt" > "$d/groundtruth.txt"
-slam rgbd_inertial "groundtruth.txt bad value on line 4" 2 "$d/groundtruth.txt:4" "$d"
+slam rgbd_inertial "groundtruth.txt bad value on line 4 (after the run)" 3 "$d/groundtruth.txt:4" "$d"
+evaluation_only "$OUT/runs/slam_$((total - 1))"
 d=$(variant masks_odd)
 own_images "$d" masks
 printf 'x' > "$d/masks/not_a_time.png"
-slam rgbd_inertial "masks/ with a non-timestamp file name" 2 "not_a_time.png" "$d"
+slam rgbd_inertial "masks/ with a non-timestamp file name (after the run)" 3 "not_a_time.png" "$d"
+evaluation_only "$OUT/runs/slam_$((total - 1))"
 check rgbd_inertial "--out under a file" 2 "binary.yaml/x" --settings "$SETTINGS" --sequence "$SEQ" --out "$CASES/binary.yaml/x" --max-frames 2 --vocabulary "$VOC"
 
 # ---- imu_odometry --------------------------------------------------------------------------------
@@ -295,7 +306,8 @@ d=$(variant masks_small)
 own_images "$d" masks
 python3 "$OUT/grey_png.py" "$d/masks" 32 24
 check sim_preview "masks of another size" 2 "sizes differ" --sequence "$d" --out "$OUT/runs/p.png" --frames 0
-slam rgbd_inertial "masks of another size" 2 "differs from 32x24" "$d"
+slam rgbd_inertial "masks of another size (after the run)" 3 "differs from 32x24" "$d"
+evaluation_only "$OUT/runs/slam_$((total - 1))"
 
 # ---- train_vocabulary --------------------------------------------------------------------------
 check train_vocabulary "no arguments" 2 ""

@@ -7,16 +7,20 @@
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
 // from the Camera.* / IMU.* keys of the settings file (TUM RGB-D, OpenLORIS). Outputs in --out:
-// trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists
-// (read for the evaluation of the outputs only). --oracle-masks (diagnostic ablation): DIR/masks/
-// replaces the segmentation (metrics.json "oracle_masks": true); without it masks/ is never read.
+// trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists.
+// The evaluation inputs DIR/groundtruth.txt and DIR/masks/ are read only after the run, once its
+// outputs are written: a malformed one leaves the run and its outputs as they are, and metrics.json
+// lacks the figures it would give but has "evaluation_error" (file, line, value). --oracle-masks
+// (diagnostic ablation): DIR/masks/ replaces the segmentation (metrics.json "oracle_masks": true);
+// without it masks/ is not opened before the evaluation.
 // --set Key=Value (repeatable) replaces one key of the settings file (or of calib.yaml for Camera.*,
 // IMU.*, DepthMapFactor), validated like the file and logged; an unknown key is bad input.
 // Ctrl-C (or SIGTERM), a bad frame or an error part-way stop the run, shut the threads down and
 // still write the outputs of the frames processed (Ctrl-C is handled from the start, also while
 // loading). Exit status: 0 done (also when interrupted), 2 bad input (files, settings, the
 // vocabulary; for rgbd_inertial a sequence without IMU samples or IMU calibration), 1 any other
-// error.
+// error, 3 the run completed and its outputs are written but the evaluation failed (a malformed
+// groundtruth.txt or masks/; a 2 or 1 of the run itself takes precedence).
 #include <unistd.h>
 
 #include <atomic>
@@ -58,6 +62,8 @@ namespace fs = std::filesystem;
 
 constexpr const char* kProgram = LTLO_PROGRAM_NAME;
 constexpr const char* kShippedVocabulary = "Vocabulary/ltlo_orb_k10_L5.bin";
+/// The run completed and its outputs are written, but groundtruth.txt or masks/ could not be read.
+constexpr int kExitEvaluationFailed = 3;
 
 std::atomic<bool> g_stop_requested{false};
 static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler needs a lock-free flag");
@@ -130,6 +136,7 @@ RunSetup loadSetup(const Arguments& args) {
               setup.settings.calib.has_imu ? ", IMU.*" : "", ") from the settings file ", args.settings_path);
   }
   setup.reader_options.read_masks = args.oracle_masks;
+  setup.reader_options.read_ground_truth = false;  // evaluation only: read after the run
   return setup;
 }
 
@@ -216,9 +223,11 @@ int run(const Arguments& args) {
   system::RunReport report = slam.report(wall_s);
   report.interrupted = interrupted;
   const fs::path masks_dir = fs::path(args.sequence_dir) / "masks";
+  system::EvaluationInputs evaluation;
+  evaluation.ground_truth_path = reader.groundTruthPath();
+  evaluation.gt_masks_dir = fs::is_directory(masks_dir) ? masks_dir.string() : "";
   const system::WrittenOutputs written =
-      system::writeRunOutputs(args.out_dir, report, reader.groundTruth(), setup.settings.local_mapping.min_point_beta,
-                              fs::is_directory(masks_dir) ? masks_dir.string() : "");
+      system::writeRunOutputs(args.out_dir, report, evaluation, setup.settings.local_mapping.min_point_beta);
 
   const system::SystemCounts& counts = report.counts;
   std::printf("frames %d\nframes_with_pose %d\nframes_tracked %d\nkeyframes %d\nmap_points %d\nstatic_points %d\n"
@@ -255,6 +264,12 @@ int run(const Arguments& args) {
   } else if (g_stop_requested.load()) {
     std::fprintf(stderr, "%s: interrupted after %d frames; outputs written to %s\n", kProgram, frames,
                  args.out_dir.c_str());
+  }
+  if (!written.evaluation_error.empty()) {
+    std::fprintf(stderr, "%s: evaluation failed: %s; the run's outputs are written to %s (metrics.json "
+                 "without those figures, with evaluation_error)\n",
+                 kProgram, written.evaluation_error.c_str(), args.out_dir.c_str());
+    if (exit_code == 0) exit_code = kExitEvaluationFailed;
   }
   std::fflush(stdout);
   return exit_code;

@@ -286,10 +286,18 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
   }
 
   const std::string gt_path = joinPath(sequence_dir, "groundtruth.txt");
-  if (isFile(gt_path)) reader.ground_truth_ = readTumTrajectory(gt_path);
+  if (isFile(gt_path)) {
+    reader.ground_truth_path_ = gt_path;
+    if (options.read_ground_truth) reader.ground_truth_ = readTumTrajectory(gt_path);
+  }
 
-  log::info(sequence_dir, ": ", reader.entries_.size(), " frames, ", reader.imu_.size(),
-            " IMU samples, ", reader.ground_truth_.size(), " ground-truth poses");
+  if (options.read_ground_truth || reader.ground_truth_path_.empty()) {
+    log::info(sequence_dir, ": ", reader.entries_.size(), " frames, ", reader.imu_.size(),
+              " IMU samples, ", reader.ground_truth_.size(), " ground-truth poses");
+  } else {
+    log::info(sequence_dir, ": ", reader.entries_.size(), " frames, ", reader.imu_.size(),
+              " IMU samples; groundtruth.txt is read after the run (evaluation only)");
+  }
   return reader;
 }
 

@@ -12,6 +12,7 @@
 #include <iomanip>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -273,8 +274,11 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   return metrics;
 }
 
-WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
-                               const io::Trajectory& ground_truth, double min_beta, const std::string& gt_masks_dir) {
+namespace {
+
+/// trajectory.txt, keyframes.txt and static_map.ply: the run's own outputs, written before any
+/// evaluation input is opened.
+WrittenOutputs writeSlamOutputs(const std::string& out_dir, const RunReport& report, double min_beta) {
   namespace fs = std::filesystem;
   std::error_code error;
   fs::create_directories(out_dir, error);
@@ -289,26 +293,73 @@ WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& repo
   const std::string ply_path = (fs::path(out_dir) / "static_map.ply").string();
   written.static_points = writeStaticMapPly(ply_path, report.map_points, min_beta);
   written.files.push_back(ply_path);
-  if (!ground_truth.empty()) {
-    written.metrics = computeRunMetrics(report, ground_truth);
-    written.has_metrics = true;
-    const fs::path segmentation_dir = fs::path(out_dir) / "segmentation";
-    // No masks (Ctrl-C before the first frame): nothing to compare, not an error.
-    if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(segmentation_dir, error) &&
-        !fs::is_empty(segmentation_dir, error)) {
+  return written;
+}
+
+void addEvaluationError(WrittenOutputs* written, const std::string& message) {
+  log::error("metrics: evaluation failed: ", message);
+  if (!written->evaluation_error.empty()) written->evaluation_error += "; ";
+  written->evaluation_error += message;
+}
+
+/// The metrics step: ATE/RPE against `ground_truth`, the mask figures against `gt_masks_dir`, and
+/// metrics.json, written when there is ground truth or an evaluation error (`ground_truth_error`:
+/// groundtruth.txt could not be read). A malformed mask folder becomes an evaluation error too.
+void writeMetrics(const std::string& out_dir, const RunReport& report, const io::Trajectory& ground_truth,
+                  const std::string& ground_truth_error, const std::string& gt_masks_dir, WrittenOutputs* written) {
+  namespace fs = std::filesystem;
+  if (ground_truth.empty() && ground_truth_error.empty()) return;
+  if (!ground_truth_error.empty()) addEvaluationError(written, ground_truth_error);
+  io::Metrics figures = computeRunMetrics(report, ground_truth);
+  std::error_code error;
+  const fs::path segmentation_dir = fs::path(out_dir) / "segmentation";
+  // No masks (Ctrl-C before the first frame): nothing to compare, not an error.
+  if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(segmentation_dir, error) &&
+      !fs::is_empty(segmentation_dir, error)) {
+    try {
       // The same figures as `evaluate --gt-masks SEQ/masks --est-masks RUN/segmentation`.
       const eval::MaskIouResult iou = eval::evaluateMaskFolders(gt_masks_dir, segmentation_dir.string());
-      written.metrics.set("static_iou", iou.mean_static_iou);
-      written.metrics.set("static_iou_occluded", iou.mean_static_iou_occluded);
-      written.metrics.set("num_mask_frames", iou.num_frames);
-      written.metrics.set("num_occluded_frames", iou.num_occluded_frames);
-      written.metrics.set("dynamic_recall", iou.dynamic_recall);
-      written.metrics.set("static_share", iou.mean_static_share);
+      figures.set("static_iou", iou.mean_static_iou);
+      figures.set("static_iou_occluded", iou.mean_static_iou_occluded);
+      figures.set("num_mask_frames", iou.num_frames);
+      figures.set("num_occluded_frames", iou.num_occluded_frames);
+      figures.set("dynamic_recall", iou.dynamic_recall);
+      figures.set("static_share", iou.mean_static_share);
+    } catch (const InputError& e) {
+      addEvaluationError(written, e.what());
     }
-    const std::string metrics_path = (fs::path(out_dir) / "metrics.json").string();
-    written.metrics.writeJson(metrics_path);
-    written.files.push_back(metrics_path);
   }
+  if (!written->evaluation_error.empty()) figures.set("evaluation_error", written->evaluation_error);
+  written->metrics = std::move(figures);
+  written->has_metrics = true;
+  const std::string metrics_path = (fs::path(out_dir) / "metrics.json").string();
+  written->metrics.writeJson(metrics_path);
+  written->files.push_back(metrics_path);
+}
+
+}  // namespace
+
+WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
+                               const io::Trajectory& ground_truth, double min_beta, const std::string& gt_masks_dir) {
+  WrittenOutputs written = writeSlamOutputs(out_dir, report, min_beta);
+  writeMetrics(out_dir, report, ground_truth, "", gt_masks_dir, &written);
+  return written;
+}
+
+WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
+                               const EvaluationInputs& evaluation, double min_beta) {
+  WrittenOutputs written = writeSlamOutputs(out_dir, report, min_beta);
+  io::Trajectory ground_truth;
+  std::string ground_truth_error;
+  if (!evaluation.ground_truth_path.empty()) {
+    try {
+      ground_truth = io::readTumTrajectory(evaluation.ground_truth_path);
+      log::info("metrics: ", evaluation.ground_truth_path, ": ", ground_truth.size(), " ground-truth poses");
+    } catch (const InputError& e) {
+      ground_truth_error = e.what();
+    }
+  }
+  writeMetrics(out_dir, report, ground_truth, ground_truth_error, evaluation.gt_masks_dir, &written);
   return written;
 }
 

@@ -2,8 +2,9 @@
 // bad input exits 2 naming the file and the value (vocabulary, missing IMU), a sequence without
 // calib.yaml takes the settings file's calibration with one log line, evaluate normalises
 // non-unit quaternions, and SIGINT part-way through rgbd_inertial leaves a complete, parseable
-// trajectory of every processed frame; reconstruct and check_surfels name a broken run file. Runs
-// the built programs on a short generated sequence.
+// trajectory of every processed frame; a malformed groundtruth.txt or masks/ (evaluation inputs)
+// fails the evaluation (exit 3) after a complete run; reconstruct and check_surfels name a broken
+// run file. Runs the built programs on a short generated sequence.
 #include <gtest/gtest.h>
 
 #include <csignal>
@@ -253,6 +254,62 @@ TEST_F(CliContract, EvaluateNormalisesNonUnitQuaternionsWithAWarning) {
   std::smatch ate;
   ASSERT_TRUE(std::regex_search(result.out, ate, std::regex("ate_rmse_m ([0-9.e+-]+)"))) << result.out;
   EXPECT_LT(std::stod(ate[1]), 1e-6);  // same poses up to the printed precision
+}
+
+// groundtruth.txt and masks/ are evaluation inputs, read only after the run: a malformed one stops
+// nothing. The trajectory and the other outputs are written, metrics.json has "evaluation_error"
+// instead of the figures that input gives, and the program says which file and line and exits 3.
+TEST_F(CliContract, MalformedEvaluationInputsDoNotStopTheRunAndFailTheEvaluationByFileAndLine) {
+  constexpr int kFrames = 30;
+  const fs::path bad_gt = sequenceVariant(work_ / "bad_gt", {"groundtruth.txt"});
+  {
+    std::istringstream gt(readFile(sharedSequence() / "groundtruth.txt"));
+    std::ostringstream edited;
+    int line_number = 0;
+    for (std::string line; std::getline(gt, line);) {
+      if (++line_number == 4) line = line.substr(0, line.rfind(' ')) + " x";  // qw of the third pose
+      edited << line << "\n";
+    }
+    writeFile(bad_gt / "groundtruth.txt", edited.str());
+  }
+  const std::string gt_path = (bad_gt / "groundtruth.txt").string();
+  ProgramResult result = slam(bad_gt, {"--max-frames", std::to_string(kFrames), "--single-thread"});
+  EXPECT_EQ(result.exit_code, 3) << result.describe();
+  EXPECT_NE(result.err.find("rgbd_inertial: evaluation failed: " + gt_path + ":4: value 8 is not a number: 'x'"),
+            std::string::npos)
+      << result.err;
+  EXPECT_EQ(result.out.find("ate_rmse_m"), std::string::npos) << result.out;
+  const fs::path run = work_ / "run";
+  EXPECT_EQ(static_cast<int>(io::readTumTrajectory((run / "trajectory.txt").string()).size()), kFrames);
+  EXPECT_TRUE(fs::exists(run / "keyframes.txt"));
+  EXPECT_TRUE(fs::exists(run / "static_map.ply"));
+  std::string metrics = readFile(run / "metrics.json");
+  EXPECT_NE(metrics.find("\"evaluation_error\": \"" + gt_path + ":4: value 8 is not a number: 'x'\""),
+            std::string::npos)
+      << metrics;
+  EXPECT_EQ(metrics.find("ate_rmse_m"), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("\"frames\": " + std::to_string(kFrames)), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("\"static_iou\""), std::string::npos) << metrics;  // masks/ still evaluated
+
+  // A masks/ file that is not named by a timestamp (rgbd this time): the same, naming the file; the
+  // ATE is there.
+  const fs::path bad_masks = sequenceVariant(work_ / "bad_masks", {"masks"});
+  fs::create_directory(bad_masks / "masks");
+  for (const fs::directory_entry& entry : fs::directory_iterator(sharedSequence() / "masks")) {
+    fs::create_symlink(entry.path(), bad_masks / "masks" / entry.path().filename());
+  }
+  writeFile(bad_masks / "masks" / "not_a_time.png", "x");
+  result = slam(bad_masks, {"--max-frames", std::to_string(kFrames)}, "rgbd");
+  EXPECT_EQ(result.exit_code, 3) << result.describe();
+  const std::string mask_path = (bad_masks / "masks" / "not_a_time.png").string();
+  EXPECT_NE(result.err.find("rgbd: evaluation failed: " + mask_path + ": mask file name is not a timestamp"),
+            std::string::npos)
+      << result.err;
+  EXPECT_EQ(static_cast<int>(io::readTumTrajectory((run / "trajectory.txt").string()).size()), kFrames);
+  metrics = readFile(run / "metrics.json");
+  EXPECT_NE(metrics.find("\"evaluation_error\": \"" + mask_path), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("\"ate_rmse_m\""), std::string::npos) << metrics;
+  EXPECT_EQ(metrics.find("\"static_iou\""), std::string::npos) << metrics;
 }
 
 // Ctrl-C part-way: the run stops at a frame boundary, exits 0 and writes a trajectory with one

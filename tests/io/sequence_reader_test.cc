@@ -479,5 +479,32 @@ TEST(SequenceReader, MasksAreOnlyReadWhenAsked) {
   LTLO_EXPECT_CONTAINS(inputErrorOf([&] { readAllFrames(sequenceDir(tmp), withMasks()); }), mask_0);
 }
 
+// groundtruth.txt is evaluation only: with read_ground_truth off a malformed file is not opened
+// (the SLAM programs read it after the run) but its path is known; by default it is read.
+TEST(SequenceReader, GroundTruthIsNotReadWhenTurnedOff) {
+  TempDir tmp("seq_gt_off");
+  TestSequenceSpec spec;
+  test::writeDataFormatSequence(sequenceDir(tmp), spec);
+  const std::string gt_path = sequenceDir(tmp) + "/groundtruth.txt";
+  {
+    std::ofstream broken(gt_path, std::ios::app);
+    broken << "9.5 0 0 x 0 0 0 1\n";
+  }
+  SequenceReaderOptions options;
+  options.read_ground_truth = false;
+  const SequenceReader reader = SequenceReader::open(sequenceDir(tmp), options);
+  EXPECT_TRUE(reader.groundTruth().empty());
+  EXPECT_FALSE(reader.hasGroundTruth());
+  EXPECT_EQ(reader.groundTruthPath(), gt_path);
+  EXPECT_EQ(reader.frameCount(), spec.num_frames);
+  LTLO_EXPECT_CONTAINS(inputErrorOf([&] { SequenceReader::open(sequenceDir(tmp)); }), gt_path + ":");
+
+  TestSequenceSpec without;
+  without.with_groundtruth = false;
+  TempDir tmp2("seq_gt_none");
+  test::writeDataFormatSequence(sequenceDir(tmp2), without);
+  EXPECT_TRUE(SequenceReader::open(sequenceDir(tmp2), options).groundTruthPath().empty());
+}
+
 }  // namespace
 }  // namespace ltlo::io

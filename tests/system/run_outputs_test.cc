@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 
 #include <opencv2/imgcodecs.hpp>
@@ -236,6 +237,48 @@ TEST_F(RunOutputs, SegmentationMasksAreWrittenAndScoredAgainstTheGroundTruth) {
   EXPECT_EQ(outputs.metrics.number("num_mask_frames"), 5);
   EXPECT_NEAR(outputs.metrics.number("dynamic_recall"), 1.0, 1e-12);
   EXPECT_NEAR(outputs.metrics.number("static_share"), 0.5, 1e-12);
+}
+
+// The evaluation inputs are read at the metrics step, after the run's own files: a ground truth
+// that does not parse throws nothing; metrics.json has the counts and "evaluation_error" naming
+// file, line and value, and no ATE. A readable one gives the figures it gave when read up front.
+TEST_F(RunOutputs, MalformedGroundTruthFileIsAnEvaluationErrorNotAnException) {
+  const io::Trajectory gt = circleGroundTruth(30);
+  const RunReport report = syntheticReport(gt, 0.0);
+  io::writeTumTrajectory(path("gt.txt"), gt);
+  EvaluationInputs evaluation;
+  evaluation.ground_truth_path = path("gt.txt");
+  const WrittenOutputs good = writeRunOutputs(path("run"), report, evaluation, 0.5);
+  EXPECT_TRUE(good.evaluation_error.empty()) << good.evaluation_error;
+  EXPECT_LT(good.metrics.number("ate_rmse_m"), 1e-9);
+  // The same metrics as the ground truth read beforehand (what the SLAM programs did before).
+  EXPECT_EQ(good.metrics.toJson(),
+            writeRunOutputs(path("run_b"), report, io::readTumTrajectory(path("gt.txt")), 0.5).metrics.toJson());
+
+  {
+    std::ofstream out(path("bad.txt"));
+    out << "# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n0.1 0 0 nope 0 0 0 1\n";
+  }
+  evaluation.ground_truth_path = path("bad.txt");
+  WrittenOutputs bad;
+  ASSERT_NO_THROW(bad = writeRunOutputs(path("run2"), report, evaluation, 0.5));
+  ASSERT_EQ(bad.files.size(), 4u);
+  for (const std::string& file : bad.files) EXPECT_TRUE(fs::is_regular_file(file)) << file;
+  EXPECT_EQ(io::readTumTrajectory(path("run2/trajectory.txt")).size(), gt.size());
+  EXPECT_EQ(bad.evaluation_error.rfind(path("bad.txt") + ":3: ", 0), 0u) << bad.evaluation_error;
+  EXPECT_NE(bad.evaluation_error.find("nope"), std::string::npos) << bad.evaluation_error;
+  EXPECT_TRUE(bad.has_metrics);
+  EXPECT_FALSE(bad.metrics.has("ate_rmse_m"));
+  EXPECT_EQ(bad.metrics.number("frames"), report.counts.frames);
+  std::ifstream json(path("run2/metrics.json"));
+  const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"evaluation_error\": \"" + path("bad.txt") + ":3: "), std::string::npos) << text;
+
+  // No ground-truth file: no metrics.json, no error.
+  const WrittenOutputs none = writeRunOutputs(path("run3"), report, EvaluationInputs{}, 0.5);
+  EXPECT_FALSE(none.has_metrics);
+  EXPECT_TRUE(none.evaluation_error.empty());
+  EXPECT_FALSE(fs::exists(path("run3/metrics.json")));
 }
 
 TEST(PeakMemory, IsPositive) { EXPECT_GT(peakMemoryMb(), 1.0); }

@@ -77,6 +77,10 @@ struct SequenceReaderOptions {
   /// Attach and decode the ground-truth masks (masks/): only for diagnostics (the --oracle-masks
   /// ablation, evaluation, tests). Off, masks/ is never opened and frames carry no mask.
   bool read_masks = false;
+  /// Read groundtruth.txt at open() (groundTruth()). Off, the file is not opened (a malformed one
+  /// cannot stop a run; groundTruthPath() still names it): the SLAM programs read it for their
+  /// evaluation after the run.
+  bool read_ground_truth = true;
   /// Where the per-frame masks come from: unset = SEQ/masks/ when it exists and read_masks is set; an empty string = no
   /// masks (nothing under SEQ/masks/ is read); a folder = its <timestamp>.png files (e.g. a run's
   /// segmentation/), which must exist.
@@ -86,7 +90,8 @@ struct SequenceReaderOptions {
 /// Not thread-safe: one consumer calls next().
 class SequenceReader {
  public:
-  /// Detects the layout and reads the index, calibration, IMU and ground truth; throws InputError
+  /// Detects the layout and reads the index, calibration, IMU and (unless
+  /// SequenceReaderOptions::read_ground_truth is off) the ground truth; throws InputError
   /// (or ConfigError from a bad calib.yaml).
   static SequenceReader open(const std::string& sequence_dir,
                              const SequenceReaderOptions& options = {});
@@ -113,8 +118,10 @@ class SequenceReader {
   /// The whole IMU stream (small: seven doubles per sample).
   const ImuSamples& imu() const { return imu_; }
   bool hasGroundTruth() const { return !ground_truth_.empty(); }
-  /// T_world_camera from groundtruth.txt; empty when the sequence has none.
+  /// T_world_camera from groundtruth.txt; empty when the sequence has none or it was not read.
   const Trajectory& groundTruth() const { return ground_truth_; }
+  /// The sequence's groundtruth.txt when it exists (read or not), else empty.
+  const std::string& groundTruthPath() const { return ground_truth_path_; }
 
  private:
   SequenceReader() = default;
@@ -128,6 +135,7 @@ class SequenceReader {
   ImuSamples imu_;
   std::string imu_path_;
   Trajectory ground_truth_;
+  std::string ground_truth_path_;
   /// load() may run in several threads at once: the warn-once flag is atomic.
   std::shared_ptr<std::atomic<bool>> warned_color_conversion_ = std::make_shared<std::atomic<bool>>(false);
   int next_index_ = 0;

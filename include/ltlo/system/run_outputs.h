@@ -6,7 +6,9 @@
 ///                    (world frame of the active map, points with beta >= the threshold)
 ///   metrics.json     when ground truth is given: ATE / RPE, frame counts, per-stage median/p95
 ///                    times, peak memory, wall time, FPS, maps, loops, merges, keyframes, points,
-///                    and the static-background IoU of segmentation/ against the sequence's masks/
+///                    and the static-background IoU of segmentation/ against the sequence's masks/;
+///                    when an evaluation input is malformed, the figures that could be computed and
+///                    "evaluation_error" (the reader's message: file, line, value)
 ///   segmentation/    every frame's mask (written during the run by SegmentationWriter)
 /// Readers for keyframes.txt and static_map.ply round-trip the writers (tests, tools). Writers
 /// and readers throw InputError naming the file (and line) on failure.
@@ -41,15 +43,34 @@ struct WrittenOutputs {
   io::Metrics metrics;
   bool has_metrics = false;
   int static_points = 0;
+  /// Why the evaluation failed (a malformed groundtruth.txt or masks/: the InputError messages,
+  /// "; "-separated; also metrics.json's "evaluation_error"); empty when it did not.
+  std::string evaluation_error;
+};
+
+/// The evaluation inputs of a run (ground truth: never read before the run has ended, so a broken
+/// file cannot stop or change the run).
+struct EvaluationInputs {
+  std::string ground_truth_path;  ///< TUM groundtruth.txt (T_w_c); empty: none (no metrics.json)
+  std::string gt_masks_dir;       ///< the sequence's masks/; empty: no mask figures
 };
 
 /// Creates `out_dir` and writes trajectory.txt, keyframes.txt, static_map.ply and, with ground
 /// truth, metrics.json. With `gt_masks_dir` (a sequence's masks/) and the run's segmentation/
 /// folder (SystemOptions::segmentation_dir = out_dir/segmentation), metrics.json also gets the
 /// segmentation figures of eval::evaluateMaskFolders: static_iou, static_iou_occluded,
-/// num_mask_frames, num_occluded_frames, dynamic_recall, static_share.
+/// num_mask_frames, num_occluded_frames, dynamic_recall, static_share. A malformed mask folder does
+/// not throw: its message is WrittenOutputs::evaluation_error (logged, and in metrics.json).
 WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
                                const io::Trajectory& ground_truth, double min_beta,
                                const std::string& gt_masks_dir = "");
+
+/// The same, reading the evaluation inputs only now, after the run's own outputs are written:
+/// a ground-truth file that does not parse gives a metrics.json without ATE/RPE but with
+/// "evaluation_error" naming the file, line and value (also WrittenOutputs::evaluation_error and one
+/// error log line), never an exception. An existing but empty ground truth gives no metrics.json.
+/// Throws InputError only when an output cannot be written.
+WrittenOutputs writeRunOutputs(const std::string& out_dir, const RunReport& report,
+                               const EvaluationInputs& evaluation, double min_beta);
 
 }  // namespace ltlo::system
