@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "ltlo/core/log.h"
 #include "ltlo/core/settings_file.h"
 
 namespace ltlo::sim {
@@ -77,6 +78,27 @@ SensorCalib SimOptions::sensorCalib() const {
   return calib;
 }
 
+namespace {
+
+/// The simulated IMU's rate and noise under the simulator's own keys (Sim.Imu.<name>), so a
+/// simulator config never reads like the estimator's settings (IMU.<name>, what the estimator
+/// assumes). A config of the old layout (IMU.<name>) still loads, with one warning naming the new
+/// key; both in one file is an error.
+double readImuKey(const SettingsFile& file, const std::string& name, double default_value, double min,
+                  double max) {
+  const std::string key = "Sim.Imu." + name;
+  const std::string old_key = "IMU." + name;
+  if (file.has(old_key)) {
+    if (file.has(key))
+      file.fail(old_key, file.valueText(old_key), "no value: this file gives " + key + " (the simulator's key) too");
+    log::warn(file.path(), ": ", old_key, " in a simulator config is read as ", key, " (rename it)");
+    return file.getDouble(old_key, default_value, min, max);
+  }
+  return file.getDouble(key, default_value, min, max);
+}
+
+}  // namespace
+
 SimOptions SimOptions::load(const SettingsFile& file) {
   SimOptions o;
   o.width_px = file.getInt("Camera.width", o.width_px, 16, 4096);
@@ -87,11 +109,11 @@ SimOptions SimOptions::load(const SettingsFile& file) {
   o.cy_px = file.getDouble("Camera.cy", o.cy_px, 0.0, 4096.0);
   o.fps = file.getDouble("Camera.fps", o.fps, 1.0, 200.0);
   o.depth_map_factor = file.getDouble("DepthMapFactor", o.depth_map_factor, 1.0, 100000.0);
-  o.imu_rate_hz = file.getDouble("IMU.Frequency", o.imu_rate_hz, 10.0, 2000.0);
-  o.noise_gyro = file.getDouble("IMU.NoiseGyro", o.noise_gyro, 0.0, 1.0);
-  o.noise_acc = file.getDouble("IMU.NoiseAcc", o.noise_acc, 0.0, 10.0);
-  o.gyro_walk = file.getDouble("IMU.GyroWalk", o.gyro_walk, 0.0, 1.0);
-  o.acc_walk = file.getDouble("IMU.AccWalk", o.acc_walk, 0.0, 10.0);
+  o.imu_rate_hz = readImuKey(file, "Frequency", o.imu_rate_hz, 10.0, 2000.0);
+  o.noise_gyro = readImuKey(file, "NoiseGyro", o.noise_gyro, 0.0, 1.0);
+  o.noise_acc = readImuKey(file, "NoiseAcc", o.noise_acc, 0.0, 10.0);
+  o.gyro_walk = readImuKey(file, "GyroWalk", o.gyro_walk, 0.0, 1.0);
+  o.acc_walk = readImuKey(file, "AccWalk", o.acc_walk, 0.0, 10.0);
   o.gyro_bias_init = file.getDouble("Sim.GyroBiasInit", o.gyro_bias_init, 0.0, 1.0);
   o.acc_bias_init = file.getDouble("Sim.AccBiasInit", o.acc_bias_init, 0.0, 5.0);
   o.depth_min_m = file.getDouble("Depth.MinRange", o.depth_min_m, 0.05, 10.0);

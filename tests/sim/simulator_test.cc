@@ -393,5 +393,31 @@ TEST(SimOptions, LoadsTheShippedConfigAndRejectsOutOfRange) {
   }
 }
 
+TEST(SimOptions, ReadsTheImuUnderItsOwnKeysAndTheOldOnesWithAWarning) {
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string own = (dir / "ltlo_sim_imu_own.yaml").string();
+  std::ofstream(own) << "%YAML:1.0\nSim.Imu.NoiseGyro: 2.5e-3\nSim.Imu.AccWalk: 4.0e-4\nSim.Imu.Frequency: 400.0\n";
+  const SimOptions o = SimOptions::load(SettingsFile(own));
+  EXPECT_DOUBLE_EQ(o.noise_gyro, 2.5e-3);
+  EXPECT_DOUBLE_EQ(o.acc_walk, 4.0e-4);
+  EXPECT_DOUBLE_EQ(o.imu_rate_hz, 400.0);
+  EXPECT_DOUBLE_EQ(o.noise_acc, SimOptions().noise_acc);  // absent: the simulator's default
+  EXPECT_DOUBLE_EQ(o.sensorCalib().imu.noise_gyro, 2.5e-3);  // calib.yaml tells the truth
+
+  const std::string old = (dir / "ltlo_sim_imu_old.yaml").string();
+  std::ofstream(old) << "%YAML:1.0\nIMU.NoiseAcc: 3.0e-2\n";
+  EXPECT_DOUBLE_EQ(SimOptions::load(SettingsFile(old)).noise_acc, 3.0e-2);
+
+  const std::string both = (dir / "ltlo_sim_imu_both.yaml").string();
+  std::ofstream(both) << "%YAML:1.0\nIMU.NoiseAcc: 3.0e-2\nSim.Imu.NoiseAcc: 3.0e-2\n";
+  try {
+    SimOptions::load(SettingsFile(both));
+    ADD_FAILURE() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("IMU.NoiseAcc"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("Sim.Imu.NoiseAcc"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace ltlo::sim

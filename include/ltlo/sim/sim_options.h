@@ -54,12 +54,12 @@ struct SimOptions {
   double duration_s = 10.0;  ///< sequence length (s)
   bool noise_free = false;   ///< no IMU/depth/colour noise, no biases, no holes, no jitter
 
-  // IMU (IMU.*), low-cost MEMS defaults (datasheet densities inflated as calibration tools do)
-  double imu_rate_hz = 200.0;      ///< IMU.Frequency
-  double noise_gyro = 1.0e-3;      ///< IMU.NoiseGyro (rad/s/sqrt(Hz))
-  double noise_acc = 1.0e-2;       ///< IMU.NoiseAcc (m/s^2/sqrt(Hz))
-  double gyro_walk = 1.0e-5;       ///< IMU.GyroWalk (rad/s^2/sqrt(Hz))
-  double acc_walk = 2.0e-4;        ///< IMU.AccWalk (m/s^3/sqrt(Hz))
+  // IMU (Sim.Imu.*; written to calib.yaml as IMU.*), low-cost MEMS defaults (datasheet densities inflated as calibration tools do)
+  double imu_rate_hz = 200.0;      ///< Sim.Imu.Frequency
+  double noise_gyro = 1.0e-3;      ///< Sim.Imu.NoiseGyro (rad/s/sqrt(Hz))
+  double noise_acc = 1.0e-2;       ///< Sim.Imu.NoiseAcc (m/s^2/sqrt(Hz))
+  double gyro_walk = 1.0e-5;       ///< Sim.Imu.GyroWalk (rad/s^2/sqrt(Hz))
+  double acc_walk = 2.0e-4;        ///< Sim.Imu.AccWalk (m/s^3/sqrt(Hz))
   double gyro_bias_init = 2.0e-3;  ///< Sim.GyroBiasInit: std of the initial gyro bias (rad/s)
   double acc_bias_init = 3.0e-2;   ///< Sim.AccBiasInit: std of the initial acc bias (m/s^2)
 
