@@ -40,7 +40,7 @@ template <typename O, typename V>
 void visitSegmentation(O& o, V& v) {
   v.boolean("Seg.Enable", o.enable);
   v.boolean("Seg.DenseInit", o.dense_init);
-  v.integer("Seg.Clusters", o.num_clusters, 2, 255);
+  v.integer("Seg.Clusters", o.num_clusters, 2, 255);  // segmentation::kMaxClusters (8-bit labels)
   v.integer("Seg.KMeansIterations", o.kmeans_iterations, 1, 50);
   v.real("Seg.MaxNeighbourGap", o.max_neighbour_gap_m, 0.001, 10.0);
   v.real("Seg.AlphaIntensity", o.alpha_intensity, 0.001, 10.0);

@@ -146,7 +146,7 @@ LocalBaGraph::LocalBaGraph(const LocalBaProblem& problem, const LocalBaOptions& 
     walk->setVertex(1, vi.acc_bias);
     walk->setVertex(2, vj.gyro_bias);
     walk->setVertex(3, vj.acc_bias);
-    const double walk_s = std::max(link.pim->dt_s(), 1e-3);
+    const double walk_s = std::max(link.pim->dt_s(), imu::kMinBiasWalkInterval_s);
     Mat6 walk_information = biasWalkInformation(link.pim->noise(), walk_s, problem.lambda_imu);
     if (problem.held_acc_bias_sigma_m_s2 > 0.0 && problem.lambda_imu > 0.0 &&
         vi.acc_bias->fixed() != vj.acc_bias->fixed()) {

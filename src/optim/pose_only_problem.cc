@@ -100,7 +100,7 @@ void addInertialLink(sparse_opt::Graph& graph, const InertialLink& link, const C
   walk->setVertex(1, prev_acc);
   walk->setVertex(2, current.gyro_bias);
   walk->setVertex(3, current.acc_bias);
-  walk->setInformation(biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), 1e-3), link.lambda_imu));
+  walk->setInformation(biasWalkInformation(link.pim->noise(), std::max(link.pim->dt_s(), imu::kMinBiasWalkInterval_s), link.lambda_imu));
   graph.addEdge(std::move(walk));
 }
 

@@ -51,8 +51,6 @@ constexpr double kMinGain = 0.5;
 constexpr double kMaxGain = 2.0;
 constexpr double kMaxOffset = 0.5;
 
-using Mat15 = Eigen::Matrix<double, 15, 15>;
-using Vec15 = Eigen::Matrix<double, 15, 1>;
 
 struct State {
   SE3 T_w_b;
@@ -105,7 +103,7 @@ Mat9 imuInformation(const DensePrior& prior) {
 
 /// Information of the bias regulariser of Eq. 58 (M = 1): lambda_imu Sigma_b^-1, [b_g; b_a].
 Mat6 biasInformation(const DensePrior& prior, double lambda_imu) {
-  return lambda_imu * prior.pim->noise().biasWalkCovariance(std::max(prior.pim->dt_s(), 1e-4)).inverse();
+  return lambda_imu * prior.pim->noise().biasWalkCovariance(std::max(prior.pim->dt_s(), imu::kMinBiasWalkInterval_s)).inverse();
 }
 
 /// Whitened motion-prior residual of a state (the IMU term, or the relative-pose prior).
@@ -245,10 +243,10 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
                                       static_cast<float>(options_.cauchy_c),
                                       static_cast<float>(options_.occlusion_gap_m)};
 
-  std::array<float, 256> previous_gamma_of_label;
+  std::array<float, kMaxClusterLabels> previous_gamma_of_label;
   previous_gamma_of_label.fill(1.0f);
   for (std::size_t k = 0; k < previous_gamma.size(); ++k) previous_gamma_of_label[k] = static_cast<float>(previous_gamma[k]);
-  std::array<float, 256> gamma_of_label;
+  std::array<float, kMaxClusterLabels> gamma_of_label;
   gamma_of_label.fill(1.0f);
 
   State state;
@@ -306,7 +304,7 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
 
   // Only clusters at or above the static threshold take part in the state step (weighted by gamma):
   // a dynamic cluster, however large, cannot pull the state.
-  std::array<float, 256> state_weight_of_label;
+  std::array<float, kMaxClusterLabels> state_weight_of_label;
   auto updateStateWeights = [&]() {
     float largest_change = 0.0f;
     for (std::size_t k = 0; k < state_weight_of_label.size(); ++k) {

@@ -13,7 +13,6 @@ namespace ltlo::segmentation {
 
 namespace {
 
-constexpr int kMaxClusters = 255;  // 8-bit labels with label K = "no depth"
 constexpr int kMaxCandidates = 9;  // clusters of the 3x3 samples around a pixel's block
 
 inline bool validDepth(float z) { return z > 0.0f && z < std::numeric_limits<float>::infinity(); }

@@ -16,6 +16,12 @@ struct ImuBias {
   Vec3 b_a = Vec3::Zero();  ///< accelerometer bias (m/s^2)
 };
 
+/// Shortest interval a bias random-walk term is weighed over, s: two keyframes or frames closer than
+/// this (repeated stamps) would give the walk an unbounded information. Every user of
+/// ImuNoise::biasWalkCovariance as a factor (the optimiser's inertial edges, the dense solver's
+/// IMU prior) clamps to this one floor.
+constexpr double kMinBiasWalkInterval_s = 1e-3;
+
 /// Discrete-time noise of one integration step, from the continuous-time densities of ImuCalib.
 ///
 /// White measurement noise of density sigma_c (unit/sqrt(Hz)) sampled over a step of dt_s has the

@@ -18,6 +18,11 @@ struct ClusterEdge {
   int num_boundary_pairs = 0;
 };
 
+/// The most depth clusters of one frame (Seg.Clusters): the label images written for a run are
+/// 8-bit and label K is "no depth", so K <= 255 and a per-label table has kMaxClusterLabels entries.
+constexpr int kMaxClusters = 255;
+constexpr int kMaxClusterLabels = kMaxClusters + 1;
+
 /// Cluster labels of one depth image. Labels 0..K-1 are depth clusters, label K is "no depth".
 /// A plain value: copyable, no shared state.
 struct ClusterMap {

@@ -20,7 +20,7 @@
 namespace ltlo::segmentation {
 
 struct DepthKMeansOptions {
-  /// K (Seg.Clusters); labels are 8-bit, so K <= 255 (label K is "no depth")
+  /// K (Seg.Clusters), at most kMaxClusters (cluster_map.h)
   int num_clusters = 24;
   /// Lloyd iterations on the subsample after seeding (Seg.KMeansIterations)
   int kmeans_iterations = 3;
