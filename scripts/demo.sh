@@ -60,6 +60,7 @@ value() { awk -v k="$1" '$1 == k { print $2 }' "$2"; }
 echo
 echo "== results ($SCENARIO, $SECONDS_TO_SIMULATE s, seed $SEED)"
 echo "  SLAM ATE RMSE          $(value ate_rmse_m "$OUT/metrics.txt") m"
+echo "  online ATE RMSE        $(value ate_online_rmse_m "$OUT/slam_summary.txt") m (each frame's pose as tracked, before later corrections)"
 echo "  static IoU (all / >40% occluded)  $(value static_iou "$OUT/metrics.txt") / $(value static_iou_occluded "$OUT/metrics.txt")"
 echo "  IMU-only ATE RMSE      $(value ate_rmse_m "$OUT/imu_only_metrics.txt") m (baseline)"
 echo "  frames / with pose     $(value frames "$OUT/slam_summary.txt") / $(value frames_with_pose "$OUT/slam_summary.txt")"
@@ -73,6 +74,7 @@ echo
 echo "== outputs in $OUT"
 echo "  sequence/               generated input (DATA_FORMAT.md), stats in sequence/stats.txt"
 echo "  slam/trajectory.txt     SLAM camera trajectory (TUM, T_w_c, every frame with a pose)"
+echo "  slam/trajectory_online.txt  each frame's pose as tracking returned it (never corrected afterwards)"
 echo "  slam/keyframes.txt      keyframe poses with id, map and static area ratio"
 echo "  slam/static_map.ply     static map points (colour, beta); open with any PLY viewer"
 echo "  slam/segmentation/      every frame's dynamic mask (255 = dynamic), like sequence/masks/"

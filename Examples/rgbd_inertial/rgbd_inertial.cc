@@ -7,7 +7,8 @@
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
 // from the Camera.* / IMU.* keys of the settings file (TUM RGB-D, OpenLORIS). Outputs in --out:
-// trajectory.txt, keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists.
+// trajectory.txt, trajectory_online.txt (each frame's pose as tracking returned it, never corrected
+// afterwards), keyframes.txt, static_map.ply, and metrics.json when DIR/groundtruth.txt exists.
 // The evaluation inputs DIR/groundtruth.txt and DIR/masks/ are read only after the run, once its
 // outputs are written: a malformed one leaves the run and its outputs as they are, and metrics.json
 // lacks the figures it would give but has "evaluation_error" (file, line, value). --oracle-masks
@@ -239,6 +240,9 @@ int run(const Arguments& args) {
     std::printf("ate_rmse_m %.6f\nrpe_trans_rmse_m_s %.6f\nrpe_rot_rmse_deg_s %.6f\n",
                 written.metrics.number("ate_rmse_m"), written.metrics.number("rpe_trans_rmse_m_s"),
                 written.metrics.number("rpe_rot_rmse_deg_s"));
+  }
+  if (written.has_metrics && written.metrics.has("ate_online_rmse_m")) {
+    std::printf("ate_online_rmse_m %.6f\n", written.metrics.number("ate_online_rmse_m"));
   }
   if (written.has_metrics && written.metrics.has("static_iou")) {
     std::printf("static_iou %.4f\nstatic_iou_occluded %.4f\ndynamic_recall %.4f\nstatic_share %.4f\n",

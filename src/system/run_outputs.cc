@@ -216,26 +216,42 @@ std::vector<MapPointRecord> readStaticMapPly(const std::string& path) {
   return points;
 }
 
+namespace {
+
+/// ATE (SE3 alignment) and RPE of `trajectory` against `ground_truth` under keys "<prefix>_...":
+/// prefix "ate"/"rpe" give ate_rmse_m, rpe_trans_rmse_m_s, ...; `suffix` names the matched count.
+void addTrajectoryErrors(const std::vector<FramePose>& trajectory, const io::Trajectory& ground_truth,
+                         const std::string& ate_prefix, const std::string& rpe_prefix,
+                         const std::string& matched_key, io::Metrics* metrics) {
+  const eval::MatchedTrajectories matched = eval::associateTrajectories(ground_truth, toTumTrajectory(trajectory));
+  metrics->set(matched_key, static_cast<int>(matched.est.size()));
+  if (matched.est.size() < 3) {
+    log::warn("metrics: only ", matched.est.size(), " poses of the ", ate_prefix == "ate" ? "" : "online ",
+              "trajectory match the ground truth; no ", ate_prefix, "/", rpe_prefix);
+    return;
+  }
+  const eval::AteResult ate = eval::computeAte(matched, /*with_scale=*/false);
+  const eval::RpeResult rpe = eval::computeRpe(matched, ate.S_gt_est);
+  metrics->set(ate_prefix + "_rmse_m", ate.error_m.rmse);
+  metrics->set(ate_prefix + "_mean_m", ate.error_m.mean);
+  metrics->set(ate_prefix + "_median_m", ate.error_m.median);
+  metrics->set(ate_prefix + "_max_m", ate.error_m.max);
+  metrics->set(rpe_prefix + "_trans_rmse_m_s", rpe.trans_m_s.rmse);
+  metrics->set(rpe_prefix + "_rot_rmse_deg_s", rpe.rot_deg_s.rmse);
+  metrics->set(rpe_prefix + "_trans_rmse_m_frame", rpe.trans_m_frame.rmse);
+  metrics->set(rpe_prefix + "_rot_rmse_deg_frame", rpe.rot_deg_frame.rmse);
+}
+
+}  // namespace
+
 io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& ground_truth) {
   io::Metrics metrics;
   if (!ground_truth.empty()) {
-    const eval::MatchedTrajectories matched =
-        eval::associateTrajectories(ground_truth, toTumTrajectory(report.trajectory));
-    metrics.set("num_matched", static_cast<int>(matched.est.size()));
-    if (matched.est.size() >= 3) {
-      const eval::AteResult ate = eval::computeAte(matched, /*with_scale=*/false);
-      const eval::RpeResult rpe = eval::computeRpe(matched, ate.S_gt_est);
-      metrics.set("ate_rmse_m", ate.error_m.rmse);
-      metrics.set("ate_mean_m", ate.error_m.mean);
-      metrics.set("ate_median_m", ate.error_m.median);
-      metrics.set("ate_max_m", ate.error_m.max);
-      metrics.set("rpe_trans_rmse_m_s", rpe.trans_m_s.rmse);
-      metrics.set("rpe_rot_rmse_deg_s", rpe.rot_deg_s.rmse);
-      metrics.set("rpe_trans_rmse_m_frame", rpe.trans_m_frame.rmse);
-      metrics.set("rpe_rot_rmse_deg_frame", rpe.rot_deg_frame.rmse);
-    } else {
-      log::warn("metrics: only ", matched.est.size(), " poses match the ground truth; no ATE/RPE");
-    }
+    addTrajectoryErrors(report.trajectory, ground_truth, "ate", "rpe", "num_matched", &metrics);
+    // The online stream (trajectory_online.txt): the same figures of the poses as tracking
+    // returned them, so the live pose's quality is known beside the final one.
+    addTrajectoryErrors(report.trajectory_online, ground_truth, "ate_online", "rpe_online", "num_matched_online",
+                        &metrics);
   }
   const SystemCounts& c = report.counts;
   metrics.set("frames", c.frames);
@@ -287,6 +303,9 @@ WrittenOutputs writeSlamOutputs(const std::string& out_dir, const RunReport& rep
   const std::string trajectory_path = (fs::path(out_dir) / "trajectory.txt").string();
   writeTrajectory(trajectory_path, report.trajectory);
   written.files.push_back(trajectory_path);
+  const std::string online_path = (fs::path(out_dir) / "trajectory_online.txt").string();
+  writeTrajectory(online_path, report.trajectory_online);
+  written.files.push_back(online_path);
   const std::string keyframes_path = (fs::path(out_dir) / "keyframes.txt").string();
   writeKeyFrames(keyframes_path, report.keyframes);
   written.files.push_back(keyframes_path);

@@ -255,7 +255,9 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     record.t_s = input.t_s;
     record.tracked = tracker_->frameTracked();
     const SE3 T_w_c = frame.T_w_c();
+    record.T_w_c_online = T_w_c;
     if (std::shared_ptr<map::KeyFrame> reference = tracker_->referenceKeyFramePtr()) {
+      record.map_online = reference->mapId();
       record.T_refb_c = map::latestPose_T_w_b(*reference).inverse() * T_w_c;
       record.reference = std::move(reference);
     } else {
@@ -401,6 +403,21 @@ std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
   return poses;
 }
 
+std::vector<FramePose> System::onlineTrajectory() const {
+  std::lock_guard<std::mutex> lock(records_mutex_);
+  std::vector<FramePose> poses;
+  poses.reserve(records_.size());
+  for (const FrameRecord& record : records_) {
+    FramePose pose;
+    pose.t_s = record.t_s;
+    pose.T_w_c = record.T_w_c_online;
+    pose.tracked = record.tracked;
+    pose.map = record.map_online;
+    poses.push_back(pose);
+  }
+  return poses;
+}
+
 std::vector<KeyFrameRecord> System::keyFrames() const {
   std::vector<KeyFrameRecord> keyframes;
   for (const map::MapId map_id : atlas_->mapIds()) {
@@ -489,6 +506,7 @@ SystemCounts System::counts() const {
 RunReport System::report(double wall_s) const {
   RunReport report;
   report.trajectory = trajectory();
+  report.trajectory_online = onlineTrajectory();
   report.keyframes = keyFrames();
   report.map_points = mapPoints();
   report.counts = counts();

@@ -343,7 +343,14 @@ TEST_F(CliContract, SigintPartWayWritesACompleteParseableTrajectory) {
   const io::Trajectory gt = io::readTumTrajectory((sharedSequence() / "groundtruth.txt").string());
   for (int k = 0; k < processed; ++k) EXPECT_NEAR(trajectory[k].t_s, gt[k].t_s, 1e-6) << "frame " << k;
   EXPECT_FALSE(fs::exists(trajectory_path.string() + ".part"));
-  EXPECT_NE(readFile(work_ / "run" / "metrics.json").find("\"interrupted\": 1"), std::string::npos);
+  // The online stream of the same frames is written too, at the same times.
+  const io::Trajectory online = io::readTumTrajectory((work_ / "run" / "trajectory_online.txt").string());
+  ASSERT_EQ(static_cast<int>(online.size()), processed);
+  for (int k = 0; k < processed; ++k) EXPECT_EQ(online[k].t_s, trajectory[k].t_s) << "frame " << k;
+  const std::string metrics = readFile(work_ / "run" / "metrics.json");
+  EXPECT_NE(metrics.find("\"interrupted\": 1"), std::string::npos);
+  EXPECT_NE(metrics.find("\"ate_online_rmse_m\""), std::string::npos) << metrics;
+  EXPECT_NE(result.out.find("ate_online_rmse_m "), std::string::npos) << result.out;
   EXPECT_NE(result.err.find("all threads joined"), std::string::npos) << result.err;
 }
 

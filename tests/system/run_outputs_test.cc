@@ -137,6 +137,11 @@ RunReport syntheticReport(const io::Trajectory& ground_truth, double error_m) {
     pose.T_w_c = T_est_gt * SE3(ground_truth[i].T_w_x.quaternion(), ground_truth[i].T_w_x.translation() + error);
     pose.tracked = true;
     report.trajectory.push_back(pose);
+    // The online stream: the same frames, 3 cm off along y (what tracking returned before a loop).
+    FramePose online = pose;
+    online.T_w_c = T_est_gt * SE3(ground_truth[i].T_w_x.quaternion(),
+                                  ground_truth[i].T_w_x.translation() + error + (i % 2 == 0 ? 0.03 : -0.03) * Vec3::UnitY());
+    report.trajectory_online.push_back(online);
   }
   report.counts.frames = static_cast<int>(ground_truth.size()) + 2;
   report.counts.frames_with_pose = static_cast<int>(ground_truth.size());
@@ -168,6 +173,10 @@ TEST_F(RunOutputs, MetricsCarryAteCountsAndTiming) {
   EXPECT_NEAR(metrics.number("ate_rmse_m"), 0.01, 1e-3);
   EXPECT_NEAR(metrics.number("ate_max_m"), 0.01, 2e-3);
   EXPECT_EQ(metrics.number("num_matched"), 40);
+  // The online stream's figures beside the final ones: +-1 cm along x and +-3 cm along y.
+  EXPECT_EQ(metrics.number("num_matched_online"), 40);
+  EXPECT_NEAR(metrics.number("ate_online_rmse_m"), std::sqrt(0.01 * 0.01 + 0.03 * 0.03), 2e-3);
+  EXPECT_TRUE(metrics.has("rpe_online_trans_rmse_m_s"));
   EXPECT_EQ(metrics.number("frames"), 42);
   EXPECT_EQ(metrics.number("frames_with_pose"), 40);
   EXPECT_EQ(metrics.number("frames_without_pose"), 2);
@@ -187,9 +196,13 @@ TEST_F(RunOutputs, WriteRunOutputsWritesEveryFileAndTheTrajectoryReadsBack) {
   report.keyframes.push_back(KeyFrameRecord{0.0, SE3(), 0, 0, 1.0});
   report.map_points.resize(4);
   const WrittenOutputs written = writeRunOutputs(path("run"), report, gt, 0.5);
-  ASSERT_EQ(written.files.size(), 4u);
+  ASSERT_EQ(written.files.size(), 5u);
   for (const std::string& file : written.files) EXPECT_TRUE(fs::is_regular_file(file)) << file;
   EXPECT_TRUE(written.has_metrics);
+  const io::Trajectory online = io::readTumTrajectory(path("run/trajectory_online.txt"));
+  ASSERT_EQ(online.size(), gt.size());
+  EXPECT_LT((online[5].T_w_x.translation() - report.trajectory_online[5].T_w_c.translation()).norm(), 1e-12);
+  EXPECT_GT((online[5].T_w_x.translation() - report.trajectory[5].T_w_c.translation()).norm(), 0.02);
   EXPECT_LT(written.metrics.number("ate_rmse_m"), 1e-9);
   EXPECT_EQ(written.static_points, 4);
   const io::Trajectory trajectory = io::readTumTrajectory(path("run/trajectory.txt"));
@@ -198,7 +211,7 @@ TEST_F(RunOutputs, WriteRunOutputsWritesEveryFileAndTheTrajectoryReadsBack) {
 
   // Without ground truth there is no metrics.json.
   const WrittenOutputs without = writeRunOutputs(path("run2"), report, io::Trajectory(), 0.5);
-  EXPECT_EQ(without.files.size(), 3u);
+  EXPECT_EQ(without.files.size(), 4u);
   EXPECT_FALSE(fs::exists(path("run2/metrics.json")));
 }
 
@@ -262,7 +275,7 @@ TEST_F(RunOutputs, MalformedGroundTruthFileIsAnEvaluationErrorNotAnException) {
   evaluation.ground_truth_path = path("bad.txt");
   WrittenOutputs bad;
   ASSERT_NO_THROW(bad = writeRunOutputs(path("run2"), report, evaluation, 0.5));
-  ASSERT_EQ(bad.files.size(), 4u);
+  ASSERT_EQ(bad.files.size(), 5u);
   for (const std::string& file : bad.files) EXPECT_TRUE(fs::is_regular_file(file)) << file;
   EXPECT_EQ(io::readTumTrajectory(path("run2/trajectory.txt")).size(), gt.size());
   EXPECT_EQ(bad.evaluation_error.rfind(path("bad.txt") + ":3: ", 0), 0u) << bad.evaluation_error;

@@ -6,6 +6,7 @@
 //
 // The sanitizer script (scripts/sanitize_e2e.sh) runs RgbdInertialThreaded and the loop test of this
 // binary under TSan and ASan/UBSan.
+#include <algorithm>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -53,6 +54,7 @@ struct RunResult {
   RunReport report;
   double ate_rmse_m = 0.0;
   double ate_max_m = 0.0;
+  double ate_online_rmse_m = 0.0;  ///< of report.trajectory_online (the poses as tracked)
 };
 
 /// Generated sequences shared by the tests of this file (written once, removed at exit).
@@ -113,6 +115,9 @@ class SystemEndToEnd : public EndToEndSuite {
       result.ate_rmse_m = ate.error_m.rmse;
       result.ate_max_m = ate.error_m.max;
     }
+    const eval::MatchedTrajectories matched_online =
+        eval::associateTrajectories(reader.groundTruth(), toTumTrajectory(result.report.trajectory_online));
+    if (matched_online.est.size() >= 3) result.ate_online_rmse_m = eval::computeAte(matched_online, false).error_m.rmse;
     log::info("e2e ", fs::path(dir).filename().string(), (options.use_imu ? " rgbd-inertial" : " rgbd"),
               (options.threaded ? " threaded" : " synchronous"), ": ATE rmse ", result.ate_rmse_m, " m, max ",
               result.ate_max_m, " m, ", result.counts.keyframes, " keyframes, ", result.counts.map_points,
@@ -180,6 +185,21 @@ TEST_F(SystemEndToEnd, RgbdOnlyThreadedClosesTheLoop) {
   EXPECT_GE(result.counts.loops, 1);
   EXPECT_EQ(result.counts.merges, 0);
   EXPECT_EQ(result.counts.maps, 1);
+
+  // The online stream: a pose per frame at the same times, as tracked. Before the loop its poses
+  // are the final ones up to the correction's drift; after it the corrected trajectory moved away
+  // from what tracking returned (the drift the loop removed), so the two differ.
+  const std::vector<FramePose>& online = result.report.trajectory_online;
+  ASSERT_EQ(online.size(), result.trajectory.size());
+  double max_gap_m = 0.0;
+  for (std::size_t i = 0; i < online.size(); ++i) {
+    ASSERT_EQ(online[i].t_s, result.trajectory[i].t_s);
+    max_gap_m = std::max(max_gap_m, (online[i].T_w_c.translation() - result.trajectory[i].T_w_c.translation()).norm());
+  }
+  std::printf("online: ATE %.4f m (final %.4f m), largest online-final gap %.4f m\n", result.ate_online_rmse_m,
+              result.ate_rmse_m, max_gap_m);
+  EXPECT_GT(max_gap_m, 1e-3);
+  EXPECT_LT(result.ate_online_rmse_m, 0.1);
 }
 
 TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
@@ -192,6 +212,13 @@ TEST_F(SystemEndToEnd, SynchronousIsDeterministicAndAccurate) {
   // Mapping and loop closing inside trackFrame: a second run gives the same trajectory.
   const RunResult again = run(dir, systemOptions(true, false));
   ASSERT_EQ(again.trajectory.size(), result.trajectory.size());
+  ASSERT_EQ(again.report.trajectory_online.size(), result.trajectory.size());
+  for (std::size_t i = 0; i < result.trajectory.size(); ++i) {
+    ASSERT_EQ(again.report.trajectory_online[i].T_w_c.translation(),
+              result.report.trajectory_online[i].T_w_c.translation()) << "frame " << i;
+  }
+  // No loop on 8 s: the online poses are the final ones up to local BA's later refinement.
+  EXPECT_LT(result.ate_online_rmse_m, 2.0 * result.ate_rmse_m + 0.005);
   for (std::size_t i = 0; i < result.trajectory.size(); ++i) {
     ASSERT_EQ(again.trajectory[i].T_w_c.translation(), result.trajectory[i].T_w_c.translation()) << "frame " << i;
   }

@@ -1,10 +1,15 @@
 #pragma once
 /// The outputs of a run (DESIGN.md "Outputs of a run"), written from what System reports:
-///   trajectory.txt   TUM "t tx ty tz qx qy qz qw", camera pose T_w_c, every frame with a pose
+///   trajectory.txt   TUM "t tx ty tz qx qy qz qw", camera pose T_w_c, every frame with a pose,
+///                    from its reference keyframe's final pose (loop corrections, merges and the
+///                    smoothing of IMU-carried stretches included)
+///   trajectory_online.txt  the same frames with the pose tracking returned at that frame (the
+///                    online stream a controller reads; never corrected afterwards)
 ///   keyframes.txt    "# t tx ty tz qx qy qz qw id map static_area_ratio", T_w_c, by time
 ///   static_map.ply   binary little-endian PLY: float x y z, uchar red green blue, float beta
 ///                    (world frame of the active map, points with beta >= the threshold)
-///   metrics.json     when ground truth is given: ATE / RPE, frame counts, per-stage median/p95
+///   metrics.json     when ground truth is given: ATE / RPE (and ate_online_* / rpe_online_* of
+///                    trajectory_online.txt, num_matched_online), frame counts, per-stage median/p95
 ///                    times, peak memory, wall time, FPS, maps, loops, merges, keyframes, points,
 ///                    and the static-background IoU of segmentation/ against the sequence's masks/;
 ///                    when an evaluation input is malformed, the figures that could be computed and

@@ -58,6 +58,8 @@ struct SystemCounts {
 /// Everything a run produced, gathered once after System::shutdown().
 struct RunReport {
   std::vector<FramePose> trajectory;
+  /// System::onlineTrajectory: every frame's pose as tracking returned it (trajectory_online.txt).
+  std::vector<FramePose> trajectory_online;
   std::vector<KeyFrameRecord> keyframes;
   std::vector<MapPointRecord> map_points;
   SystemCounts counts;

@@ -123,6 +123,10 @@ class System {
   std::vector<FramePose> trajectory() const { return trajectory(settings_.tracking.smooth_carried_frames); }
   /// The same, with carried stretches smoothed or as the IMU predicted them.
   std::vector<FramePose> trajectory(bool smooth_carried_frames) const;
+  /// Every frame with a pose, in input order, as tracking returned it at that frame (before any
+  /// later loop correction, merge or smoothing): what a controller reading the live pose got.
+  /// FramePose::map is the map the frame was tracked in.
+  std::vector<FramePose> onlineTrajectory() const;
   /// Live keyframes of every map, by time.
   std::vector<KeyFrameRecord> keyFrames() const;
   /// Map points of the active map (the map tracking ended in; other maps have their own world
@@ -155,6 +159,10 @@ class System {
     /// on and this frame's dead-reckoned pose relative to it (system/carried_stretch.h).
     std::shared_ptr<const map::KeyFrame> stretch_reference;
     SE3 T_stretchrefb_c_predicted;
+    /// The pose as tracking returned it for this frame (the online stream): never moved by a later
+    /// loop correction, merge or smoothing; in the world of `map_online` at that time.
+    SE3 T_w_c_online;
+    map::MapId map_online;
   };
 
   /// The floating maps of the run's records (system/carried_stretch.h, floatingMapWorlds): floating
