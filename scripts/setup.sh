@@ -14,6 +14,7 @@ packages=(
   libbenchmark-dev       # kernel and solver benchmarks
   libceres-dev           # benchmark reference for sparse_opt only (never linked into the library)
   libcli11-dev           # command-line parsing of the Examples
+  libcpp-httplib-dev     # the live viewer's HTTP server: MJPEG stream, pose events (src/http)
   gnome-backgrounds mate-backgrounds lomiri-wallpapers sway-backgrounds
                          # real photographs: simulator textures, vocabulary training and tests
 )
