@@ -2,7 +2,8 @@
 //
 //   rgbd_inertial --settings YAML --sequence DIR --out DIR [--vocabulary FILE] [--no-imu]
 //                 [--single-thread] [--max-frames N] [--progress-every N] [--oracle-masks]
-//                 [--set Key=Value]...
+//                 [--set Key=Value]... [--viewer-video FILE] [--viewer-dir DIR]
+//                 [--viewer-http PORT [--viewer-bind ADDRESS] [--pose-stream]]
 //   rgbd          (the same program without the IMU: TUM RGB-D with config_yaml/tum_rgbd.yaml)
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
@@ -85,6 +86,11 @@ struct Arguments {
   long max_frames = 0;
   long progress_every = 100;
   std::vector<std::string> overrides;  ///< --set Key=Value, in order
+  std::string viewer_video;            ///< --viewer-video FILE
+  std::string viewer_dir;              ///< --viewer-dir DIR
+  int viewer_http = -1;                ///< --viewer-http PORT
+  std::string viewer_bind = "127.0.0.1";
+  bool pose_stream = false;
 };
 
 /// The shipped vocabulary: $LTLO_SOURCE_DIR, then next to the executable's build tree
@@ -178,6 +184,11 @@ int run(const Arguments& args) {
   options.oracle_masks = args.oracle_masks;
   if (args.oracle_masks) log::warn(kProgram, ": --oracle-masks: ground-truth masks replace the segmentation (a diagnostic run)");
   options.segmentation_dir = (fs::path(args.out_dir) / "segmentation").string();
+  options.viewer_video_path = args.viewer_video;
+  options.viewer_png_dir = args.viewer_dir;
+  options.viewer_http_port = args.viewer_http;
+  options.viewer_http_bind = args.viewer_bind;
+  options.viewer_pose_stream = args.pose_stream;
   if (options.use_imu) requireImu(reader, setup.settings);
   system::System slam(setup.settings, vocabulary, options);
 
@@ -306,12 +317,25 @@ int main(int argc, char** argv) {
                  "--set Seg.Enable=1 --set Seg.DenseInit=0)")
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("--viewer-video", args.viewer_video,
+                 "live viewer: write its pictures (Viewer.Fps per second of sequence time) to this video (.avi MJPG, .mp4)");
+  app.add_option("--viewer-dir", args.viewer_dir, "live viewer: write every picture as DIR/<frame>.png");
+  app.add_option("--viewer-http", args.viewer_http,
+                 "live viewer: serve it on this port (0: any free port; page /, MJPEG /stream.mjpg, /frame.jpg)")
+      ->check(CLI::Range(0, 65535));
+  app.add_option("--viewer-bind", args.viewer_bind, "address of the viewer's HTTP server (default 127.0.0.1; 0.0.0.0: every interface)");
+  app.add_flag("--pose-stream", args.pose_stream,
+               "publish every frame's pose as a JSON line on the viewer's HTTP server (/poses, server-sent events)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   log::initFromEnvironment();
+  if (args.pose_stream && args.viewer_http < 0) {
+    std::fprintf(stderr, "%s: --pose-stream needs --viewer-http PORT (the poses are served at /poses)\n", kProgram);
+    return 2;
+  }
   try {
     return run(args);
   } catch (const InputError& e) {

@@ -194,6 +194,17 @@ void visitRecon(O& o, V& v) {
   }
 }
 
+template <typename O, typename V>
+void visitViewer(O& o, V& v) {
+  v.real("Viewer.Fps", o.fps, 0.5, 60.0);
+  v.integer("Viewer.PanelWidth", o.panel_width, 160, 1920);
+  v.integer("Viewer.PanelHeight", o.panel_height, 120, 1080);
+  v.integer("Viewer.JpegQuality", o.jpeg_quality, 10, 100);
+  v.integer("Viewer.PointSize", o.point_size_px, 1, 10);
+  v.real("Viewer.FollowDistance", o.follow_distance_m, 0.0, 50.0);
+  v.real("Viewer.FollowHeight", o.follow_height_m, 0.0, 50.0);
+}
+
 std::string rangeText(double min, double max) {
   return "[" + numberText(min) + ", " + numberText(max) + "]";
 }
@@ -383,6 +394,13 @@ ReconOptions ReconOptions::load(const SettingsFile& file) {
   return options;
 }
 
+ViewerOptions ViewerOptions::load(const SettingsFile& file) {
+  ViewerOptions options;
+  Loader loader{file};
+  visitViewer(options, loader);
+  return options;
+}
+
 void ReconOptions::validate() const {
   Validator validator;
   visitRecon(*this, validator);
@@ -431,6 +449,7 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
   settings.dense = DenseOptions::load(config);
   settings.imu_init = ImuInitOptions::load(config);
   settings.recon = ReconOptions::load(config);
+  settings.viewer = ViewerOptions::load(config);
   settings.sequence = SequenceOptions::load(config);
   checkDenseAgainstCamera(settings.dense, settings.calib.camera.camera,
                           "Camera.width/height of " + settings.calib_path,
@@ -479,6 +498,7 @@ void Settings::validate() const {
   visitDense(dense, validator);
   visitImuInit(imu_init, validator);
   visitRecon(recon, validator);
+  visitViewer(viewer, validator);
   checkDenseAgainstCamera(
       dense, calib.camera.camera, "camera calibration",
       [&](const std::string& key, const std::string& value, const std::string& expected) {
@@ -517,6 +537,7 @@ std::string Settings::describe() const {
   visitDense(dense, d);
   visitImuInit(imu_init, d);
   visitRecon(recon, d);
+  visitViewer(viewer, d);
   d.os << "Sequence.MaxImuGap = " << sequence.max_imu_gap_s << "\n";
   d.os << "Sequence.MaxImuReorder = " << sequence.max_imu_reorder_s << "\n";
   d.os << "Sequence.ImuGapPolicy = "

@@ -288,6 +288,15 @@ OffscreenRenderer::~OffscreenRenderer() {
   }
 }
 
+void OffscreenRenderer::clearDrawables() {
+  impl_->makeCurrent();
+  for (const Drawable& d : impl_->drawables) {
+    if (d.list != 0) glDeleteLists(d.list, 1);
+  }
+  impl_->drawables.clear();
+  impl_->splat_sets.clear();
+}
+
 int OffscreenRenderer::width() const { return impl_->width; }
 int OffscreenRenderer::height() const { return impl_->height; }
 

@@ -280,6 +280,14 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
     metrics.set("imu_time_offset_sigma_s", report.time_offset_sigma_s);
     metrics.set("imu_time_offset_updates", report.time_offset_updates);
   }
+  if (report.viewer_on) {
+    metrics.set("viewer_rendered", static_cast<int64_t>(report.viewer_rendered));
+    metrics.set("viewer_dropped", static_cast<int64_t>(report.viewer_dropped));
+    metrics.set("viewer_video_frames", static_cast<int64_t>(report.viewer_video_frames));
+    metrics.set("viewer_png_frames", static_cast<int64_t>(report.viewer_png_frames));
+    metrics.set("viewer_http_frames", static_cast<int64_t>(report.viewer_http_frames));
+    metrics.set("viewer_poses", static_cast<int64_t>(report.viewer_poses));
+  }
   for (const StageTiming& stage : report.timing) {
     const std::string key = metricKey(stage.stage);
     metrics.set(key + "_count", static_cast<int64_t>(stage.count));

@@ -20,6 +20,7 @@
 #include "ltlo/tracking/dense_segmenter.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/oracle_mask_segmenter.h"
+#include "ltlo/viewer/viewer.h"
 
 namespace ltlo::system {
 namespace {
@@ -141,6 +142,21 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
       mapping_stopped_.store(true);
       if (!finishing_.load()) log::error("local mapping stopped before shutdown (see the error above)");
     });
+  }
+  viewer::ViewerOutputs viewer_outputs;
+  viewer_outputs.video_path = options_.viewer_video_path;
+  viewer_outputs.png_dir = options_.viewer_png_dir;
+  viewer_outputs.http_port = options_.viewer_http_port;
+  viewer_outputs.http_bind = options_.viewer_http_bind;
+  viewer_outputs.pose_stream = options_.viewer_pose_stream;
+  if (viewer_outputs.any()) {
+    try {
+      viewer_ = std::make_unique<viewer::Viewer>(settings_.viewer, viewer_outputs,
+                                                 [this](std::uint64_t map_id) { return viewerMap(map_id); });
+    } catch (...) {
+      shutdown();  // the workers started above are joined before the error leaves
+      throw;
+    }
   }
   log::info("system: ", options_.threaded ? "threaded" : "synchronous", ", ",
             use_imu_ ? "RGB-D-inertial" : "RGB-D only", ", segmentation ", tracker_->segmenter()->name(),
@@ -289,8 +305,14 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     if (stats.relocalised) ++relocalisations_;
     if (stats.map_extended) ++maps_extended_;
     if (stats.reacquired) ++reacquisitions_;
-    std::lock_guard<std::mutex> lock(records_mutex_);
-    records_.push_back(std::move(record));
+    const bool tracked = record.tracked;
+    const bool carried = record.carried;
+    const map::MapId map_online = record.map_online;
+    {
+      std::lock_guard<std::mutex> lock(records_mutex_);
+      records_.push_back(std::move(record));
+    }
+    if (viewer_) postToViewer(input, frame, state, tracked, carried, map_online);
   }
   section.reset();
   if (options_.threaded) {
@@ -328,6 +350,8 @@ void System::shutdown() {
     const int written = segmentation_writer_->finish();
     log::info("system: ", written, " segmentation masks written to ", options_.segmentation_dir);
   }
+  // Last: its final picture shows the map after the last correction.
+  if (viewer_) viewer_->stop();
   log::info("system shut down: ", frames_, " frames, ", closer_->numLoops(), " loops, ", closer_->numMerges(),
             " merges, ", atlas_->numMaps(), " map(s)");
 }
@@ -401,6 +425,104 @@ std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
     for (std::size_t i = 0; i < poses.size(); ++i) poses[i].T_w_c = samples[i].T_w_c;
   }
   return poses;
+}
+
+void System::postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame, tracking::TrackingState state,
+                          bool tracked, bool carried, map::MapId map) {
+  viewer_->postPose(frames_ - 1, input.t_s, frame.T_w_c(), tracked, map.value);
+  const int events = closer_->numLoops() + closer_->numMerges();
+  if (events != viewer_events_seen_) {
+    viewer_events_seen_ = events;
+    viewer_->notifyLoop();
+  }
+  if (!viewer_->due(input.t_s)) return;
+  ScopedTimer timer(timing_, "tracking.viewer_post");
+  viewer::ViewerFrame view;
+  view.index = frames_ - 1;
+  view.t_s = input.t_s;
+  view.color_bgr = input.color_bgr.clone();
+  const PinholeCamera& camera = builder_->calib().camera.camera;
+  view.dynamic_mask = frame.segmentation().dynamicMask(frame.staticThreshold(), camera.height() / 4, camera.width() / 4);
+  const std::vector<features::Keypoint>& keypoints = frame.keypoints();
+  view.keypoints.reserve(keypoints.size());
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    viewer::ViewerKeypoint kp;
+    kp.u = keypoints[i].x_px;
+    kp.v = keypoints[i].y_px;
+    const int index = static_cast<int>(i);
+    if (!frame.isStatic(index)) {
+      kp.kind = viewer::KeypointClass::kDynamic;
+    } else if (i < frame.map_points.size() && frame.map_points[i].valid() &&
+               !(i < frame.outliers.size() && frame.outliers[i])) {
+      kp.kind = viewer::KeypointClass::kTracked;
+    }
+    view.keypoints.push_back(kp);
+  }
+  view.has_pose = true;
+  view.T_w_c = frame.T_w_c();
+  view.map = map.value;
+  view.state = tracking::trackingStateName(state);
+  view.imu_carried = carried;
+  view.tracked = tracked;
+  viewer_->post(std::move(view));
+}
+
+viewer::ViewerMap System::viewerMap(std::uint64_t map_id) const {
+  viewer::ViewerMap view;
+  const map::MapId resolved = atlas_->resolve(map::MapId(map_id));
+  view.map = resolved.value;
+  const std::vector<map::MapId> map_ids = atlas_->mapIds();
+  view.maps = static_cast<int>(map_ids.size());
+  for (const map::MapId id : map_ids) {
+    if (const map::Map* map = atlas_->map(id)) view.keyframes_all_maps += static_cast<int>(map->numKeyFrames());
+  }
+  view.loops = closer_->numLoops();
+  view.merges = closer_->numMerges();
+  map::Map* map = atlas_->map(resolved);
+  if (map == nullptr) return view;
+  std::unordered_map<std::uint64_t, int> index_of;
+  std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
+  for (const std::shared_ptr<map::KeyFrame>& kf : map->keyFrames()) {
+    if (kf->isBad()) continue;
+    index_of[kf->id().value] = static_cast<int>(keyframes.size());
+    keyframes.push_back(kf);
+    view.keyframes_T_w_c.push_back(kf->T_w_c());
+  }
+  for (std::size_t a = 0; a < keyframes.size(); ++a) {
+    for (const map::KeyFrameId other : keyframes[a]->bestCovisibles(4)) {
+      const auto found = index_of.find(other.value);
+      if (found != index_of.end() && found->second != static_cast<int>(a)) {
+        view.covisibility.emplace_back(static_cast<int>(a), found->second);
+      }
+    }
+    for (const map::KeyFrameId other : keyframes[a]->loopEdges()) {
+      const auto found = index_of.find(other.value);
+      if (found != index_of.end() && found->second > static_cast<int>(a)) {
+        view.loop_edges.emplace_back(static_cast<int>(a), found->second);
+      }
+    }
+  }
+  for (const std::shared_ptr<map::MapPoint>& point : map->mapPoints()) {
+    if (point->isBad()) continue;
+    view.points_w.push_back(point->p_w().cast<float>());
+    view.beta.push_back(static_cast<float>(point->beta()));
+  }
+  // The frames so far, from their reference keyframes' latest poses (loop corrections move them);
+  // the records are copied under their leaf lock, the keyframes read after it.
+  std::vector<std::pair<std::shared_ptr<const map::KeyFrame>, SE3>> references;
+  {
+    std::lock_guard<std::mutex> lock(records_mutex_);
+    references.reserve(records_.size());
+    for (const FrameRecord& record : records_) {
+      if (record.reference) references.emplace_back(record.reference, record.T_refb_c);
+    }
+  }
+  view.trajectory_w.reserve(references.size());
+  for (const auto& [reference, T_refb_c] : references) {
+    if (reference->mapId() != resolved) continue;
+    view.trajectory_w.push_back((map::latestPose_T_w_b(*reference) * T_refb_c).translation().cast<float>());
+  }
+  return view;
 }
 
 std::vector<FramePose> System::onlineTrajectory() const {
@@ -519,6 +641,16 @@ RunReport System::report(double wall_s) const {
   report.time_offset_s = settings_.calib.imu.time_offset_s + offset.shift_s;
   report.time_offset_sigma_s = offset.sigma_s;
   report.time_offset_updates = offset.updates;
+  if (viewer_) {
+    const viewer::ViewerCounts viewer = viewer_->counts();
+    report.viewer_on = true;
+    report.viewer_rendered = viewer.rendered;
+    report.viewer_dropped = viewer.dropped;
+    report.viewer_video_frames = viewer.video_frames;
+    report.viewer_png_frames = viewer.png_frames;
+    report.viewer_http_frames = viewer.http_frames;
+    report.viewer_poses = viewer.poses;
+  }
   return report;
 }
 

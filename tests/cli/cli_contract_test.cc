@@ -312,6 +312,29 @@ TEST_F(CliContract, MalformedEvaluationInputsDoNotStopTheRunAndFailTheEvaluation
   EXPECT_EQ(metrics.find("\"static_iou\""), std::string::npos) << metrics;
 }
 
+// The live viewer on a run: one PNG per rendered picture (Viewer.Fps of sequence time), the counts
+// in metrics.json, the HTTP server and the pose stream up and down with the run, every thread
+// joined; --pose-stream without a server is a usage error.
+TEST_F(CliContract, ViewerWritesItsPicturesAndJoins) {
+  constexpr int kFrames = 30;
+  const fs::path pictures = work_ / "viewer";
+  ProgramResult result = slam(sharedSequence(), {"--max-frames", std::to_string(kFrames), "--viewer-dir", pictures.string(),
+                                                 "--viewer-http", "0", "--pose-stream"});
+  ASSERT_EQ(result.exit_code, 0) << result.describe();
+  int pngs = 0;
+  for (const fs::directory_entry& entry : fs::directory_iterator(pictures)) pngs += entry.path().extension() == ".png";
+  EXPECT_GT(pngs, 0);
+  const std::string metrics = readFile(work_ / "run" / "metrics.json");
+  EXPECT_NE(metrics.find("\"viewer_png_frames\": " + std::to_string(pngs)), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("\"viewer_poses\": " + std::to_string(kFrames)), std::string::npos) << metrics;
+  EXPECT_NE(result.err.find("viewer: http://127.0.0.1:"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("all threads joined"), std::string::npos) << result.err;
+
+  result = slam(sharedSequence(), {"--max-frames", "3", "--pose-stream"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--pose-stream needs --viewer-http"), std::string::npos) << result.err;
+}
+
 // Ctrl-C part-way: the run stops at a frame boundary, exits 0 and writes a trajectory with one
 // parseable line per processed frame. The test sends SIGINT when the progress line of frame 20
 // appears (synchronised on the program's output, no sleep).

@@ -471,6 +471,25 @@ struct ReconOptions {
   void validate() const;
 };
 
+/// The live viewer (issue 30; ltlo/viewer/viewer.h): rate, picture size and the 3-D panel's view.
+struct ViewerOptions {
+  /// pictures per second of sequence time (Viewer.Fps, [0.5, 60])
+  double fps = 10.0;
+  /// each of the two panels, px (Viewer.PanelWidth [160, 1920], Viewer.PanelHeight [120, 1080])
+  int panel_width = 480;
+  int panel_height = 360;
+  /// JPEG quality of the HTTP stream (Viewer.JpegQuality, [10, 100])
+  int jpeg_quality = 80;
+  /// map point size in the 3-D panel, px (Viewer.PointSize, [1, 10])
+  int point_size_px = 2;
+  /// the 3-D panel's camera: behind and above the current camera, m (Viewer.FollowDistance,
+  /// Viewer.FollowHeight, [0, 50])
+  double follow_distance_m = 3.0;
+  double follow_height_m = 1.5;
+
+  static ViewerOptions load(const SettingsFile& file);  ///< reads and validates; throws ConfigError
+};
+
 /// One "--set Key=Value" of a program's command line: replaces Key of the settings file (or of the
 /// sequence's calib.yaml for calibration keys) before loading, validated exactly like the file.
 struct SettingOverride {
@@ -498,6 +517,7 @@ struct Settings {
   DenseOptions dense;
   ImuInitOptions imu_init;
   ReconOptions recon;
+  ViewerOptions viewer;
   SequenceOptions sequence;
   /// "<file>: <key>" for every key no option asked for (also logged as warnings at load).
   std::vector<std::string> unknown_keys;

@@ -118,6 +118,11 @@ class OffscreenRenderer {
   /// Stores the splats (moved in); they are expanded and shaded for each view in render().
   int addSplats(SplatSet splats);
 
+  /// Deletes every drawable (meshes, points, lines, splats; textures stay): for scenes rebuilt per
+  /// view such as the live viewer's map. Ids given before are invalid afterwards; new ones start
+  /// at 0 again.
+  void clearDrawables();
+
   /// Draws `items` (depth-tested) into the internal buffer and reads everything back.
   RenderResult render(const RenderView& view, const std::vector<DrawItem>& items);
 

@@ -75,6 +75,15 @@ struct RunReport {
   double time_offset_s = 0.0;
   double time_offset_sigma_s = 0.0;
   int time_offset_updates = 0;
+  /// The live viewer (SystemOptions::viewer_*): pictures rendered, frames dropped because the
+  /// viewer was behind, pictures written to each output, poses on the pose stream.
+  bool viewer_on = false;
+  std::uint64_t viewer_rendered = 0;
+  std::uint64_t viewer_dropped = 0;
+  std::uint64_t viewer_video_frames = 0;
+  std::uint64_t viewer_png_frames = 0;
+  std::uint64_t viewer_http_frames = 0;
+  std::uint64_t viewer_poses = 0;
 };
 
 /// Peak resident set size of this process so far, MB (getrusage ru_maxrss).

@@ -53,6 +53,7 @@
 #include "ltlo/system/run_records.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/tracker.h"
+#include "ltlo/viewer/viewer_state.h"
 
 namespace bow {
 class Vocabulary;
@@ -76,6 +77,10 @@ class FrameBuilder;
 namespace ltlo::system {
 class SegmentationWriter;
 }
+namespace ltlo::viewer {
+class Viewer;
+struct ViewerOutputs;
+}
 
 namespace ltlo::system {
 
@@ -93,6 +98,13 @@ struct SystemOptions {
   /// Folder for every frame's static/dynamic mask (<timestamp>.png, SegmentationWriter); empty:
   /// no masks are written.
   std::string segmentation_dir;
+  /// The live viewer's outputs (viewer/viewer.h; video, PNG folder, HTTP stream, pose stream):
+  /// with any of them set System starts a viewer thread, stopped last by shutdown().
+  std::string viewer_video_path;
+  std::string viewer_png_dir;
+  int viewer_http_port = -1;
+  std::string viewer_http_bind = "127.0.0.1";
+  bool viewer_pose_stream = false;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
@@ -127,6 +139,10 @@ class System {
   /// later loop correction, merge or smoothing): what a controller reading the live pose got.
   /// FramePose::map is the map the frame was tracked in.
   std::vector<FramePose> onlineTrajectory() const;
+  /// The active state of map `map_id` (after merges, the map it went into) for the viewer: points
+  /// with beta, keyframes with their covisibility (the best 4 of each) and loop edges, the frames
+  /// of that map so far. Any thread; reads the map through its thread-safe API (copies).
+  viewer::ViewerMap viewerMap(std::uint64_t map_id) const;
   /// Live keyframes of every map, by time.
   std::vector<KeyFrameRecord> keyFrames() const;
   /// Map points of the active map (the map tracking ended in; other maps have their own world
@@ -173,6 +189,10 @@ class System {
   static constexpr int kFloatingMapMaxDepth = 4;
 
   void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
+  /// Tracking thread, with a viewer: the frame's pose on the pose stream, a loop flash when loops
+  /// or merges grew, and a copy of the frame when the viewer is due (never waits on it).
+  void postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame, tracking::TrackingState state,
+                    bool tracked, bool carried, map::MapId map);
   void processPendingKeyFrames();                                 // synchronous mode
   void pollImuState();
   void checkWorkers() const;
@@ -190,6 +210,8 @@ class System {
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;
   std::unique_ptr<SegmentationWriter> segmentation_writer_;  // with SystemOptions::segmentation_dir
+  std::unique_ptr<viewer::Viewer> viewer_;  // with a viewer output; reads the Atlas, stopped last
+  int viewer_events_seen_ = 0;              // tracking thread: loops + merges the viewer was told of
   ChangeGate world_gate_;  ///< tracking of a frame vs world-frame changes by loop closing
   std::thread mapping_thread_;
   std::thread loop_thread_;

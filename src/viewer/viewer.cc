@@ -1,0 +1,192 @@
+#include "ltlo/viewer/viewer.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "ltlo/core/errors.h"
+#include "ltlo/core/log.h"
+#include "ltlo/http/mjpeg_server.h"
+#include "ltlo/viewer/viewer_renderer.h"
+
+namespace ltlo::viewer {
+namespace {
+
+/// FOURCC of a video file by its extension: .avi MJPG (always in OpenCV), .mp4 mp4v.
+int videoFourcc(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext == ".avi") return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  if (ext == ".mp4") return cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+  throw InputError(path, 0, "viewer video: unknown extension '" + ext + "' (expected .avi or .mp4)");
+}
+
+double dynamicShare(const cv::Mat& mask) {
+  if (mask.empty()) return 0.0;
+  return static_cast<double>(cv::countNonZero(mask)) / static_cast<double>(mask.total());
+}
+
+}  // namespace
+
+Viewer::Viewer(const ViewerOptions& options, const ViewerOutputs& outputs, MapSource map_source)
+    : options_(options), outputs_(outputs), map_source_(std::move(map_source)) {
+  const cv::Size size(2 * options.panel_width, options.panel_height);
+  if (!outputs.video_path.empty()) {
+    const int fourcc = videoFourcc(outputs.video_path);
+    video_ = std::make_unique<cv::VideoWriter>(outputs.video_path, cv::CAP_ANY, fourcc, options.fps, size);
+    if (!video_->isOpened()) {
+      throw InputError(outputs.video_path, 0, "viewer video: OpenCV's VideoWriter cannot open it");
+    }
+  }
+  if (!outputs.png_dir.empty()) {
+    std::error_code error;
+    std::filesystem::create_directories(outputs.png_dir, error);
+    if (error) throw InputError(outputs.png_dir, 0, "viewer: cannot create the folder: " + error.message());
+  }
+  if (outputs.http_port >= 0) {
+    http::ServerOptions server_options;
+    server_options.bind_address = outputs.http_bind;
+    server_options.port = outputs.http_port;
+    server_ = std::make_unique<http::MjpegServer>(server_options);
+  }
+  log::info("viewer: ", size.width, "x", size.height, " at ", options.fps, " pictures per second of sequence time",
+            outputs.video_path.empty() ? "" : ", video " + outputs.video_path,
+            outputs.png_dir.empty() ? "" : ", PNGs in " + outputs.png_dir,
+            server_ ? ", http port " + std::to_string(server_->port()) : "");
+  thread_ = std::thread([this] { run(); });
+}
+
+Viewer::~Viewer() { stop(); }
+
+bool Viewer::due(double t_s) const { return t_s >= next_due_t_s_; }
+
+void Viewer::post(ViewerFrame frame) {
+  next_due_t_s_ = frame.t_s + 1.0 / options_.fps - 1e-6;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counts_.posted;
+    if (pending_) ++counts_.dropped;
+    pending_ = std::move(frame);
+  }
+  wake_.notify_one();
+}
+
+void Viewer::postPose(int index, double t_s, const SE3& T_w_c, bool tracked, std::uint64_t map) {
+  if (!server_ || !outputs_.pose_stream) return;
+  const Vec3& t = T_w_c.translation();
+  const Quat& q = T_w_c.quaternion();
+  char line[320];
+  std::snprintf(line, sizeof(line),
+                "{\"frame\": %d, \"t\": %.6f, \"p\": [%.5f, %.5f, %.5f], \"q\": [%.6f, %.6f, %.6f, %.6f], "
+                "\"tracked\": %s, \"map\": %llu}",
+                index, t_s, t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w(), tracked ? "true" : "false",
+                static_cast<unsigned long long>(map));
+  server_->publishPose(line);
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++counts_.poses;
+}
+
+void Viewer::notifyLoop() { loop_flash_.store(true); }
+
+void Viewer::stop() {
+  if (stopped_) return;
+  stopped_ = true;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_one();
+  if (thread_.joinable()) thread_.join();
+  if (video_) video_->release();
+  if (server_) server_->stop();
+  const ViewerCounts c = counts();
+  log::info("viewer: ", c.rendered, " picture(s) rendered, ", c.dropped, " frame(s) dropped (viewer behind), ",
+            c.video_frames, " video frame(s), ", c.png_frames, " PNG(s), ", c.http_frames, " on HTTP");
+}
+
+ViewerCounts Viewer::counts() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return counts_;
+}
+
+int Viewer::httpPort() const { return server_ ? server_->port() : -1; }
+
+void Viewer::run() {
+  log::setThreadName("viewer");
+  std::optional<ViewerRenderer> renderer;
+  try {
+    renderer.emplace(options_);  // the OSMesa context belongs to this thread
+  } catch (const std::exception& e) {
+    log::error("viewer: cannot create the renderer: ", e.what(), "; no pictures");
+  }
+  using Clock = std::chrono::steady_clock;
+  std::optional<Clock::time_point> last_wall;
+  int last_index = 0;
+  double fps = 0.0;
+  int flash_pictures_left = 0;
+  while (true) {
+    std::optional<ViewerFrame> frame;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [this] { return pending_.has_value() || stopping_; });
+      if (!pending_) return;  // stopping with nothing left
+      frame = std::move(pending_);
+      pending_.reset();
+    }
+    if (!renderer) continue;
+    ViewerState state;
+    state.frame = std::move(*frame);
+    const Clock::time_point now = Clock::now();
+    if (last_wall) {
+      const double dt = std::chrono::duration<double>(now - *last_wall).count();
+      const int frames = state.frame.index - last_index;
+      if (dt > 0.0 && frames > 0) fps = fps == 0.0 ? frames / dt : 0.7 * fps + 0.3 * (frames / dt);
+    }
+    last_wall = now;
+    last_index = state.frame.index;
+    state.fps = fps;
+    state.dynamic_share = dynamicShare(state.frame.dynamic_mask);
+    // A loop or merge flashes its edges on this and the next pictures (about a third of a second at 10 Hz).
+    if (loop_flash_.exchange(false)) flash_pictures_left = 3;
+    state.flash_loop_edges = flash_pictures_left > 0;
+    if (flash_pictures_left > 0) --flash_pictures_left;
+    try {
+      state.map = map_source_(state.frame.map);
+      write(renderer->render(state).bgr, state.frame.index);
+    } catch (const std::exception& e) {
+      log::error("viewer: ", e.what(), "; picture of frame ", state.frame.index, " lost");
+    }
+  }
+}
+
+void Viewer::write(const cv::Mat& picture, int frame_index) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counts_.rendered;
+  }
+  if (video_) {
+    video_->write(picture);
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counts_.video_frames;
+  }
+  if (!outputs_.png_dir.empty()) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", frame_index);
+    const std::string path = (std::filesystem::path(outputs_.png_dir) / name).string();
+    if (!cv::imwrite(path, picture)) throw InputError(path, 0, "viewer: cannot write the picture");
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counts_.png_frames;
+  }
+  if (server_) {
+    std::vector<unsigned char> jpeg;
+    cv::imencode(".jpg", picture, jpeg, {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality});
+    server_->publishJpeg(std::move(jpeg));
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counts_.http_frames;
+  }
+}
+
+}  // namespace ltlo::viewer

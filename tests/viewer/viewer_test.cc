@@ -1,0 +1,196 @@
+// The live viewer (issue 30): the picture of a known state has the expected pixel classes, the
+// viewer thread paces, renders, writes and drops as documented, and leaves no thread behind.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "ltlo/core/errors.h"
+#include "ltlo/core/thread_names.h"
+#include "ltlo/viewer/viewer.h"
+#include "ltlo/viewer/viewer_renderer.h"
+
+namespace ltlo::viewer {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A camera at the origin looking along +z; a wall of static points 4 m ahead, dynamic points at
+/// 3 m, three keyframes behind the camera with a loop edge between the first and the last.
+ViewerState knownState() {
+  ViewerState state;
+  state.frame.index = 7;
+  state.frame.t_s = 0.7;
+  state.frame.color_bgr = cv::Mat(240, 320, CV_8UC3, cv::Scalar(200, 200, 200));
+  state.frame.dynamic_mask = cv::Mat(60, 80, CV_8U, cv::Scalar(0));
+  state.frame.dynamic_mask(cv::Rect(0, 0, 40, 60)) = 255;  // left half dynamic
+  state.frame.keypoints = {{240.0f, 120.0f, KeypointClass::kTracked}, {280.0f, 60.0f, KeypointClass::kUntracked},
+                           {60.0f, 120.0f, KeypointClass::kDynamic}};
+  state.frame.has_pose = true;
+  state.frame.tracked = true;
+  state.frame.state = "ok";
+  for (int i = 0; i < 10; ++i) {
+    for (int j = 0; j < 5; ++j) {
+      state.map.points_w.emplace_back(-1.0f + 0.2f * i, -0.5f + 0.2f * j, 4.0f);
+      state.map.beta.push_back(0.9f);
+    }
+  }
+  for (int i = 0; i < 20; ++i) {
+    state.map.points_w.emplace_back(-0.95f + 0.1f * i, 0.6f, 3.0f);
+    state.map.beta.push_back(0.1f);
+  }
+  for (int k = 0; k < 3; ++k) state.map.keyframes_T_w_c.push_back(SE3(Quat::Identity(), Vec3(0.4 * (k - 1), 0.0, -0.8)));
+  state.map.covisibility = {{0, 1}, {1, 2}};
+  state.map.loop_edges = {{0, 2}};
+  state.map.trajectory_w = {Eigen::Vector3f(-0.4f, 0.0f, -0.8f), Eigen::Vector3f(0.0f, 0.0f, -0.4f),
+                            Eigen::Vector3f(0.0f, 0.0f, 0.0f)};
+  state.map.keyframes_all_maps = 3;
+  state.map.maps = 1;
+  state.map.loops = 1;
+  return state;
+}
+
+int countLabel(const cv::Mat& labels, ViewerLabel label) { return cv::countNonZero(labels == label); }
+
+TEST(ViewerRenderer, KnownStateHasTheExpectedPixelClasses) {
+  ViewerOptions options;
+  options.panel_width = 320;
+  options.panel_height = 240;
+  options.point_size_px = 2;
+  ViewerRenderer renderer(options);
+  const ViewerPicture picture = renderer.render(knownState());
+  ASSERT_EQ(picture.bgr.size(), cv::Size(640, 240));
+  ASSERT_EQ(picture.labels_3d.size(), cv::Size(320, 240));
+
+  // 50 static and 20 dynamic points of 2x2 px, apart from each other: every one visible.
+  EXPECT_EQ(countLabel(picture.labels_3d, kLabelStaticPoint), 50 * 4);
+  EXPECT_EQ(countLabel(picture.labels_3d, kLabelDynamicPoint), 20 * 4);
+  EXPECT_GT(countLabel(picture.labels_3d, kLabelKeyFrame), 30);      // three frusta
+  EXPECT_GT(countLabel(picture.labels_3d, kLabelCurrentCamera), 30);  // the current camera's frustum
+  EXPECT_GT(countLabel(picture.labels_3d, kLabelLoopEdge), 10);
+  EXPECT_GT(countLabel(picture.labels_3d, kLabelTrajectory), 5);
+  // Static points green, dynamic ones red (colour by beta).
+  const cv::Mat right = picture.bgr(cv::Rect(320, 0, 320, 240));
+  int green = 0, red = 0;
+  for (int v = 0; v < 240; ++v) {
+    for (int u = 0; u < 320; ++u) {
+      const cv::Vec3b p = right.at<cv::Vec3b>(v, u);
+      const std::uint8_t label = picture.labels_3d.at<std::uint8_t>(v, u);
+      if (label == kLabelStaticPoint && p[1] > 150 && p[2] < 120) ++green;
+      if (label == kLabelDynamicPoint && p[2] > 150 && p[1] < 120) ++red;
+    }
+  }
+  EXPECT_EQ(green, 50 * 4);
+  EXPECT_EQ(red, 20 * 4);
+
+  // Left panel: the dynamic half tinted red, the static half grey; keypoints in their colours.
+  const cv::Mat left = picture.bgr(cv::Rect(0, 0, 320, 240));
+  const cv::Vec3b tinted = left.at<cv::Vec3b>(200, 40);
+  const cv::Vec3b plain = left.at<cv::Vec3b>(200, 280);
+  EXPECT_EQ(tinted, cv::Vec3b(100, 100, 228));
+  EXPECT_EQ(plain, cv::Vec3b(200, 200, 200));
+  EXPECT_EQ(left.at<cv::Vec3b>(120, 240), cv::Vec3b(0, 255, 0));    // tracked
+  EXPECT_EQ(left.at<cv::Vec3b>(60, 280), cv::Vec3b(255, 160, 0));   // untracked
+  EXPECT_EQ(left.at<cv::Vec3b>(120, 60), cv::Vec3b(0, 0, 255));     // dynamic
+
+  // A loop that just landed: the loop edge is drawn thicker.
+  ViewerState flashing = knownState();
+  flashing.flash_loop_edges = true;
+  EXPECT_GT(countLabel(renderer.render(flashing).labels_3d, kLabelLoopEdge),
+            countLabel(picture.labels_3d, kLabelLoopEdge));
+}
+
+TEST(ViewerRenderer, FollowViewLooksAtTheCameraFromBehindAndAbove) {
+  const SE3 T_w_c(so3ExpQuat(Vec3(0.0, 0.4, 0.0)), Vec3(1.0, 2.0, 3.0));
+  const SE3 T_v_w = followView_T_v_w(T_w_c, 3.0, 1.5);
+  const Vec3 camera_in_view = T_v_w * T_w_c.translation();
+  EXPECT_NEAR(camera_in_view.x(), 0.0, 1e-9);  // straight ahead, image centre column
+  EXPECT_GT(camera_in_view.z(), 2.5);          // in front, about 3 m away
+  EXPECT_GT(camera_in_view.y(), 0.0);          // below the view's centre: the view is above it
+  const Vec3 eye_w = T_v_w.inverse().translation();
+  const Vec3 eye_c = T_w_c.inverse() * eye_w;
+  EXPECT_NEAR(eye_c.z(), -3.0, 1e-9);
+  EXPECT_NEAR(eye_c.y(), -1.5, 1e-9);  // image up is -y
+}
+
+class ViewerThread : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("ltlo_viewer_test_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+// 30 Hz frames, Viewer.Fps 10: every third frame is due; each posted one is rendered or dropped,
+// and every rendered picture reaches the PNG folder and the video; stop() joins the thread.
+TEST_F(ViewerThread, PacesRendersWritesAndJoins) {
+  ViewerOptions options;
+  options.panel_width = 160;
+  options.panel_height = 120;
+  ViewerOutputs outputs;
+  outputs.png_dir = (dir_ / "png").string();
+  outputs.video_path = (dir_ / "viewer.avi").string();
+  int map_reads = 0;
+  {
+    Viewer viewer(options, outputs, [&map_reads](std::uint64_t) {
+      ++map_reads;
+      return knownState().map;
+    });
+    int posted = 0;
+    for (int i = 0; i < 90; ++i) {
+      const double t_s = i / 30.0;
+      if (!viewer.due(t_s)) continue;
+      ViewerFrame frame = knownState().frame;
+      frame.index = i;
+      frame.t_s = t_s;
+      viewer.post(std::move(frame));
+      ++posted;
+    }
+    EXPECT_EQ(posted, 30);
+    viewer.stop();
+    const ViewerCounts counts = viewer.counts();
+    EXPECT_EQ(counts.posted, 30u);
+    EXPECT_EQ(counts.rendered + counts.dropped, counts.posted);
+    EXPECT_GE(counts.rendered, 1u);
+    EXPECT_EQ(counts.png_frames, counts.rendered);
+    EXPECT_EQ(counts.video_frames, counts.rendered);
+    EXPECT_EQ(static_cast<std::uint64_t>(map_reads), counts.rendered);
+    int pngs = 0;
+    for (const fs::directory_entry& entry : fs::directory_iterator(outputs.png_dir)) {
+      const cv::Mat png = cv::imread(entry.path().string());
+      EXPECT_EQ(png.size(), cv::Size(320, 120)) << entry.path();
+      ++pngs;
+    }
+    EXPECT_EQ(static_cast<std::uint64_t>(pngs), counts.rendered);
+    // The last frame posted is never dropped: stop() renders what is waiting.
+    EXPECT_TRUE(fs::exists(fs::path(outputs.png_dir) / "000087.png"));
+    viewer.stop();  // idempotent
+  }
+  EXPECT_GT(fs::file_size(outputs.video_path), 1000u);
+  for (const std::string& name : runningNamedThreads()) EXPECT_EQ(name.find("viewer"), std::string::npos) << name;
+}
+
+TEST_F(ViewerThread, UnopenableOutputsAreBadInputNamingTheFile) {
+  ViewerOptions options;
+  ViewerOutputs outputs;
+  outputs.video_path = (dir_ / "viewer.mkv").string();
+  try {
+    Viewer viewer(options, outputs, [](std::uint64_t) { return ViewerMap(); });
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(outputs.video_path), std::string::npos) << e.what();
+  }
+  outputs.video_path = (dir_ / "no" / "such" / "folder" / "viewer.avi").string();
+  EXPECT_THROW(Viewer(options, outputs, [](std::uint64_t) { return ViewerMap(); }), InputError);
+}
+
+}  // namespace
+}  // namespace ltlo::viewer
