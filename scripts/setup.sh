@@ -14,6 +14,10 @@ packages=(
   libbenchmark-dev       # kernel and solver benchmarks
   libceres-dev           # benchmark reference for sparse_opt only (never linked into the library)
   libcli11-dev           # command-line parsing of the Examples
+  librosbag-storage-dev libsensor-msgs-dev
+                         # reading ROS 1 bags directly (src/io/bag_reader.cc): users' recordings
+                         # (TUM RGB-D, OpenLORIS, RealSense) are bags; Debian ships the bag storage
+                         # library and the message headers, no ROS installation needed
   gnome-backgrounds mate-backgrounds lomiri-wallpapers sway-backgrounds
                          # real photographs: simulator textures, vocabulary training and tests
 )
