@@ -215,11 +215,13 @@ void writeBagFromFolder(const std::string& dir, const std::string& bag_path, con
     throw std::runtime_error(dir + ": writeBagFromFolder needs DepthMapFactor 1000 (16UC1 is millimetres)");
   }
   rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
+  // Record times 1 ms after the stamps (a bag refuses record time 0, where simulated sequences start).
+  auto record = [](double t_s) { return stamp(t_s + 0.001); };
   const double first_s = reader.frameCount() > 0 ? reader.frameTime(0) : 0.0;
-  if (!topics.camera_info.empty()) bag.write(topics.camera_info, stamp(first_s), cameraInfo(reader.calib().camera, first_s));
+  if (!topics.camera_info.empty()) bag.write(topics.camera_info, record(first_s), cameraInfo(reader.calib().camera, first_s));
   if (!topics.imu.empty()) {
     for (const ImuSample& sample : reader.imu()) {
-      bag.write(topics.imu, stamp(sample.t_s), imuMessage(sample.t_s, sample.gyro_rad_s, sample.acc_m_s2));
+      bag.write(topics.imu, record(sample.t_s), imuMessage(sample.t_s, sample.gyro_rad_s, sample.acc_m_s2));
     }
   }
   for (int i = 0; i < reader.frameCount(); ++i) {
@@ -228,11 +230,11 @@ void writeBagFromFolder(const std::string& dir, const std::string& bag_path, con
     const cv::Mat depth = cv::imread(files.depth_path, cv::IMREAD_UNCHANGED);
     if (color.empty() || depth.type() != CV_16UC1) throw std::runtime_error("cannot read frame " + files.color_path);
     if (png_colour) {
-      bag.write(topics.rgb, stamp(files.t_s), compressedMessage(encode(".png", color), "bgr8; png compressed bgr8", files.t_s));
+      bag.write(topics.rgb, record(files.t_s), compressedMessage(encode(".png", color), "bgr8; png compressed bgr8", files.t_s));
     } else {
-      bag.write(topics.rgb, stamp(files.t_s), imageMessage(color, "bgr8", files.t_s));
+      bag.write(topics.rgb, record(files.t_s), imageMessage(color, "bgr8", files.t_s));
     }
-    bag.write(topics.depth, stamp(files.depth_t_s), imageMessage(depth, "16UC1", files.depth_t_s));
+    bag.write(topics.depth, record(files.depth_t_s), imageMessage(depth, "16UC1", files.depth_t_s));
   }
   bag.close();
 }
