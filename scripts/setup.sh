@@ -15,6 +15,10 @@ packages=(
   libceres-dev           # benchmark reference for sparse_opt only (never linked into the library)
   libcli11-dev           # command-line parsing of the Examples
   libcpp-httplib-dev     # the live viewer's HTTP server: MJPEG stream, pose events (src/http)
+  librosbag-storage-dev libsensor-msgs-dev
+                         # reading ROS 1 bags directly (src/io/bag_reader.cc): users' recordings
+                         # (TUM RGB-D, OpenLORIS, RealSense) are bags; Debian ships the bag storage
+                         # library and the message headers, no ROS installation needed
   gnome-backgrounds mate-backgrounds lomiri-wallpapers sway-backgrounds
                          # real photographs: simulator textures, vocabulary training and tests
 )

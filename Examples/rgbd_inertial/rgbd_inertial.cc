@@ -4,7 +4,17 @@
 //                 [--single-thread] [--max-frames N] [--progress-every N] [--oracle-masks]
 //                 [--set Key=Value]... [--viewer-video FILE] [--viewer-dir DIR]
 //                 [--viewer-http PORT [--viewer-bind ADDRESS] [--pose-stream]]
+//   rgbd_inertial --settings YAML --bag FILE [--bag-preset tum|realsense|realsense-unite|openloris]
+//                 [--rgb-topic T] [--depth-topic T] [--imu-topic T | --accel-topic T --gyro-topic T]
+//                 [--camera-info-topic T] [--calib FILE] --out DIR [options as above]
+//   rgbd_inertial --bag FILE --list-topics      (topics, types, counts and rates; nothing else)
 //   rgbd          (the same program without the IMU: TUM RGB-D with config_yaml/tum_rgbd.yaml)
+//
+// A ROS 1 bag (--bag) is read directly (io::SequenceReader::openBag): the preset names the topics,
+// each --*-topic replaces one. Its calibration: --calib FILE (a calib.yaml of DATA_FORMAT.md) when
+// given, else the bag's CameraInfo for the camera (size, K, distortion; a difference from the
+// settings' Camera.* is one warning) with the IMU keys of the settings file. A bag has no ground
+// truth: the run writes no metrics figures.
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
 // from the Camera.* / IMU.* keys of the settings file (TUM RGB-D, OpenLORIS). Outputs in --out:
@@ -78,6 +88,11 @@ extern "C" void onStopSignal(int signal_number) {
 struct Arguments {
   std::string settings_path;
   std::string sequence_dir;
+  std::string bag_path;     ///< --bag: a ROS 1 bag instead of a sequence folder
+  std::string bag_preset;
+  io::BagTopics bag_topics;  ///< after the preset, each --*-topic given replaces one
+  std::string calib_path;   ///< --calib: calib.yaml for a bag
+  bool list_topics = false;
   std::string out_dir;
   std::string vocabulary_path;
   bool no_imu = !LTLO_PROGRAM_USES_IMU;
@@ -128,8 +143,12 @@ struct RunSetup {
 };
 RunSetup loadSetup(const Arguments& args) {
   RunSetup setup;
-  const fs::path calib_path = fs::path(args.sequence_dir) / "calib.yaml";
-  const bool has_calib_file = fs::is_regular_file(calib_path);
+  const bool bag = !args.bag_path.empty();
+  const fs::path calib_path = bag ? fs::path(args.calib_path) : fs::path(args.sequence_dir) / "calib.yaml";
+  if (bag && !args.calib_path.empty() && !fs::is_regular_file(calib_path)) {
+    throw InputError(args.calib_path, 0, "calibration file (--calib) does not exist");
+  }
+  const bool has_calib_file = !calib_path.empty() && fs::is_regular_file(calib_path);
   std::vector<SettingOverride> overrides;
   for (const std::string& text : args.overrides) overrides.push_back(SettingOverride::parse(text));
   setup.settings = Settings::load(args.settings_path, has_calib_file ? calib_path.string() : "", overrides);
@@ -138,7 +157,15 @@ RunSetup loadSetup(const Arguments& args) {
   setup.reader_options.calib_override = setup.settings.calib;
   // Room for the online camera-IMU offset estimate to cut each frame's IMU interval elsewhere.
   if (setup.settings.local_mapping.estimate_time_offset) setup.reader_options.imu_margin_s = kImuMarginS;
-  if (!has_calib_file) {
+  setup.reader_options.calib_override_source = setup.settings.calib_path;
+  // A bag without --calib: its CameraInfo is the camera's calibration (the settings keep the IMU).
+  setup.reader_options.prefer_camera_info = bag && !has_calib_file;
+  if (bag) {
+    if (!has_calib_file) {
+      log::info(kProgram, ": no --calib; the camera from the bag's CameraInfo when it has one, the IMU keys from ",
+                args.settings_path);
+    }
+  } else if (!has_calib_file) {
     log::info(kProgram, ": ", calib_path.string(), " not found; calibration (Camera.*, DepthMapFactor",
               setup.settings.calib.has_imu ? ", IMU.*" : "", ") from the settings file ", args.settings_path);
   }
@@ -152,6 +179,11 @@ RunSetup loadSetup(const Arguments& args) {
 void requireImu(const io::SequenceReader& reader, const Settings& settings) {
   const std::string advice = "; run rgbd or pass --no-imu for RGB-D only";
   if (!reader.hasImu()) {
+    if (reader.isBag() && reader.imuPath().empty()) {
+      throw InputError(reader.directory(), 0,
+                       "no IMU topic given (--imu-topic, or --accel-topic and --gyro-topic, or a --bag-preset with "
+                       "them)" + advice);
+    }
     const std::string imu_path =
         reader.imuPath().empty() ? (fs::path(reader.directory()) / "imu.txt").string() : reader.imuPath();
     throw InputError(imu_path, 0,
@@ -171,9 +203,15 @@ std::string frameName(const io::SequenceReader& reader, int index) {
 
 int run(const Arguments& args) {
   const auto start = std::chrono::steady_clock::now();
-  const RunSetup setup = loadSetup(args);
+  RunSetup setup = loadSetup(args);
+  io::SequenceReader reader = args.bag_path.empty()
+                                  ? io::SequenceReader::open(args.sequence_dir, setup.reader_options)
+                                  : io::SequenceReader::openBag(args.bag_path, args.bag_topics, setup.reader_options);
+  if (reader.isBag()) {
+    // The camera may come from CameraInfo: the system runs on what the reader resolved.
+    setup.settings.calib = reader.calib();
+  }
   setup.settings.log();
-  io::SequenceReader reader = io::SequenceReader::open(args.sequence_dir, setup.reader_options);
   const std::string vocabulary_path = args.vocabulary_path.empty() ? defaultVocabularyPath() : args.vocabulary_path;
   log::info(kProgram, ": vocabulary ", vocabulary_path);
   auto vocabulary = std::make_shared<const bow::Vocabulary>(bow::Vocabulary::load(vocabulary_path));
@@ -237,7 +275,7 @@ int run(const Arguments& args) {
   const fs::path masks_dir = fs::path(args.sequence_dir) / "masks";
   system::EvaluationInputs evaluation;
   evaluation.ground_truth_path = reader.groundTruthPath();
-  evaluation.gt_masks_dir = fs::is_directory(masks_dir) ? masks_dir.string() : "";
+  evaluation.gt_masks_dir = !reader.isBag() && fs::is_directory(masks_dir) ? masks_dir.string() : "";
   const system::WrittenOutputs written =
       system::writeRunOutputs(args.out_dir, report, evaluation, setup.settings.local_mapping.min_point_beta);
 
@@ -299,10 +337,22 @@ int main(int argc, char** argv) {
   CLI::App app{LTLO_PROGRAM_USES_IMU ? "RGB-D-inertial SLAM on a sequence; writes the run outputs"
                                      : "RGB-D SLAM (no IMU) on a sequence; writes the run outputs"};
   Arguments args;
-  app.add_option("--settings", args.settings_path, "settings YAML (config_yaml/*.yaml)")->required();
-  app.add_option("--sequence", args.sequence_dir, "sequence folder (DATA_FORMAT.md, TUM RGB-D, OpenLORIS)")
-      ->required();
-  app.add_option("--out", args.out_dir, "output folder (created)")->required();
+  app.add_option("--settings", args.settings_path, "settings YAML (config_yaml/*.yaml)");
+  CLI::Option* sequence_option =
+      app.add_option("--sequence", args.sequence_dir, "sequence folder (DATA_FORMAT.md, TUM RGB-D, OpenLORIS)");
+  CLI::Option* bag_option = app.add_option("--bag", args.bag_path, "ROS 1 bag instead of --sequence");
+  sequence_option->excludes(bag_option);
+  app.add_option("--bag-preset", args.bag_preset, "bag topic names: " + io::bagTopicPresetNames());
+  std::string rgb_topic, depth_topic, imu_topic, accel_topic, gyro_topic, camera_info_topic;
+  app.add_option("--rgb-topic", rgb_topic, "bag: colour topic (sensor_msgs/Image or CompressedImage)");
+  app.add_option("--depth-topic", depth_topic, "bag: depth topic (16UC1 mm, 32FC1 m, compressedDepth)");
+  app.add_option("--imu-topic", imu_topic, "bag: sensor_msgs/Imu topic");
+  app.add_option("--accel-topic", accel_topic, "bag: accelerometer topic (with --gyro-topic)");
+  app.add_option("--gyro-topic", gyro_topic, "bag: gyroscope topic (with --accel-topic)");
+  app.add_option("--camera-info-topic", camera_info_topic, "bag: sensor_msgs/CameraInfo of the colour camera");
+  app.add_option("--calib", args.calib_path, "bag: calib.yaml (DATA_FORMAT.md) instead of CameraInfo");
+  app.add_flag("--list-topics", args.list_topics, "with --bag: print the bag's topics, types, counts and rates");
+  app.add_option("--out", args.out_dir, "output folder (created)");
   app.add_option("--vocabulary", args.vocabulary_path, "ORB vocabulary (default: the shipped one)");
   app.add_flag("--no-imu", args.no_imu, "ignore the IMU (RGB-D only; always so for rgbd)");
   app.add_flag("--single-thread", args.single_thread,
@@ -337,6 +387,29 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    if (args.list_topics) {
+      if (args.bag_path.empty()) throw InputError("--list-topics needs --bag FILE");
+      std::printf("%s", io::formatBagTopics(io::listBagTopics(args.bag_path)).c_str());
+      return 0;
+    }
+    if (args.sequence_dir.empty() && args.bag_path.empty()) throw InputError("give --sequence DIR or --bag FILE");
+    if (args.settings_path.empty()) throw InputError("--settings is required");
+    if (args.out_dir.empty()) throw InputError("--out is required");
+    if (!args.bag_path.empty()) {
+      if (!args.bag_preset.empty()) args.bag_topics = io::bagTopicPreset(args.bag_preset);
+      const std::pair<const std::string*, std::string*> topics[] = {
+          {&rgb_topic, &args.bag_topics.rgb},     {&depth_topic, &args.bag_topics.depth},
+          {&imu_topic, &args.bag_topics.imu},     {&accel_topic, &args.bag_topics.accel},
+          {&gyro_topic, &args.bag_topics.gyro},   {&camera_info_topic, &args.bag_topics.camera_info}};
+      for (const auto& [given, topic] : topics) {
+        if (!given->empty()) *topic = *given;
+      }
+      // One IMU source: a united topic given on the command line replaces the preset's pair, and back.
+      if (!imu_topic.empty()) args.bag_topics.accel.clear(), args.bag_topics.gyro.clear();
+      if (!accel_topic.empty() || !gyro_topic.empty()) args.bag_topics.imu.clear();
+    } else if (!args.calib_path.empty() || !args.bag_preset.empty()) {
+      throw InputError("--calib and --bag-preset are for --bag");
+    }
     return run(args);
   } catch (const InputError& e) {
     std::fprintf(stderr, "%s: %s\n", kProgram, e.what());

@@ -310,9 +310,6 @@ RgbdImuFrame SequenceReader::load(int index, bool with_colour) const {
   LTLO_ASSERT(index >= 0 && index < frameCount(),
               "frame index " << index << " of " << frameCount());
   const FrameFiles& files = entries_[index];
-  const int width = calib_.camera.camera.width();
-  const int height = calib_.camera.camera.height();
-
   RgbdImuFrame frame;
   frame.index = index;
   frame.t_s = files.t_s;
@@ -321,6 +318,24 @@ RgbdImuFrame SequenceReader::load(int index, bool with_colour) const {
   frame.depth_path = files.depth_path;
   frame.mask_path = files.mask_path;
 
+  if (bag_) {
+    loadBagImages(index, with_colour, &frame);
+  } else {
+    loadFolderImages(files, with_colour, &frame);
+  }
+
+  const double previous_t_s = index > 0 ? entries_[index - 1].t_s : files.t_s;
+  frame.imu = imuSamplesBetween(imu_, previous_t_s - imu_margin_s_, files.t_s + imu_margin_s_);
+  frame.imu_begin_s = previous_t_s;
+  frame.imu_end_s = files.t_s;
+  frame.imu_has_margin = imu_margin_s_ > 0.0;
+  return frame;
+}
+
+void SequenceReader::loadFolderImages(const FrameFiles& files, bool with_colour, RgbdImuFrame* out) const {
+  RgbdImuFrame& frame = *out;
+  const int width = calib_.camera.camera.width();
+  const int height = calib_.camera.camera.height();
   // Depth and mask are checked against the colour image when it is loaded (the messages name it),
   // else against the calibrated size.
   const char* reference = with_colour ? "colour image" : "calibrated image size";
@@ -342,13 +357,6 @@ RgbdImuFrame SequenceReader::load(int index, bool with_colour) const {
     checkSize(frame.mask, width, height, reference, files.mask_path, files.color_list_path,
               files.color_list_line);
   }
-
-  const double previous_t_s = index > 0 ? entries_[index - 1].t_s : files.t_s;
-  frame.imu = imuSamplesBetween(imu_, previous_t_s - imu_margin_s_, files.t_s + imu_margin_s_);
-  frame.imu_begin_s = previous_t_s;
-  frame.imu_end_s = files.t_s;
-  frame.imu_has_margin = imu_margin_s_ > 0.0;
-  return frame;
 }
 
 }  // namespace ltlo::io

@@ -12,6 +12,7 @@
 
 #include "ltlo/core/calib.h"
 #include "ltlo/core/sequence_options.h"
+#include "ltlo/io/bag_topics.h"
 #include "ltlo/io/imu_io.h"
 #include "ltlo/io/trajectory_io.h"
 
@@ -64,6 +65,10 @@ enum class SequenceLayout {
 /// kDataFormat; otherwise throws InputError listing what was expected.
 SequenceLayout detectLayout(const std::string& sequence_dir);
 
+namespace detail {
+class BagSource;  // bag_reader.cc: the open bag and its message index
+}
+
 /// Reading choices beyond SequenceOptions.
 struct SequenceReaderOptions {
   SequenceOptions sequence;  ///< IMU gap limit and policy
@@ -85,6 +90,12 @@ struct SequenceReaderOptions {
   /// masks (nothing under SEQ/masks/ is read); a folder = its <timestamp>.png files (e.g. a run's
   /// segmentation/), which must exist.
   std::optional<std::string> masks_dir;
+  /// Bags only: the first CameraInfo message's size, intrinsics and distortion replace those of
+  /// calib_override (its IMU part and DepthMapFactor stay); a difference is one warning naming
+  /// both. Off (a calibration file was given), CameraInfo is only compared, with the same warning.
+  bool prefer_camera_info = false;
+  /// Where calib_override came from (a calib.yaml, the settings file), for messages.
+  std::string calib_override_source;
 };
 
 /// Not thread-safe: one consumer calls next().
@@ -95,6 +106,16 @@ class SequenceReader {
   /// (or ConfigError from a bad calib.yaml).
   static SequenceReader open(const std::string& sequence_dir,
                              const SequenceReaderOptions& options = {});
+  /// A ROS 1 bag as a sequence (bag_topics.h). Reads the bag's index, the header stamps of the
+  /// colour and depth messages (pairs associated by SequenceReaderOptions::max_rgb_depth_dt_s, the
+  /// folder reader's rule), the IMU topics whole and the first CameraInfo; images are read and
+  /// decoded by load(), one message at a time. Timestamps are the messages' header stamps. The
+  /// calibration is options.calib_override, or CameraInfo (prefer_camera_info, or without an
+  /// override: then no IMU calibration). Throws InputError naming the bag, the topic, the message
+  /// index and the value (a missing topic lists the bag's topics; an unindexed bag gets the
+  /// `rosbag reindex` hint). Masks and ground truth are not read from bags.
+  static SequenceReader openBag(const std::string& bag_path, const BagTopics& topics,
+                                const SequenceReaderOptions& options = {});
 
   /// Next frame (images loaded now), or nullopt after the last one. Colour images may be 8-bit
   /// BGR, grey or BGRA (the last two converted to BGR with one warning per reader).
@@ -103,6 +124,8 @@ class SequenceReader {
   /// Without colour, color_bgr stays empty (decoding it is most of a frame's cost). Thread-safe:
   /// several threads may load different frames at once (the reader is not changed).
   RgbdImuFrame load(int index, bool with_colour = true) const;
+  /// True when opened with openBag (directory() is then the bag file).
+  bool isBag() const { return bag_ != nullptr; }
   /// Back to the first frame.
   void rewind() { next_index_ = 0; }
 
@@ -127,6 +150,9 @@ class SequenceReader {
   SequenceReader() = default;
   /// The colour image of `files` as CV_8UC3; 8-bit grey and BGRA are converted (warned once).
   cv::Mat loadColorImage(const FrameFiles& files) const;
+  /// load() for a bag: images from the messages (bag_reader.cc).
+  void loadFolderImages(const FrameFiles& files, bool with_colour, RgbdImuFrame* frame) const;
+  void loadBagImages(int index, bool with_colour, RgbdImuFrame* frame) const;
 
   std::string dir_;
   SequenceLayout layout_ = SequenceLayout::kDataFormat;
@@ -140,6 +166,8 @@ class SequenceReader {
   std::shared_ptr<std::atomic<bool>> warned_color_conversion_ = std::make_shared<std::atomic<bool>>(false);
   int next_index_ = 0;
   double imu_margin_s_ = 0.0;
+  /// Set for a bag: its index, and the lock its reads take (load() stays thread-safe).
+  std::shared_ptr<const detail::BagSource> bag_;
 };
 
 }  // namespace ltlo::io
