@@ -16,14 +16,6 @@
 namespace ltlo::viewer {
 namespace {
 
-/// FOURCC of a video file by its extension: .avi MJPG (always in OpenCV), .mp4 mp4v.
-int videoFourcc(const std::string& path) {
-  const std::string ext = std::filesystem::path(path).extension().string();
-  if (ext == ".avi") return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-  if (ext == ".mp4") return cv::VideoWriter::fourcc('m', 'p', '4', 'v');
-  throw InputError(path, 0, "viewer video: unknown extension '" + ext + "' (expected .avi or .mp4)");
-}
-
 double dynamicShare(const cv::Mat& mask) {
   if (mask.empty()) return 0.0;
   return static_cast<double>(cv::countNonZero(mask)) / static_cast<double>(mask.total());
@@ -31,15 +23,35 @@ double dynamicShare(const cv::Mat& mask) {
 
 }  // namespace
 
+std::unique_ptr<cv::VideoWriter> openViewerVideo(const std::string& path, double fps, const cv::Size& size) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  // OpenCV's own MJPEG writer for .avi (no GStreamer probing, always built in); FFmpeg for .mp4.
+  int backend = 0, fourcc = 0;
+  if (ext == ".avi") {
+    backend = cv::CAP_OPENCV_MJPEG;
+    fourcc = cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  } else if (ext == ".mp4") {
+    backend = cv::CAP_FFMPEG;
+    fourcc = cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+  } else {
+    throw InputError(path, 0, "viewer video: unknown extension '" + ext + "' (expected .avi or .mp4)");
+  }
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  if (!parent.empty()) {
+    std::error_code error;
+    std::filesystem::create_directories(parent, error);
+    if (error) throw InputError(path, 0, "viewer video: cannot create its folder: " + error.message());
+  }
+  auto video = std::make_unique<cv::VideoWriter>(path, backend, fourcc, fps, size);
+  if (!video->isOpened()) throw InputError(path, 0, "viewer video: OpenCV's VideoWriter cannot open it");
+  return video;
+}
+
 Viewer::Viewer(const ViewerOptions& options, const ViewerOutputs& outputs, MapSource map_source)
     : options_(options), outputs_(outputs), map_source_(std::move(map_source)) {
   const cv::Size size(2 * options.panel_width, options.panel_height);
   if (!outputs.video_path.empty()) {
-    const int fourcc = videoFourcc(outputs.video_path);
-    video_ = std::make_unique<cv::VideoWriter>(outputs.video_path, cv::CAP_ANY, fourcc, options.fps, size);
-    if (!video_->isOpened()) {
-      throw InputError(outputs.video_path, 0, "viewer video: OpenCV's VideoWriter cannot open it");
-    }
+    video_ = openViewerVideo(outputs.video_path, options.fps, size);
   }
   if (!outputs.png_dir.empty()) {
     std::error_code error;

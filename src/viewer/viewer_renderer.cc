@@ -64,9 +64,14 @@ std::pair<std::string, std::string> statusLines(const ViewerState& state) {
   char first[160], second[160];
   std::snprintf(first, sizeof(first), "t %.2f s  frame %d  %s%s  map %llu", f.t_s, f.index, f.state.c_str(),
                 f.imu_carried ? " (IMU only)" : "", static_cast<unsigned long long>(f.map));
-  std::snprintf(second, sizeof(second), "KF %d  maps %d  loops %d  merges %d  %.1f FPS  dynamic %.0f%%",
-                state.map.keyframes_all_maps, state.map.maps, state.map.loops, state.map.merges, state.fps,
-                100.0 * state.dynamic_share);
+  if (state.replay) {
+    std::snprintf(second, sizeof(second), "KF %d  maps %d  replay  dynamic %.0f%%", state.map.keyframes_all_maps,
+                  state.map.maps, 100.0 * state.dynamic_share);
+  } else {
+    std::snprintf(second, sizeof(second), "KF %d  maps %d  loops %d  merges %d  %.1f FPS  dynamic %.0f%%",
+                  state.map.keyframes_all_maps, state.map.maps, state.map.loops, state.map.merges, state.fps,
+                  100.0 * state.dynamic_share);
+  }
   return {first, second};
 }
 

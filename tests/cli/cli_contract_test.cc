@@ -335,6 +335,35 @@ TEST_F(CliContract, ViewerWritesItsPicturesAndJoins) {
   EXPECT_NE(result.err.find("--pose-stream needs --viewer-http"), std::string::npos) << result.err;
 }
 
+// view --run: a finished run replayed in the viewer's picture, one picture per 1 / Viewer.Fps of
+// sequence time (the default 10 per second: frames 0, 3, 6, ... of the 30 Hz sequence), every
+// frame's pose found in the run's trajectory; no outputs is exit 2.
+TEST_F(CliContract, ViewReplaysARunIntoPictures) {
+  constexpr int kFrames = 30;
+  ProgramResult result = slam(sharedSequence(), {"--max-frames", std::to_string(kFrames)});
+  ASSERT_EQ(result.exit_code, 0) << result.describe();
+  const fs::path pictures = work_ / "replay";
+  const fs::path video = work_ / "replay" / "replay.avi";
+  result = runProgram({programPath("view"), "--run", (work_ / "run").string(), "--sequence", sharedSequence().string(),
+                       "--dir", pictures.string(), "--video", video.string(), "--online"});
+  ASSERT_EQ(result.exit_code, 0) << result.describe();
+  EXPECT_NE(result.out.find("pictures 10\n"), std::string::npos) << result.out;
+  EXPECT_NE(result.out.find("frames_with_pose " + std::to_string(kFrames) + "\n"), std::string::npos) << result.out;
+  int pngs = 0;
+  for (const fs::directory_entry& entry : fs::directory_iterator(pictures)) pngs += entry.path().extension() == ".png";
+  EXPECT_EQ(pngs, 10);
+  EXPECT_TRUE(fs::exists(pictures / "000027.png"));
+  EXPECT_GT(fs::file_size(video), 1000u);
+
+  result = runProgram({programPath("view"), "--run", (work_ / "run").string(), "--sequence", sharedSequence().string()});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("give --video FILE and/or --dir DIR"), std::string::npos) << result.err;
+  result = runProgram({programPath("view"), "--run", (work_ / "no_run").string(), "--sequence",
+                       sharedSequence().string(), "--dir", pictures.string()});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("no_run/trajectory.txt"), std::string::npos) << result.err;
+}
+
 // Ctrl-C part-way: the run stops at a frame boundary, exits 0 and writes a trajectory with one
 // parseable line per processed frame. The test sends SIGINT when the progress line of frame 20
 // appears (synchronised on the program's output, no sleep).

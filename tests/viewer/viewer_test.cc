@@ -12,6 +12,7 @@
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/thread_names.h"
+#include "ltlo/viewer/run_replay.h"
 #include "ltlo/viewer/viewer.h"
 #include "ltlo/viewer/viewer_renderer.h"
 
@@ -116,6 +117,52 @@ TEST(ViewerRenderer, FollowViewLooksAtTheCameraFromBehindAndAbove) {
   const Vec3 eye_c = T_w_c.inverse() * eye_w;
   EXPECT_NEAR(eye_c.z(), -3.0, 1e-9);
   EXPECT_NEAR(eye_c.y(), -1.5, 1e-9);  // image up is -y
+}
+
+
+// The replay of a run's files: each frame takes its own pose (none where the run had none), the
+// keyframes made up to its time and the trajectory up to it; the status line says "replay".
+TEST(RunReplay, EachFrameSeesTheRunUpToItsTime) {
+  RunRecording recording;
+  for (int i = 0; i < 6; ++i) {
+    if (i == 2) continue;  // frame 2 had no pose
+    recording.trajectory.push_back({0.1 * i, SE3(Quat::Identity(), Vec3(0.5 * i, 0.0, 0.0))});
+  }
+  recording.keyframes = {{0.0, SE3(), 0}, {0.3, SE3(Quat::Identity(), Vec3(1.5, 0.0, 0.0)), 1}};
+  recording.points = {{Eigen::Vector3f(0.0f, 0.0f, 3.0f), 1.0f}, {Eigen::Vector3f(1.0f, 0.0f, 3.0f), 0.2f}};
+  RunReplay replay(recording);
+  const cv::Mat image(240, 320, CV_8UC3, cv::Scalar(90, 90, 90));
+  cv::Mat mask(240, 320, CV_8UC1, cv::Scalar(0));
+  mask(cv::Rect(0, 0, 80, 240)).setTo(255);  // a quarter of the image dynamic
+
+  std::vector<ViewerState> states;
+  for (int i = 0; i < 6; ++i) states.push_back(replay.state(i, 0.1 * i, image, mask));
+  EXPECT_EQ(replay.framesWithPose(), 5);
+  for (int i = 0; i < 6; ++i) {
+    const ViewerState& s = states[i];
+    EXPECT_TRUE(s.replay);
+    EXPECT_EQ(s.frame.index, i);
+    EXPECT_EQ(s.frame.has_pose, i != 2) << i;
+    if (s.frame.has_pose) EXPECT_NEAR(s.frame.T_w_c.translation().x(), 0.5 * i, 1e-12) << i;
+    EXPECT_EQ(s.map.trajectory_w.size(), static_cast<std::size_t>(i < 2 ? i + 1 : i)) << i;
+    EXPECT_EQ(s.map.keyframes_T_w_c.size(), i < 3 ? 1u : 2u) << i;
+    EXPECT_EQ(s.map.maps, i < 3 ? 1 : 2) << i;
+    EXPECT_EQ(s.frame.map, i < 3 ? 0u : 1u) << i;
+    EXPECT_EQ(s.map.points_w.size(), 2u);
+    EXPECT_FLOAT_EQ(s.map.beta[1], 0.2f);
+    EXPECT_NEAR(s.dynamic_share, 0.25, 1e-12);
+  }
+  EXPECT_EQ(states[2].frame.state, "no pose");
+
+  // Rendered like a live state: the map panel shows the static and the dynamic point.
+  ViewerOptions options;
+  options.panel_width = 320;
+  options.panel_height = 240;
+  ViewerRenderer renderer(options);
+  const ViewerPicture picture = renderer.render(states[5]);
+  EXPECT_GT(cv::countNonZero(picture.labels_3d == kLabelStaticPoint), 0);
+  EXPECT_GT(cv::countNonZero(picture.labels_3d == kLabelKeyFrame), 0);
+  EXPECT_EQ(cv::countNonZero(picture.labels_3d == kLabelLoopEdge), 0);
 }
 
 class ViewerThread : public ::testing::Test {

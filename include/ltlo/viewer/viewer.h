@@ -20,6 +20,8 @@
 #include <string>
 #include <thread>
 
+#include <opencv2/core/types.hpp>
+
 #include "ltlo/core/lie.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/viewer/viewer_state.h"
@@ -55,6 +57,11 @@ struct ViewerCounts {
   std::uint64_t http_frames = 0;  ///< pictures published to the HTTP server
   std::uint64_t poses = 0;        ///< poses published on /poses
 };
+
+/// A viewer video by its extension: .avi MJPG (OpenCV's own writer, always built in), .mp4 mp4v
+/// (FFmpeg); its folder is created. Another extension, or a file that cannot be opened, is
+/// InputError naming the file.
+std::unique_ptr<cv::VideoWriter> openViewerVideo(const std::string& path, double fps, const cv::Size& size);
 
 class Viewer {
  public:

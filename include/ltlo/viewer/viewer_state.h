@@ -67,6 +67,9 @@ struct ViewerState {
   double fps = 0.0;              ///< frames processed per second of wall time, recently
   double dynamic_share = 0.0;    ///< share of the image the segmentation calls dynamic
   bool flash_loop_edges = false; ///< a loop or merge landed since the previous picture
+  /// A replay of a finished run (run_replay.h): the status line shows no processing rate and no
+  /// loop or merge counts (the run's files do not hold them per frame).
+  bool replay = false;
 };
 
 }  // namespace ltlo::viewer
