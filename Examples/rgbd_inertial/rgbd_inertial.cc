@@ -6,7 +6,7 @@
 //                 [--viewer-http PORT [--viewer-bind ADDRESS] [--pose-stream]]
 //   rgbd_inertial --settings YAML --bag FILE [--bag-preset tum|realsense|realsense-unite|openloris]
 //                 [--rgb-topic T] [--depth-topic T] [--imu-topic T | --accel-topic T --gyro-topic T]
-//                 [--camera-info-topic T] [--calib FILE] --out DIR [options as above]
+//                 [--camera-info-topic T] [--calib FILE] [--groundtruth FILE] --out DIR [options as above]
 //   rgbd_inertial --bag FILE --list-topics      (topics, types, counts and rates; nothing else)
 //   rgbd          (the same program without the IMU: TUM RGB-D with config_yaml/tum_rgbd.yaml)
 //
@@ -14,7 +14,7 @@
 // each --*-topic replaces one. Its calibration: --calib FILE (a calib.yaml of DATA_FORMAT.md) when
 // given, else the bag's CameraInfo for the camera (size, K, distortion; a difference from the
 // settings' Camera.* is one warning) with the IMU keys of the settings file. A bag has no ground
-// truth: the run writes no metrics figures.
+// truth: the run writes metrics.json only with --groundtruth FILE (TUM text, read after the run).
 //
 // The calibration comes from DIR/calib.yaml when the sequence has one (DATA_FORMAT.md), otherwise
 // from the Camera.* / IMU.* keys of the settings file (TUM RGB-D, OpenLORIS). Outputs in --out:
@@ -49,6 +49,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "bag_topic_options.h"
 #include "bow/vocabulary.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -89,9 +90,9 @@ struct Arguments {
   std::string settings_path;
   std::string sequence_dir;
   std::string bag_path;     ///< --bag: a ROS 1 bag instead of a sequence folder
-  std::string bag_preset;
-  io::BagTopics bag_topics;  ///< after the preset, each --*-topic given replaces one
+  io::BagTopics bag_topics;  ///< the preset with each --*-topic given replacing one
   std::string calib_path;   ///< --calib: calib.yaml for a bag
+  std::string groundtruth_path;  ///< --groundtruth: a bag run's evaluation ground truth (TUM text)
   bool list_topics = false;
   std::string out_dir;
   std::string vocabulary_path;
@@ -274,7 +275,7 @@ int run(const Arguments& args) {
   report.interrupted = interrupted;
   const fs::path masks_dir = fs::path(args.sequence_dir) / "masks";
   system::EvaluationInputs evaluation;
-  evaluation.ground_truth_path = reader.groundTruthPath();
+  evaluation.ground_truth_path = reader.isBag() ? args.groundtruth_path : reader.groundTruthPath();
   evaluation.gt_masks_dir = !reader.isBag() && fs::is_directory(masks_dir) ? masks_dir.string() : "";
   const system::WrittenOutputs written =
       system::writeRunOutputs(args.out_dir, report, evaluation, setup.settings.local_mapping.min_point_beta);
@@ -337,20 +338,16 @@ int main(int argc, char** argv) {
   CLI::App app{LTLO_PROGRAM_USES_IMU ? "RGB-D-inertial SLAM on a sequence; writes the run outputs"
                                      : "RGB-D SLAM (no IMU) on a sequence; writes the run outputs"};
   Arguments args;
+  examples::BagTopicOptions bag_options;
   app.add_option("--settings", args.settings_path, "settings YAML (config_yaml/*.yaml)");
   CLI::Option* sequence_option =
       app.add_option("--sequence", args.sequence_dir, "sequence folder (DATA_FORMAT.md, TUM RGB-D, OpenLORIS)");
   CLI::Option* bag_option = app.add_option("--bag", args.bag_path, "ROS 1 bag instead of --sequence");
   sequence_option->excludes(bag_option);
-  app.add_option("--bag-preset", args.bag_preset, "bag topic names: " + io::bagTopicPresetNames());
-  std::string rgb_topic, depth_topic, imu_topic, accel_topic, gyro_topic, camera_info_topic;
-  app.add_option("--rgb-topic", rgb_topic, "bag: colour topic (sensor_msgs/Image or CompressedImage)");
-  app.add_option("--depth-topic", depth_topic, "bag: depth topic (16UC1 mm, 32FC1 m, compressedDepth)");
-  app.add_option("--imu-topic", imu_topic, "bag: sensor_msgs/Imu topic");
-  app.add_option("--accel-topic", accel_topic, "bag: accelerometer topic (with --gyro-topic)");
-  app.add_option("--gyro-topic", gyro_topic, "bag: gyroscope topic (with --accel-topic)");
-  app.add_option("--camera-info-topic", camera_info_topic, "bag: sensor_msgs/CameraInfo of the colour camera");
+  bag_options.addTo(app);
   app.add_option("--calib", args.calib_path, "bag: calib.yaml (DATA_FORMAT.md) instead of CameraInfo");
+  app.add_option("--groundtruth", args.groundtruth_path,
+                 "bag: ground truth (TUM text, T_w_c) for metrics.json (a folder's is DIR/groundtruth.txt)");
   app.add_flag("--list-topics", args.list_topics, "with --bag: print the bag's topics, types, counts and rates");
   app.add_option("--out", args.out_dir, "output folder (created)");
   app.add_option("--vocabulary", args.vocabulary_path, "ORB vocabulary (default: the shipped one)");
@@ -396,19 +393,9 @@ int main(int argc, char** argv) {
     if (args.settings_path.empty()) throw InputError("--settings is required");
     if (args.out_dir.empty()) throw InputError("--out is required");
     if (!args.bag_path.empty()) {
-      if (!args.bag_preset.empty()) args.bag_topics = io::bagTopicPreset(args.bag_preset);
-      const std::pair<const std::string*, std::string*> topics[] = {
-          {&rgb_topic, &args.bag_topics.rgb},     {&depth_topic, &args.bag_topics.depth},
-          {&imu_topic, &args.bag_topics.imu},     {&accel_topic, &args.bag_topics.accel},
-          {&gyro_topic, &args.bag_topics.gyro},   {&camera_info_topic, &args.bag_topics.camera_info}};
-      for (const auto& [given, topic] : topics) {
-        if (!given->empty()) *topic = *given;
-      }
-      // One IMU source: a united topic given on the command line replaces the preset's pair, and back.
-      if (!imu_topic.empty()) args.bag_topics.accel.clear(), args.bag_topics.gyro.clear();
-      if (!accel_topic.empty() || !gyro_topic.empty()) args.bag_topics.imu.clear();
-    } else if (!args.calib_path.empty() || !args.bag_preset.empty()) {
-      throw InputError("--calib and --bag-preset are for --bag");
+      args.bag_topics = bag_options.resolve();
+    } else if (!args.calib_path.empty() || !bag_options.preset.empty() || !args.groundtruth_path.empty()) {
+      throw InputError("--calib, --bag-preset and --groundtruth are for --bag");
     }
     return run(args);
   } catch (const InputError& e) {

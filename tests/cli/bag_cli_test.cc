@@ -1,6 +1,7 @@
 // rgbd_inertial --bag (issue 29) as a user runs it: --list-topics, a missing topic, a truncated
 // bag, and a generated sequence run from its folder and from a bag of it (written with rosbag's
-// writer) giving byte-identical trajectory.txt files (--single-thread).
+// writer) giving byte-identical trajectory.txt files (--single-thread) and, with --groundtruth,
+// the same ATE.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -104,13 +105,22 @@ TEST_F(BagCli, FolderAndBagGiveTheSameTrajectoryFile) {
   ASSERT_EQ(folder_run.exit_code, 0) << folder_run.describe();
   const ProgramResult bag_run = runProgram({programPath("rgbd_inertial"), "--settings", settings_, "--bag",
                                             bag.string(), "--bag-preset", "realsense-unite", "--calib",
-                                            (sequence / "calib.yaml").string(), "--out", (work_ / "bag_run").string(),
-                                            "--single-thread"});
+                                            (sequence / "calib.yaml").string(), "--groundtruth",
+                                            (sequence / "groundtruth.txt").string(), "--out",
+                                            (work_ / "bag_run").string(), "--single-thread"});
   ASSERT_EQ(bag_run.exit_code, 0) << bag_run.describe();
   const std::string folder_trajectory = readFile(work_ / "folder_run" / "trajectory.txt");
   EXPECT_GT(std::count(folder_trajectory.begin(), folder_trajectory.end(), '\n'), 140);
   EXPECT_EQ(readFile(work_ / "bag_run" / "trajectory.txt"), folder_trajectory);
   EXPECT_NE(bag_run.out.find("frames 150\n"), std::string::npos) << bag_run.out;
+  // --groundtruth: the bag run's metrics.json evaluates the same trajectory against the same poses.
+  const auto ateLine = [](const std::string& out) {
+    const size_t begin = out.find("ate_rmse_m ");
+    return begin == std::string::npos ? std::string() : out.substr(begin, out.find('\n', begin) - begin);
+  };
+  EXPECT_FALSE(ateLine(folder_run.out).empty()) << folder_run.out;
+  EXPECT_EQ(ateLine(bag_run.out), ateLine(folder_run.out));
+  EXPECT_TRUE(fs::is_regular_file(work_ / "bag_run" / "metrics.json"));
 }
 
 }  // namespace
