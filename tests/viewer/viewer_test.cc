@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -235,8 +236,18 @@ TEST_F(ViewerThread, UnopenableOutputsAreBadInputNamingTheFile) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(outputs.video_path), std::string::npos) << e.what();
   }
-  outputs.video_path = (dir_ / "no" / "such" / "folder" / "viewer.avi").string();
-  EXPECT_THROW(Viewer(options, outputs, [](std::uint64_t) { return ViewerMap(); }), InputError);
+  // A folder that does not exist yet is created; one that cannot be (a file is in its way) is bad input.
+  outputs.video_path = (dir_ / "new" / "folder" / "viewer.avi").string();
+  { Viewer viewer(options, outputs, [](std::uint64_t) { return ViewerMap(); }); }
+  EXPECT_TRUE(fs::exists(outputs.video_path));
+  { std::ofstream(dir_ / "a_file") << "x"; }
+  outputs.video_path = (dir_ / "a_file" / "viewer.avi").string();
+  try {
+    Viewer viewer(options, outputs, [](std::uint64_t) { return ViewerMap(); });
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(outputs.video_path), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
