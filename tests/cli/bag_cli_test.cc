@@ -123,5 +123,40 @@ TEST_F(BagCli, FolderAndBagGiveTheSameTrajectoryFile) {
   EXPECT_TRUE(fs::is_regular_file(work_ / "bag_run" / "metrics.json"));
 }
 
+// A bag that breaks part-way (frame 90 of 150 in an encoding the reader does not take): exit 2
+// naming the bag, the topic, the message and the value, and the trajectory of the 90 frames before
+// it written, one parseable line each.
+TEST_F(BagCli, BagBrokenPartWayWritesTheTrajectorySoFar) {
+  constexpr int kBadFrame = 90;
+  const fs::path sequence = work_ / "seq";
+  const ProgramResult sim = runProgram({programPath("simulate"), "--scenario", "static", "--seed", "3", "--seconds",
+                                        "5", "--width", "320", "--height", "240", "--out", sequence.string()});
+  ASSERT_EQ(sim.exit_code, 0) << sim.describe();
+  const fs::path bag = work_ / "broken.bag";
+  io::test::writeBagFromFolder(sequence.string(), bag.string(), io::bagTopicPreset("realsense-unite"),
+                               /*png_colour=*/false, kBadFrame);
+  const ProgramResult run = slamOnBag(bag, {"--bag-preset", "realsense-unite", "--calib",
+                                            (sequence / "calib.yaml").string(), "--single-thread"});
+  EXPECT_EQ(run.exit_code, 2) << run.describe();
+  EXPECT_NE(run.err.find(bag.string()), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("topic /camera/color/image_raw message " + std::to_string(kBadFrame + 1) +
+                         ": unsupported colour encoding 'yuv444'"),
+            std::string::npos)
+      << run.err;
+  std::ifstream trajectory(work_ / "run" / "trajectory.txt");
+  ASSERT_TRUE(trajectory.good());
+  int poses = 0;
+  for (std::string line; std::getline(trajectory, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double value = 0.0;
+    int count = 0;
+    while (fields >> value) ++count;
+    EXPECT_EQ(count, 8) << line;
+    ++poses;
+  }
+  EXPECT_EQ(poses, kBadFrame);
+}
+
 }  // namespace
 }  // namespace ltlo::cli_test

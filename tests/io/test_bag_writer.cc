@@ -207,7 +207,7 @@ void writeTestBag(const std::string& bag_path, const TestBagSpec& spec) {
 }
 
 void writeBagFromFolder(const std::string& dir, const std::string& bag_path, const BagTopics& topics,
-                        bool png_colour) {
+                        bool png_colour, int bad_colour_frame) {
   SequenceReaderOptions options;
   options.read_ground_truth = false;
   const SequenceReader reader = SequenceReader::open(dir, options);
@@ -232,7 +232,8 @@ void writeBagFromFolder(const std::string& dir, const std::string& bag_path, con
     if (png_colour) {
       bag.write(topics.rgb, record(files.t_s), compressedMessage(encode(".png", color), "bgr8; png compressed bgr8", files.t_s));
     } else {
-      bag.write(topics.rgb, record(files.t_s), imageMessage(color, "bgr8", files.t_s));
+      // Frame bad_colour_frame: an encoding the reader does not take (a bag that breaks part-way).
+      bag.write(topics.rgb, record(files.t_s), imageMessage(color, i == bad_colour_frame ? "yuv444" : "bgr8", files.t_s));
     }
     bag.write(topics.depth, record(files.depth_t_s), imageMessage(depth, "16UC1", files.depth_t_s));
   }

@@ -39,7 +39,8 @@ void writeTestBag(const std::string& bag_path, const TestBagSpec& spec);
 /// The sequence folder `dir` (DATA_FORMAT.md) as a bag: every frame's colour (bgr8, or PNG
 /// compressed when `png_colour`) and its 16-bit depth PNG values as 16UC1 (DepthMapFactor must be
 /// 1000), the IMU as one Imu topic, CameraInfo from calib.yaml; stamps are the index's times.
+/// Frame `bad_colour_frame` (>= 0, raw colour only) gets the unsupported encoding "yuv444".
 void writeBagFromFolder(const std::string& dir, const std::string& bag_path, const BagTopics& topics,
-                        bool png_colour);
+                        bool png_colour, int bad_colour_frame = -1);
 
 }  // namespace ltlo::io::test
