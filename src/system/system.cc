@@ -6,10 +6,13 @@
 #include <stdexcept>
 #include <utility>
 
+#include <opencv2/imgproc.hpp>
+
 #include "bow/vocabulary.h"
 #include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "ltlo/core/undistorter.h"
 #include "ltlo/loop/loop_closer.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
@@ -443,12 +446,28 @@ void System::postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame
   view.color_bgr = input.color_bgr.clone();
   const PinholeCamera& camera = builder_->calib().camera.camera;
   view.dynamic_mask = frame.segmentation().dynamicMask(frame.staticThreshold(), camera.height() / 4, camera.width() / 4);
+  // The picture shows the raw image: with a distorting lens the mask (ideal grid) and the keypoints
+  // (ideal pixels) are taken back through the lens, as the segmentation writer does for its masks.
+  const Undistorter& undistorter = *builder_->undistorter();
+  if (undistorter.active() && !view.dynamic_mask.empty()) {
+    if (viewer_raw_to_ideal_.size() != view.dynamic_mask.size()) {
+      const int scale = std::max(1, camera.width() / view.dynamic_mask.cols);
+      cv::resize(undistorter.rawToIdealMap(scale), viewer_raw_to_ideal_, view.dynamic_mask.size(), 0.0, 0.0,
+                 cv::INTER_AREA);
+    }
+    cv::Mat raw_mask;
+    cv::remap(view.dynamic_mask, raw_mask, viewer_raw_to_ideal_, cv::noArray(), cv::INTER_NEAREST,
+              cv::BORDER_REPLICATE);
+    view.dynamic_mask = raw_mask;
+  }
   const std::vector<features::Keypoint>& keypoints = frame.keypoints();
   view.keypoints.reserve(keypoints.size());
   for (std::size_t i = 0; i < keypoints.size(); ++i) {
     viewer::ViewerKeypoint kp;
-    kp.u = keypoints[i].x_px;
-    kp.v = keypoints[i].y_px;
+    Vec2 u(keypoints[i].x_px, keypoints[i].y_px);
+    if (undistorter.active()) u = undistorter.model().distortPixel(u);
+    kp.u = static_cast<float>(u.x());
+    kp.v = static_cast<float>(u.y());
     const int index = static_cast<int>(i);
     if (!frame.isStatic(index)) {
       kp.kind = viewer::KeypointClass::kDynamic;

@@ -212,6 +212,7 @@ class System {
   std::unique_ptr<SegmentationWriter> segmentation_writer_;  // with SystemOptions::segmentation_dir
   std::unique_ptr<viewer::Viewer> viewer_;  // with a viewer output; reads the Atlas, stopped last
   int viewer_events_seen_ = 0;              // tracking thread: loops + merges the viewer was told of
+  cv::Mat viewer_raw_to_ideal_;  // tracking thread: raw -> ideal map at the viewer mask's size (distorting lens)
   ChangeGate world_gate_;  ///< tracking of a frame vs world-frame changes by loop closing
   std::thread mapping_thread_;
   std::thread loop_thread_;
