@@ -4,7 +4,8 @@
 # Steps (growing with every capability; see README "What the demo does today"):
 #   1. install dependencies and build (as scripts/test.sh, without running the tests)
 #   2. simulate: RGB-D + 200 Hz IMU + ground truth + masks of an ltlo sequence
-#   3. rgbd_inertial: the SLAM system (tracking, local mapping, loop closing) -> run outputs
+#   3. rgbd_inertial: the SLAM system (tracking, local mapping, loop closing) -> run outputs,
+#      with the live viewer writing its video (slam/viewer.avi)
 #   4. reconstruct: surfels of the static background from the run (its trajectory and
 #      segmentation) and headless snapshots of them
 #   5. evaluate: ATE / RPE of the SLAM trajectory and static IoU of its masks against ground
@@ -31,7 +32,7 @@ $BIN/simulate --scenario "$SCENARIO" --seed "$SEED" --seconds "$SECONDS_TO_SIMUL
 echo "== rgbd_inertial (SLAM) -> $OUT/slam/"
 rm -rf "$OUT/slam"
 $BIN/rgbd_inertial --settings config_yaml/synthetic.yaml --sequence "$OUT/sequence" --out "$OUT/slam" \
-  --progress-every 150 | tee "$OUT/slam_summary.txt"
+  --viewer-video "$OUT/slam/viewer.avi" --progress-every 150 | tee "$OUT/slam_summary.txt"
 
 echo "== reconstruct (surfels of the static background, snapshots) -> $OUT/recon/"
 rm -rf "$OUT/recon"
@@ -78,6 +79,7 @@ echo "  slam/trajectory_online.txt  each frame's pose as tracking returned it (n
 echo "  slam/keyframes.txt      keyframe poses with id, map and static area ratio"
 echo "  slam/static_map.ply     static map points (colour, beta); open with any PLY viewer"
 echo "  slam/segmentation/      every frame's dynamic mask (255 = dynamic), like sequence/masks/"
+echo "  slam/viewer.avi         the live viewer's video (frame | map), Viewer.Fps pictures per second"
 echo "  slam/metrics.json       ATE/RPE, static IoU, per-stage timing, peak memory, maps, loops, merges"
 echo "  metrics.txt/.json       evaluate's ATE / RPE and static-background IoU of the SLAM run"
 echo "  imu_only_*              IMU-only baseline trajectory and its metrics"
@@ -88,6 +90,7 @@ echo
 echo "== pictures"
 grep '^snapshot ' "$OUT/recon_summary.txt" | sed 's/^snapshot /  /'
 echo "  $OUT/preview.png"
+echo "  $OUT/slam/viewer.avi (the live viewer's video)"
 if [ ! -d "$OUT/slam/segmentation" ]; then
   echo "  (the run wrote no segmentation/ yet: every pixel with depth was fused; boxes are removed"
   echo "   only where later views see through them, see README)"
