@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job on the built-in default: a generated long-term large-occlusion (ltlo) sequence.
 #   scripts/demo.sh [OUT_DIR]          (default out/demo; SEED, DEMO_SECONDS, SCENARIO override)
-# Steps (growing with every capability; see README "What the demo does today"):
+# Steps (growing with every capability; README.md, "Two commands"):
 #   1. install dependencies and build (as scripts/test.sh, without running the tests)
 #   2. simulate: RGB-D + 200 Hz IMU + ground truth + masks of an ltlo sequence
 #   3. rgbd_inertial: the SLAM system (tracking, local mapping, loop closing) -> run outputs,
@@ -93,5 +93,5 @@ echo "  $OUT/preview.png"
 echo "  $OUT/slam/viewer.avi (the live viewer's video)"
 if [ ! -d "$OUT/slam/segmentation" ]; then
   echo "  (the run wrote no segmentation/ yet: every pixel with depth was fused; boxes are removed"
-  echo "   only where later views see through them, see README)"
+  echo "   only where later views see through them, see Examples/reconstruct/README.md)"
 fi

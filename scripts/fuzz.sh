@@ -2,7 +2,7 @@
 # libFuzzer on the input readers: builds tests/fuzz with clang into build-fuzz (whole tree with
 # ASan + UBSan + coverage, only the readers' libraries are compiled), writes a seed corpus from a
 # generated sequence, runs each target for SECONDS_EACH seconds and fails on any crash, leak,
-# sanitizer report, timeout or out-of-memory. Not part of scripts/test.sh (see README).
+# sanitizer report, timeout or out-of-memory. Not part of scripts/test.sh (docs/testing.md).
 #   scripts/fuzz.sh [SECONDS_EACH]           default 60 s per target (7 targets)
 #   TARGETS="fuzz_ply fuzz_imu" scripts/fuzz.sh 10
 # Findings (crashing inputs) land in build-fuzz/findings/<target>/ (once fixed, keep them in

@@ -19,6 +19,7 @@ packages=(
                          # reading ROS 1 bags directly (src/io/bag_reader.cc): users' recordings
                          # (TUM RGB-D, OpenLORIS, RealSense) are bags; Debian ships the bag storage
                          # library and the message headers, no ROS installation needed
+  python3                # evaluation scripts (scripts/check_loops.py, ...) and the documentation check
   gnome-backgrounds mate-backgrounds lomiri-wallpapers sway-backgrounds
                          # real photographs: simulator textures, vocabulary training and tests
 )
