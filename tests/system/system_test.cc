@@ -232,7 +232,12 @@ TEST_F(SystemEndToEnd, LongTermOcclusionRunsWithAPoseForEveryFrame) {
   EXPECT_EQ(result.counts.frames, result.frames);
   EXPECT_GE(result.counts.frames_with_pose, result.frames - 10);
   EXPECT_EQ(static_cast<int>(result.trajectory.size()), result.counts.frames_with_pose);
-  EXPECT_LT(result.ate_rmse_m, 0.5);  // no dynamic segmentation yet: only a sanity bound
+  // What this test checks is the pose on every frame while the box covers the view, threaded. Its
+  // ATE is large for the system (measured 0.10-0.20 m in four runs): 4 s at 15 Hz end while the box
+  // enters, right when local mapping's first IMU refinement runs on a short window (it logs
+  // accelerometer biases near 1 m/s^2 and inertial residuals 4.5x the noise model). So the bound
+  // only catches a run that loses the map; accuracy under occlusion is occlusion_test.cc's.
+  EXPECT_LT(result.ate_rmse_m, 0.5);
 }
 
 // Issue 11: with the dynamic segmentation (depth clusters + the dense solve of thesis Eq. 59-64)
