@@ -203,6 +203,8 @@ void visitViewer(O& o, V& v) {
   v.integer("Viewer.PointSize", o.point_size_px, 1, 10);
   v.real("Viewer.FollowDistance", o.follow_distance_m, 0.0, 50.0);
   v.real("Viewer.FollowHeight", o.follow_height_m, 0.0, 50.0);
+  v.real("Viewer.LoopFlashSeconds", o.loop_flash_s, 0.0, 30.0);
+  v.boolean("Viewer.LoopOverview", o.loop_overview);
 }
 
 std::string rangeText(double min, double max) {

@@ -1,6 +1,8 @@
 #include "ltlo/viewer/viewer.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <vector>
@@ -161,8 +163,10 @@ void Viewer::run() {
     last_index = state.frame.index;
     state.fps = fps;
     state.dynamic_share = dynamicShare(state.frame.dynamic_mask);
-    // A loop or merge flashes its edges on this and the next pictures (about a third of a second at 10 Hz).
-    if (loop_flash_.exchange(false)) flash_pictures_left = 3;
+    // A loop or merge flashes its edges for Viewer.LoopFlashSeconds of sequence time, at least one picture.
+    if (loop_flash_.exchange(false)) {
+      flash_pictures_left = std::max(1, static_cast<int>(std::lround(options_.loop_flash_s * options_.fps)));
+    }
     state.flash_loop_edges = flash_pictures_left > 0;
     if (flash_pictures_left > 0) --flash_pictures_left;
     try {

@@ -77,12 +77,11 @@ std::pair<std::string, std::string> statusLines(const ViewerState& state) {
 
 }  // namespace
 
-SE3 followView_T_v_w(const SE3& T_w_c, double distance_m, double height_m) {
-  const Mat3 R_w_c = T_w_c.rotationMatrix();
-  const Vec3 centre = T_w_c.translation();
-  const Vec3 up_w = -R_w_c.col(1);  // image up
-  const Vec3 eye = centre - distance_m * R_w_c.col(2) + height_m * up_w;
-  const Vec3 target = centre + R_w_c.col(2);
+namespace {
+
+/// A view camera (x right, y down, z forward) at `eye` looking at `target` with `up_w` up in the
+/// picture; the current camera's own axes stand in where the geometry degenerates.
+SE3 lookAt_T_v_w(const Vec3& eye, const Vec3& target, const Vec3& up_w, const Mat3& R_w_c) {
   Vec3 forward = target - eye;
   if (forward.norm() < 1e-9) forward = R_w_c.col(2);
   forward.normalize();
@@ -96,6 +95,42 @@ SE3 followView_T_v_w(const SE3& T_w_c, double distance_m, double height_m) {
   R_w_v.col(1) = down;
   R_w_v.col(2) = forward;
   return SE3(R_w_v, eye).inverse();
+}
+
+}  // namespace
+
+SE3 followView_T_v_w(const SE3& T_w_c, double distance_m, double height_m) {
+  const Mat3 R_w_c = T_w_c.rotationMatrix();
+  const Vec3 centre = T_w_c.translation();
+  const Vec3 up_w = -R_w_c.col(1);  // image up
+  const Vec3 eye = centre - distance_m * R_w_c.col(2) + height_m * up_w;
+  return lookAt_T_v_w(eye, centre + R_w_c.col(2), up_w, R_w_c);
+}
+
+OverviewView overviewView(const SE3& T_w_c, const std::vector<SE3>& keyframes_T_w_c, double distance_m,
+                          double height_m, double half_fov_rad) {
+  const Mat3 R_w_c = T_w_c.rotationMatrix();
+  const Vec3 up_w = -R_w_c.col(1);
+  // The centre of the box around the keyframes and the current camera, and the radius around it.
+  Vec3 low = T_w_c.translation(), high = T_w_c.translation();
+  for (const SE3& T : keyframes_T_w_c) {
+    low = low.cwiseMin(T.translation());
+    high = high.cwiseMax(T.translation());
+  }
+  const Vec3 centre = 0.5 * (low + high);
+  double radius_m = (T_w_c.translation() - centre).norm();
+  for (const SE3& T : keyframes_T_w_c) radius_m = std::max(radius_m, (T.translation() - centre).norm());
+  radius_m += kOverviewMargin_m;
+  // From the same side as the following camera (behind and above the current one), back far
+  // enough that a sphere of that radius fits the narrower field of view.
+  Vec3 back = -distance_m * R_w_c.col(2) + height_m * up_w;
+  back = back.norm() < 1e-9 ? Vec3(-R_w_c.col(2)) : Vec3(back.normalized());
+  const double eye_distance_m =
+      std::max(std::hypot(distance_m, height_m), radius_m / std::sin(std::clamp(half_fov_rad, 0.05, 1.5)));
+  OverviewView view;
+  view.T_v_w = lookAt_T_v_w(centre + eye_distance_m * back, centre, up_w, R_w_c);
+  view.far_m = eye_distance_m + radius_m + 1.0;
+  return view;
 }
 
 ViewerRenderer::ViewerRenderer(const ViewerOptions& options)
@@ -226,6 +261,15 @@ void ViewerRenderer::drawMapPanel(const ViewerState& state, cv::Mat& panel, cv::
   view.T_c_w = followView_T_v_w(last_T_w_c_, options_.follow_distance_m, options_.follow_height_m);
   view.near_m = 0.05;
   view.far_m = 100.0;
+  if (state.flash_loop_edges && options_.loop_overview && !map.loop_edges.empty()) {
+    // The new edge may reach far behind the following camera: show the whole map while it flashes.
+    const double half_fov_rad = std::atan(0.5 * options_.panel_height / view.camera.fx());
+    const OverviewView overview = overviewView(last_T_w_c_, map.keyframes_T_w_c, options_.follow_distance_m,
+                                               options_.follow_height_m, half_fov_rad);
+    view.T_c_w = overview.T_v_w;
+    view.near_m = 0.1;
+    view.far_m = std::max(view.far_m, overview.far_m);
+  }
   view.background_rgb = kBackgroundRgb;
   render::RenderResult result = renderer_->render(view, items);
   result.bgr.copyTo(panel);

@@ -100,11 +100,55 @@ TEST(ViewerRenderer, KnownStateHasTheExpectedPixelClasses) {
   EXPECT_EQ(left.at<cv::Vec3b>(60, 280), cv::Vec3b(255, 160, 0));   // untracked
   EXPECT_EQ(left.at<cv::Vec3b>(120, 60), cv::Vec3b(0, 0, 255));     // dynamic
 
-  // A loop that just landed: the loop edge is drawn thicker.
+  // A loop that just landed: the loop edge is drawn thicker (from the same following camera).
+  ViewerOptions following = options;
+  following.loop_overview = false;
+  ViewerRenderer following_renderer(following);
   ViewerState flashing = knownState();
   flashing.flash_loop_edges = true;
-  EXPECT_GT(countLabel(renderer.render(flashing).labels_3d, kLabelLoopEdge),
+  EXPECT_GT(countLabel(following_renderer.render(flashing).labels_3d, kLabelLoopEdge),
             countLabel(picture.labels_3d, kLabelLoopEdge));
+}
+
+// A loop whose edge lies far behind the camera (a lap of 8 m along +x, the camera at its end
+// looking on along +x): the following camera cannot see it; while it flashes, the overview shows
+// the edge, every keyframe and the current camera.
+TEST(ViewerRenderer, FlashingLoopPullsTheViewBackToTheWholeMap) {
+  ViewerState state = knownState();
+  const Quat q_x = so3ExpQuat(Vec3(0.0, M_PI / 2.0, 0.0));  // camera z along world +x
+  state.map.keyframes_T_w_c.clear();
+  for (int k = 0; k < 9; ++k) state.map.keyframes_T_w_c.push_back(SE3(q_x, Vec3(1.0 * k, 0.0, 0.0)));
+  state.map.covisibility.clear();
+  state.map.loop_edges = {{0, 1}};  // from the first keyframe to the second, 7-8 m behind
+  state.map.points_w.clear();
+  state.map.beta.clear();
+  state.map.trajectory_w.clear();
+  state.frame.T_w_c = SE3(q_x, Vec3(8.0, 0.0, 0.0));
+  state.flash_loop_edges = true;
+
+  ViewerOptions options;
+  options.panel_width = 320;
+  options.panel_height = 240;
+  options.loop_overview = false;
+  ViewerRenderer following(options);
+  EXPECT_EQ(countLabel(following.render(state).labels_3d, kLabelLoopEdge), 0);
+
+  options.loop_overview = true;
+  ViewerRenderer overview(options);
+  const cv::Mat labels = overview.render(state).labels_3d;
+  EXPECT_GT(countLabel(labels, kLabelLoopEdge), 20);
+  EXPECT_GT(countLabel(labels, kLabelKeyFrame), 9 * 4);
+  EXPECT_GT(countLabel(labels, kLabelCurrentCamera), 4);
+  // Nothing the overview frames falls off the panel: the first and last keyframes' centres project inside.
+  const OverviewView view = overviewView(state.frame.T_w_c, state.map.keyframes_T_w_c, options.follow_distance_m,
+                                         options.follow_height_m, std::atan(0.5 * 240 / (0.6 * 320)));
+  for (const Vec3& p_w : {Vec3(0.0, 0.0, 0.0), Vec3(8.0, 0.0, 0.0)}) {
+    const Vec3 p_v = view.T_v_w * p_w;
+    ASSERT_GT(p_v.z(), 0.0);
+    EXPECT_LT(std::abs(0.6 * 320 * p_v.x() / p_v.z()), 160.0);
+    EXPECT_LT(std::abs(0.6 * 320 * p_v.y() / p_v.z()), 120.0);
+  }
+  EXPECT_GT(view.far_m, (view.T_v_w * Vec3(8.0, 0.0, 0.0)).z());
 }
 
 TEST(ViewerRenderer, FollowViewLooksAtTheCameraFromBehindAndAbove) {

@@ -486,6 +486,13 @@ struct ViewerOptions {
   /// Viewer.FollowHeight, [0, 50])
   double follow_distance_m = 3.0;
   double follow_height_m = 1.5;
+  /// a loop closure or map merge flashes its edges for this long, s of sequence time
+  /// (Viewer.LoopFlashSeconds, [0, 30]; at least one picture)
+  double loop_flash_s = 2.0;
+  /// while a loop flashes, the 3-D panel pulls back to show every keyframe and the current camera,
+  /// so the new edge is in view however far back in the map it reaches (Viewer.LoopOverview; off:
+  /// the following camera stays)
+  bool loop_overview = true;
 
   static ViewerOptions load(const SettingsFile& file);  ///< reads and validates; throws ConfigError
 };

@@ -7,13 +7,15 @@
 ///   right  the map seen from a camera that follows the current one (Viewer.FollowDistance
 ///          behind, Viewer.FollowHeight above, along its own axes): map points coloured by beta
 ///          (red = dynamic 0 ... green = static 1), keyframes as blue frusta, covisibility edges,
-///          loop edges (magenta; yellow and thicker while a loop or merge just landed), the
+///          loop edges (magenta; yellow and thicker for Viewer.LoopFlashSeconds after a loop or
+///          merge, while the view pulls back to the whole map: Viewer.LoopOverview), the
 ///          trajectory so far (orange) and the current camera (a larger frustum, white when
 ///          tracked, red when not).
 /// Rendered headless with OSMesa (render/offscreen_renderer.h). Not thread-safe: one renderer per
 /// thread (the viewer's); its OSMesa context is created by the constructor's thread and made
 /// current on every render().
 #include <memory>
+#include <vector>
 
 #include <opencv2/core/mat.hpp>
 
@@ -73,5 +75,21 @@ class ViewerRenderer {
 /// `distance_m` along its optical axis, above it by `height_m` along its -y (image up), looking
 /// at a point 1 m in front of it with the same image-up direction.
 SE3 followView_T_v_w(const SE3& T_w_c, double distance_m, double height_m);
+
+/// Margin around the keyframe centres the overview keeps in view (frusta, points near them), m.
+inline constexpr double kOverviewMargin_m = 0.5;
+
+struct OverviewView {
+  SE3 T_v_w;           ///< camera-from-world of the 3-D panel
+  double far_m = 0.0;  ///< far plane that keeps the whole map
+};
+
+/// The 3-D panel's camera while a loop flashes (Viewer.LoopOverview): looking at the centre of the
+/// box around the keyframes and the current camera, from the following camera's side (behind and
+/// above T_w_c, as followView_T_v_w), far enough back that a sphere around all of them (plus
+/// kOverviewMargin_m) fits the vertical half field of view `half_fov_rad`; never nearer than the
+/// following camera.
+OverviewView overviewView(const SE3& T_w_c, const std::vector<SE3>& keyframes_T_w_c, double distance_m,
+                          double height_m, double half_fov_rad);
 
 }  // namespace ltlo::viewer
