@@ -416,48 +416,62 @@ SettingOverride SettingOverride::parse(const std::string& text) {
   return {text.substr(0, equals), text.substr(equals + 1)};
 }
 
-Settings Settings::load(const std::string& config_path, const std::string& calib_path,
-                        const std::vector<SettingOverride>& overrides) {
-  SettingsFile config(config_path);
-  std::optional<SettingsFile> calib;
-  if (!calib_path.empty()) calib.emplace(calib_path);
+namespace {
+
+// Each --set goes into the calibration file when there is one and the key is a calibration key,
+// otherwise into the config (logged with the value it replaces).
+void applyOverrides(const std::vector<SettingOverride>& overrides, SettingsFile* config,
+                    std::optional<SettingsFile>* calib) {
   for (const SettingOverride& o : overrides) {
-    const bool in_calib = calib && isCalibrationKey(o.key);
-    const SettingsFile& target = in_calib ? *calib : config;
+    const bool in_calib = *calib && isCalibrationKey(o.key);
+    const SettingsFile& target = in_calib ? **calib : *config;
     log::info("settings: --set ", o.key, " = ", o.value, " (", target.path(), " has ",
               target.has(o.key) ? target.valueText(o.key) : std::string("no such key"), ")");
-    (in_calib ? *calib : config).setOverride(o.key, o.value);
+    (in_calib ? **calib : *config).setOverride(o.key, o.value);
   }
-  Settings settings;
-  settings.config_path = config_path;
-  settings.overrides = overrides;
+}
+
+// The calibration from the calibration file when there is one (its unknown keys warned about and
+// listed), otherwise from the config.
+void loadCalibration(const std::string& config_path, const std::string& calib_path,
+                     const SettingsFile& config, const std::optional<SettingsFile>& calib,
+                     Settings* settings) {
   if (!calib) {
-    settings.calib_path = config_path;
-    settings.calib = SensorCalib::load(config);
+    settings->calib_path = config_path;
+    settings->calib = SensorCalib::load(config);
   } else {
-    settings.calib_path = calib_path;
-    settings.calib = SensorCalib::load(*calib);
+    settings->calib_path = calib_path;
+    settings->calib = SensorCalib::load(*calib);
     for (const std::string& key : calib->unreadKeys()) {
       log::warn(calib_path, ": unknown key ", key, " (ignored; a typo?)");
-      settings.unknown_keys.push_back(calib_path + ": " + key);
+      settings->unknown_keys.push_back(calib_path + ": " + key);
     }
   }
-  settings.orb = OrbOptions::load(config);
-  settings.segmentation = SegmentationOptions::load(config);
-  settings.keyframe = KeyFrameOptions::load(config);
-  settings.tracking = TrackingOptions::load(config);
-  settings.local_mapping = LocalMappingOptions::load(config);
-  settings.loop = LoopOptions::load(config);
-  settings.dense = DenseOptions::load(config);
-  settings.imu_init = ImuInitOptions::load(config);
-  settings.recon = ReconOptions::load(config);
-  settings.viewer = ViewerOptions::load(config);
-  settings.sequence = SequenceOptions::load(config);
-  checkDenseAgainstCamera(settings.dense, settings.calib.camera.camera,
-                          "Camera.width/height of " + settings.calib_path,
+}
+
+// Every module's options from the config, then the whole-settings rule against the camera.
+void loadModuleOptions(const SettingsFile& config, Settings* settings) {
+  settings->orb = OrbOptions::load(config);
+  settings->segmentation = SegmentationOptions::load(config);
+  settings->keyframe = KeyFrameOptions::load(config);
+  settings->tracking = TrackingOptions::load(config);
+  settings->local_mapping = LocalMappingOptions::load(config);
+  settings->loop = LoopOptions::load(config);
+  settings->dense = DenseOptions::load(config);
+  settings->imu_init = ImuInitOptions::load(config);
+  settings->recon = ReconOptions::load(config);
+  settings->viewer = ViewerOptions::load(config);
+  settings->sequence = SequenceOptions::load(config);
+  checkDenseAgainstCamera(settings->dense, settings->calib.camera.camera,
+                          "Camera.width/height of " + settings->calib_path,
                           [&](const std::string& key, const std::string& value,
                               const std::string& expected) { config.fail(key, value, expected); });
+}
 
+// An override must name a key some setting read, and not a retired one.
+void checkOverridesWereRead(const std::string& config_path,
+                            const std::vector<SettingOverride>& overrides,
+                            const SettingsFile& config, const std::optional<SettingsFile>& calib) {
   for (const SettingOverride& o : overrides) {
     if (const RetiredKey* retired = retiredKey(o.key)) {
       throw ConfigError(config_path + " (--set): " + o.key + " = " + o.value + ": the key is no longer used (" +
@@ -468,7 +482,12 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
                         ", expected a key of the settings (config_yaml/*.yaml lists them)");
     }
   }
+}
 
+// Unread keys of the config: calibration keys (with a calibration file) in one info line, retired
+// keys with their note, the rest warned about as typos and listed in unknown_keys.
+void reportUnreadConfigKeys(const std::string& config_path, const std::string& calib_path,
+                            const SettingsFile& config, Settings* settings) {
   bool ignored_calibration = false;
   for (const std::string& key : config.unreadKeys()) {
     if (!calib_path.empty() && isCalibrationKey(key)) {
@@ -480,12 +499,29 @@ Settings Settings::load(const std::string& config_path, const std::string& calib
       continue;
     }
     log::warn(config_path, ": unknown key ", key, " (ignored; a typo?)");
-    settings.unknown_keys.push_back(config_path + ": " + key);
+    settings->unknown_keys.push_back(config_path + ": " + key);
   }
   if (ignored_calibration) {
     log::info(config_path, ": Camera.*/DepthMapFactor/IMU.* keys ignored; calibration from ",
               calib_path);
   }
+}
+
+}  // namespace
+
+Settings Settings::load(const std::string& config_path, const std::string& calib_path,
+                        const std::vector<SettingOverride>& overrides) {
+  SettingsFile config(config_path);
+  std::optional<SettingsFile> calib;
+  if (!calib_path.empty()) calib.emplace(calib_path);
+  applyOverrides(overrides, &config, &calib);
+  Settings settings;
+  settings.config_path = config_path;
+  settings.overrides = overrides;
+  loadCalibration(config_path, calib_path, config, calib, &settings);
+  loadModuleOptions(config, &settings);
+  checkOverridesWereRead(config_path, overrides, config, calib);
+  reportUnreadConfigKeys(config_path, calib_path, config, &settings);
   return settings;
 }
 

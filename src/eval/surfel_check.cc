@@ -235,6 +235,187 @@ float MeshProximity::distance(const Eigen::Vector3f& p) const {
   return best <= max_distance_m_ ? best : inf;
 }
 
+namespace {
+
+// What the ground-truth frames saw of the scene.
+struct GroundTruthViews {
+  explicit GroundTruthViews(std::size_t num_samples) : best_cos(num_samples, 0.0f), seen(num_samples, 0) {}
+  // Per sample: the largest |cos| of the viewing angle over the frames that saw it (0 = unseen).
+  std::vector<float> best_cos;
+  std::vector<uint8_t> seen;
+  VoxelCentres dynamic_voxels{0.01f};
+};
+
+// The pinhole of the ideal grid in float, as the projections below use it.
+struct FloatPinhole {
+  explicit FloatPinhole(const PinholeCamera& camera)
+      : fx(static_cast<float>(camera.fx())),
+        fy(static_cast<float>(camera.fy())),
+        cx(static_cast<float>(camera.cx())),
+        cy(static_cast<float>(camera.cy())),
+        width(camera.width()),
+        height(camera.height()) {}
+  float fx, fy, cx, cy;
+  int width, height;
+};
+
+// A ground-truth camera pose T_w_c in float, both ways.
+struct FloatPose {
+  explicit FloatPose(const SE3& T_w_c)
+      : R_w_c(T_w_c.rotationMatrix().cast<float>()),
+        t_w_c(T_w_c.translation().cast<float>()),
+        R_c_w(R_w_c.transpose()),
+        t_c_w(-(R_c_w * t_w_c)) {}
+  Eigen::Matrix3f R_w_c;
+  Eigen::Vector3f t_w_c;
+  Eigen::Matrix3f R_c_w;
+  Eigen::Vector3f t_c_w;
+};
+
+// A distorting lens: depth and masks are taken onto the ideal grid, where the pinhole holds.
+void toIdealGrid(const Undistorter& undistorter, io::RgbdImuFrame* frame) {
+  if (!undistorter.active()) return;
+  cv::Mat ideal;
+  undistorter.toIdeal(frame->depth_m, &ideal, cv::INTER_NEAREST);
+  frame->depth_m = ideal;
+  if (!frame->mask.empty()) {
+    cv::Mat ideal_mask;
+    undistorter.toIdeal(frame->mask, &ideal_mask, cv::INTER_NEAREST);
+    frame->mask = ideal_mask;
+  }
+}
+
+// Marks the mesh samples the frame sees as static surface (depth agrees, mask clear) and keeps
+// their best viewing angle.
+void observeSamples(const io::RgbdImuFrame& frame, const FloatPose& pose, const FloatPinhole& camera,
+                    const SurfaceSamples& samples, const SurfelCheckOptions& options,
+                    GroundTruthViews* views) {
+  const float t = options.threshold_m;
+  const bool has_mask = !frame.mask.empty();
+  for (std::size_t s = 0; s < samples.points.size(); ++s) {
+    const Eigen::Vector3f p = pose.R_c_w * samples.points[s] + pose.t_c_w;
+    if (p.z() < 0.05f) continue;
+    const int u = static_cast<int>(std::lround(camera.fx * p.x() / p.z() + camera.cx));
+    const int v = static_cast<int>(std::lround(camera.fy * p.y() / p.z() + camera.cy));
+    if (u < 0 || v < 0 || u >= camera.width || v >= camera.height) continue;
+    const float z = frame.depth_m.at<float>(v, u);
+    const float tolerance =
+        std::max(t, 3.0f * static_cast<float>(options.depth_noise_m) * p.z() * p.z());
+    if (z <= 0.0f || std::abs(z - p.z()) > tolerance) continue;
+    if (has_mask && frame.mask.at<uint8_t>(v, u) != 0) continue;
+    views->seen[s] = 1;
+    const float cos_view = std::abs(samples.normals[s].dot(pose.R_w_c * p.normalized()));
+    views->best_cos[s] = std::max(views->best_cos[s], cos_view);
+  }
+}
+
+// The masked pixels with depth (every pixel_step-th), back-projected into the world.
+void addDynamicSurface(const io::RgbdImuFrame& frame, const FloatPose& pose,
+                       const FloatPinhole& camera, int pixel_step, VoxelCentres* dynamic_voxels) {
+  const float fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy;
+  for (int v = 0; v < camera.height; v += pixel_step) {
+    const uint8_t* mask = frame.mask.ptr<uint8_t>(v);
+    const float* depth = frame.depth_m.ptr<float>(v);
+    for (int u = 0; u < camera.width; u += pixel_step) {
+      if (mask[u] == 0 || depth[u] <= 0.0f) continue;
+      const float z = depth[u];
+      dynamic_voxels->add(pose.R_w_c * Eigen::Vector3f((u - cx) / fx * z, (v - cy) / fy * z, z) +
+                          pose.t_w_c);
+    }
+  }
+}
+
+// Ground-truth frames (every frame_step-th with a pose): visibility of mesh samples and dynamic
+// surfaces. Returns the number of frames checked.
+int observeGroundTruthFrames(const io::SequenceReader& sequence, const SurfaceSamples& samples,
+                             const SurfelCheckOptions& options, GroundTruthViews* views) {
+  std::vector<double> frame_times_s, gt_times_s;
+  for (int i = 0; i < sequence.frameCount(); i += options.frame_step) {
+    frame_times_s.push_back(sequence.frameTime(i));
+  }
+  for (const io::StampedPose& pose : sequence.groundTruth()) gt_times_s.push_back(pose.t_s);
+  const FloatPinhole camera(sequence.calib().camera.camera);
+  const Undistorter undistorter(sequence.calib().camera.model());
+  int frames_checked = 0;
+  for (const auto& [a, b] : io::associateTimestamps(frame_times_s, gt_times_s, 1e-3)) {
+    io::RgbdImuFrame frame = sequence.load(a * options.frame_step);
+    toIdealGrid(undistorter, &frame);
+    const FloatPose pose(sequence.groundTruth()[b].T_w_x);
+    observeSamples(frame, pose, camera, samples, options, views);
+    if (!frame.mask.empty()) addDynamicSurface(frame, pose, camera, options.pixel_step, &views->dynamic_voxels);
+    ++frames_checked;
+  }
+  return frames_checked;
+}
+
+// Area shares: static (within t of the mesh), on a dynamic surface, neither.
+void computeAreaShares(const SurfelDiscs& discs, const std::vector<float>& distance,
+                       const PointGrid& dynamic_points, float t, SurfelCheckResult* result) {
+  const std::vector<Eigen::Vector3f>& positions_gt = discs.positions_gt;
+  double static_area = 0.0, dynamic_area = 0.0, other_area = 0.0;
+  std::vector<double> static_distances;
+  for (std::size_t i = 0; i < positions_gt.size(); ++i) {
+    const double area = M_PI * discs.radii_m[i] * discs.radii_m[i];
+    result->total_area_m2 += area;
+    if (distance[i] <= t) {
+      static_area += area;
+      static_distances.push_back(distance[i]);
+    } else if (dynamic_points.anyWithin(positions_gt[i])) {
+      dynamic_area += area;
+    } else {
+      other_area += area;
+    }
+  }
+  if (result->total_area_m2 > 0.0) {
+    result->static_area_fraction = static_area / result->total_area_m2;
+    result->dynamic_area_fraction = dynamic_area / result->total_area_m2;
+    result->other_area_fraction = other_area / result->total_area_m2;
+  }
+  if (!static_distances.empty()) {
+    std::nth_element(static_distances.begin(),
+                     static_distances.begin() + static_distances.size() / 2,
+                     static_distances.end());
+    result->median_static_distance_m = static_distances[static_distances.size() / 2];
+  }
+}
+
+// Completeness over samples seen at a usable angle; also over every seen sample.
+void computeCompleteness(const SurfelDiscs& discs, const SurfaceSamples& samples,
+                         const GroundTruthViews& views, const SurfelCheckOptions& options,
+                         SurfelCheckResult* result) {
+  const std::vector<Eigen::Vector3f>& positions_gt = discs.positions_gt;
+  const float t = options.threshold_m;
+  const PointGrid surfel_centres(positions_gt, t);
+  float max_radius_m = 0.0f;
+  for (float r : discs.radii_m) max_radius_m = std::max(max_radius_m, r);
+  const PointGrid surfel_discs(positions_gt, t + max_radius_m);
+  const float min_cos = static_cast<float>(std::cos(options.max_view_angle_deg * M_PI / 180.0));
+  long covered_by_centres = 0, seen_any_angle = 0, covered_any_angle = 0;
+  for (std::size_t s = 0; s < samples.points.size(); ++s) {
+    if (!views.seen[s]) continue;
+    const Eigen::Vector3f& q = samples.points[s];
+    const bool covered = surfel_discs.any(q, [&](int i, const Eigen::Vector3f& c) {
+      return discDistance(q, c, discs.normals_gt[i], discs.radii_m[i]) <= t;
+    });
+    ++seen_any_angle;
+    if (covered) ++covered_any_angle;
+    if (views.best_cos[s] < min_cos) continue;
+    ++result->seen_samples;
+    if (covered) ++result->covered_samples;
+    if (surfel_centres.anyWithin(q)) ++covered_by_centres;
+  }
+  if (result->seen_samples > 0) {
+    result->completeness = static_cast<double>(result->covered_samples) / result->seen_samples;
+    result->completeness_centres = static_cast<double>(covered_by_centres) / result->seen_samples;
+  }
+  result->seen_samples_any_angle = seen_any_angle;
+  if (seen_any_angle > 0) {
+    result->completeness_any_angle = static_cast<double>(covered_any_angle) / seen_any_angle;
+  }
+}
+
+}  // namespace
+
 SurfelCheckResult checkSurfels(const SurfelDiscs& discs, const TriangleMesh& scene,
                                const io::SequenceReader* sequence,
                                const SurfelCheckOptions& options) {
@@ -252,135 +433,18 @@ SurfelCheckResult checkSurfels(const SurfelDiscs& discs, const TriangleMesh& sce
   for (std::size_t i = 0; i < positions_gt.size(); ++i)
     distance[i] = proximity.distance(positions_gt[i]);
 
-  // Ground-truth frames: visibility of mesh samples and dynamic surfaces.
   const SurfaceSamples samples = sampleSurface(scene, options.sample_spacing_m);
-  const std::size_t num_samples = samples.points.size();
-  result.num_samples = static_cast<long>(num_samples);
-  // Per sample: the largest |cos| of the viewing angle over the frames that saw it (0 = unseen).
-  std::vector<float> best_cos(num_samples, 0.0f);
-  std::vector<uint8_t> seen(num_samples, 0);
-  VoxelCentres dynamic_voxels(0.01f);
+  result.num_samples = static_cast<long>(samples.points.size());
+  GroundTruthViews views(samples.points.size());
   if (sequence != nullptr && sequence->hasGroundTruth()) {
-    std::vector<double> frame_times_s, gt_times_s;
-    for (int i = 0; i < sequence->frameCount(); i += options.frame_step) {
-      frame_times_s.push_back(sequence->frameTime(i));
-    }
-    for (const io::StampedPose& pose : sequence->groundTruth()) gt_times_s.push_back(pose.t_s);
-    const PinholeCamera& camera = sequence->calib().camera.camera;
-    // A distorting lens: depth and masks are taken onto the ideal grid, where the pinhole holds.
-    const Undistorter undistorter(sequence->calib().camera.model());
-    const float fx = static_cast<float>(camera.fx()), fy = static_cast<float>(camera.fy());
-    const float cx = static_cast<float>(camera.cx()), cy = static_cast<float>(camera.cy());
-    for (const auto& [a, b] : io::associateTimestamps(frame_times_s, gt_times_s, 1e-3)) {
-      io::RgbdImuFrame frame = sequence->load(a * options.frame_step);
-      if (undistorter.active()) {
-        cv::Mat ideal;
-        undistorter.toIdeal(frame.depth_m, &ideal, cv::INTER_NEAREST);
-        frame.depth_m = ideal;
-        if (!frame.mask.empty()) {
-          cv::Mat ideal_mask;
-          undistorter.toIdeal(frame.mask, &ideal_mask, cv::INTER_NEAREST);
-          frame.mask = ideal_mask;
-        }
-      }
-      const SE3& T_w_c = sequence->groundTruth()[b].T_w_x;
-      const Eigen::Matrix3f R_w_c = T_w_c.rotationMatrix().cast<float>();
-      const Eigen::Vector3f t_w_c = T_w_c.translation().cast<float>();
-      const Eigen::Matrix3f R_c_w = R_w_c.transpose();
-      const Eigen::Vector3f t_c_w = -(R_c_w * t_w_c);
-      const bool has_mask = !frame.mask.empty();
-      for (std::size_t s = 0; s < num_samples; ++s) {
-        const Eigen::Vector3f p = R_c_w * samples.points[s] + t_c_w;
-        if (p.z() < 0.05f) continue;
-        const int u = static_cast<int>(std::lround(fx * p.x() / p.z() + cx));
-        const int v = static_cast<int>(std::lround(fy * p.y() / p.z() + cy));
-        if (u < 0 || v < 0 || u >= camera.width() || v >= camera.height()) continue;
-        const float z = frame.depth_m.at<float>(v, u);
-        const float tolerance =
-            std::max(t, 3.0f * static_cast<float>(options.depth_noise_m) * p.z() * p.z());
-        if (z <= 0.0f || std::abs(z - p.z()) > tolerance) continue;
-        if (has_mask && frame.mask.at<uint8_t>(v, u) != 0) continue;
-        seen[s] = 1;
-        const float cos_view = std::abs(samples.normals[s].dot(R_w_c * p.normalized()));
-        best_cos[s] = std::max(best_cos[s], cos_view);
-      }
-      if (has_mask) {
-        for (int v = 0; v < camera.height(); v += options.pixel_step) {
-          const uint8_t* mask = frame.mask.ptr<uint8_t>(v);
-          const float* depth = frame.depth_m.ptr<float>(v);
-          for (int u = 0; u < camera.width(); u += options.pixel_step) {
-            if (mask[u] == 0 || depth[u] <= 0.0f) continue;
-            const float z = depth[u];
-            dynamic_voxels.add(R_w_c * Eigen::Vector3f((u - cx) / fx * z, (v - cy) / fy * z, z) +
-                               t_w_c);
-          }
-        }
-      }
-      ++result.frames_checked;
-    }
+    result.frames_checked = observeGroundTruthFrames(*sequence, samples, options, &views);
   } else if (sequence != nullptr) {
     log::warn(sequence->directory(),
               ": no ground truth; completeness and moving-object area not computed");
   }
-  const PointGrid dynamic_points(dynamic_voxels.centres(), t);
-
-  // Area shares.
-  double static_area = 0.0, dynamic_area = 0.0, other_area = 0.0;
-  std::vector<double> static_distances;
-  for (std::size_t i = 0; i < positions_gt.size(); ++i) {
-    const double area = M_PI * discs.radii_m[i] * discs.radii_m[i];
-    result.total_area_m2 += area;
-    if (distance[i] <= t) {
-      static_area += area;
-      static_distances.push_back(distance[i]);
-    } else if (dynamic_points.anyWithin(positions_gt[i])) {
-      dynamic_area += area;
-    } else {
-      other_area += area;
-    }
-  }
-  if (result.total_area_m2 > 0.0) {
-    result.static_area_fraction = static_area / result.total_area_m2;
-    result.dynamic_area_fraction = dynamic_area / result.total_area_m2;
-    result.other_area_fraction = other_area / result.total_area_m2;
-  }
-  if (!static_distances.empty()) {
-    std::nth_element(static_distances.begin(),
-                     static_distances.begin() + static_distances.size() / 2,
-                     static_distances.end());
-    result.median_static_distance_m = static_distances[static_distances.size() / 2];
-  }
-
-  // Completeness over samples seen at a usable angle; also over every seen sample.
-  if (result.frames_checked > 0) {
-    const PointGrid surfel_centres(positions_gt, t);
-    float max_radius_m = 0.0f;
-    for (float r : discs.radii_m) max_radius_m = std::max(max_radius_m, r);
-    const PointGrid surfel_discs(positions_gt, t + max_radius_m);
-    const float min_cos = static_cast<float>(std::cos(options.max_view_angle_deg * M_PI / 180.0));
-    long covered_by_centres = 0, seen_any_angle = 0, covered_any_angle = 0;
-    for (std::size_t s = 0; s < num_samples; ++s) {
-      if (!seen[s]) continue;
-      const Eigen::Vector3f& q = samples.points[s];
-      const bool covered = surfel_discs.any(q, [&](int i, const Eigen::Vector3f& c) {
-        return discDistance(q, c, discs.normals_gt[i], discs.radii_m[i]) <= t;
-      });
-      ++seen_any_angle;
-      if (covered) ++covered_any_angle;
-      if (best_cos[s] < min_cos) continue;
-      ++result.seen_samples;
-      if (covered) ++result.covered_samples;
-      if (surfel_centres.anyWithin(q)) ++covered_by_centres;
-    }
-    if (result.seen_samples > 0) {
-      result.completeness = static_cast<double>(result.covered_samples) / result.seen_samples;
-      result.completeness_centres = static_cast<double>(covered_by_centres) / result.seen_samples;
-    }
-    result.seen_samples_any_angle = seen_any_angle;
-    if (seen_any_angle > 0) {
-      result.completeness_any_angle = static_cast<double>(covered_any_angle) / seen_any_angle;
-    }
-  }
+  const PointGrid dynamic_points(views.dynamic_voxels.centres(), t);
+  computeAreaShares(discs, distance, dynamic_points, t, &result);
+  if (result.frames_checked > 0) computeCompleteness(discs, samples, views, options, &result);
   return result;
 }
 

@@ -326,23 +326,18 @@ cv::Mat runFigure(const RunRecord& run, const RunSeries& series) {
   return grid({{top.render(), error.render()}, {iou.render(), timing}});
 }
 
-int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& title) {
-  std::error_code exists_ec;
-  if (!fs::is_directory(fs::path(benchmark_dir) / "runs", exists_ec)) {
-    throw InputError(benchmark_dir, 0, "no runs/ folder (not a scripts/benchmark.sh output folder)");
-  }
-  const std::vector<RunRecord> runs = findRuns(benchmark_dir);
-  const std::string plots_dir = benchmark_dir + "/plots";
-  const std::string cache_dir = benchmark_dir + "/cache";
-  std::error_code ec;
-  fs::create_directories(plots_dir, ec);
-  if (ec) throw InputError(plots_dir, 0, "cannot create folder (" + ec.message() + ")");
+namespace {
 
-  struct Row {
-    const RunRecord* run;
-    RunSeries series;
-    std::string plot;
-  };
+// One run of the report: its record, series and figure (relative to the benchmark folder).
+struct Row {
+  const RunRecord* run;
+  RunSeries series;
+  std::string plot;
+};
+
+// Loads every run's series and writes its figure to plots/.
+std::vector<Row> plotRuns(const std::vector<RunRecord>& runs, const std::string& benchmark_dir,
+                          const std::string& cache_dir) {
   std::vector<Row> rows;
   for (const RunRecord& run : runs) {
     Row row{&run, loadSeries(run, cache_dir), ""};
@@ -353,10 +348,12 @@ int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& ti
     log::info("report: ", run.sequence_name, " ", run.variant, " plotted");
     rows.push_back(std::move(row));
   }
+  return rows;
+}
 
-  std::ostringstream md;
+void writeIntroduction(std::ostringstream& md, const std::string& title, std::size_t num_runs) {
   md << "# LTLO-SLAM benchmark\n\n" << title << "\n\n";
-  md << runs.size()
+  md << num_runs
      << " runs. Variants: `rgbd_inertial` (the full system), `rgbd_only` (`--no-imu`), "
      << "`seg_off` (`Seg.Enable = 0`: every pixel static). ATE: RMSE after SE3 alignment of the "
      << "whole trajectory; RPE per second; static IoU: the run's segmentation/ against the "
@@ -365,8 +362,10 @@ int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& ti
      << "trajectory and segmentation, checked by `check_surfels` (accuracy: share of surfel area "
      << "within 3 cm of scene.ply; boxes: share on moving objects; completeness: share of the "
      << "static surface seen at <= 80 deg covered within 3 cm).\n\n";
+}
 
-  // Means per scenario and variant.
+// Means per scenario and variant.
+void writeSummaryTable(std::ostringstream& md, const std::vector<Row>& rows) {
   md << "## Summary (mean over seeds)\n\n";
   md << "| scenario | variant | runs | ATE RMSE (m) | RPE (m/s) | RPE (deg/s) | static IoU | "
         "IoU occl. | FPS | tracking median (ms) | peak memory (MB) | maps | loops |\n";
@@ -416,7 +415,9 @@ int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& ti
        << " | " << show(groupMean(g, [&](const Row& r) { return metric(r, "loops"); }), "%.1f")
        << " |\n";
   }
+}
 
+void writeAllRunsTable(std::ostringstream& md, const std::vector<Row>& rows) {
   md << "\n## All runs\n\n";
   md << "| sequence | variant | ATE RMSE (m) | RPE (m/s) | RPE (deg/s) | static IoU | IoU occl. | "
         "FPS | tracking median (ms) | peak memory (MB) | maps | loops | merges | wall (s) |\n";
@@ -436,44 +437,51 @@ int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& ti
        << " | " << number(m.number("loops"), "%.0f") << " | " << number(m.number("merges"), "%.0f")
        << " | " << number(m.number("wall_s"), "%.1f") << " |\n";
   }
+}
 
+// Only when some run has a reconstruction.
+void writeReconstructionTable(std::ostringstream& md, const std::vector<Row>& rows) {
   bool any_recon = false;
   for (const Row& row : rows) any_recon |= row.run->recon.has_value();
-  if (any_recon) {
-    md << "\n## Reconstruction\n\n";
-    md << "| sequence | variant | surfels | accuracy (3 cm) | on moving boxes | completeness | "
-          "pixels fused | recon wall (s) | recon CPU (s) | peak memory (MB) |\n";
-    md << "|---|---|---|---|---|---|---|---|---|---|\n";
-    for (const Row& row : rows) {
-      if (!row.run->recon) continue;
-      const FlatJson& r = *row.run->recon;
-      const std::optional<FlatJson>& c = row.run->recon_check;
-      auto check = [&](const char* key) { return c ? c->number(key) : std::optional<double>(); };
-      md << "| " << row.run->sequence_name << " | " << row.run->variant << " | "
-         << number(r.number("surfels"), "%.0f") << " | "
-         << number(check("accuracy").has_value() ? std::optional<double>(100 * *check("accuracy"))
-                                                 : std::nullopt,
-                   "%.2f %%")
-         << " | "
-         << number(check("dynamic_area_fraction").has_value()
-                       ? std::optional<double>(100 * *check("dynamic_area_fraction"))
-                       : std::nullopt,
-                   "%.2f %%")
-         << " | "
-         << number(check("completeness").has_value()
-                       ? std::optional<double>(100 * *check("completeness"))
-                       : std::nullopt,
-                   "%.1f %%")
-         << " | " << (r.number("all_pixels").value_or(0) > 0 ? "all with depth" : "static") << " | "
-         << number(r.number("wall_s"), "%.1f") << " | " << number(r.number("cpu_s"), "%.1f")
-         << " | " << number(r.number("peak_memory_mb"), "%.0f") << " |\n";
-    }
+  if (!any_recon) return;
+  md << "\n## Reconstruction\n\n";
+  md << "| sequence | variant | surfels | accuracy (3 cm) | on moving boxes | completeness | "
+        "pixels fused | recon wall (s) | recon CPU (s) | peak memory (MB) |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const Row& row : rows) {
+    if (!row.run->recon) continue;
+    const FlatJson& r = *row.run->recon;
+    const std::optional<FlatJson>& c = row.run->recon_check;
+    auto check = [&](const char* key) { return c ? c->number(key) : std::optional<double>(); };
+    md << "| " << row.run->sequence_name << " | " << row.run->variant << " | "
+       << number(r.number("surfels"), "%.0f") << " | "
+       << number(check("accuracy").has_value() ? std::optional<double>(100 * *check("accuracy"))
+                                               : std::nullopt,
+                 "%.2f %%")
+       << " | "
+       << number(check("dynamic_area_fraction").has_value()
+                     ? std::optional<double>(100 * *check("dynamic_area_fraction"))
+                     : std::nullopt,
+                 "%.2f %%")
+       << " | "
+       << number(check("completeness").has_value()
+                     ? std::optional<double>(100 * *check("completeness"))
+                     : std::nullopt,
+                 "%.1f %%")
+       << " | " << (r.number("all_pixels").value_or(0) > 0 ? "all with depth" : "static") << " | "
+       << number(r.number("wall_s"), "%.1f") << " | " << number(r.number("cpu_s"), "%.1f")
+       << " | " << number(r.number("peak_memory_mb"), "%.0f") << " |\n";
   }
+}
 
+// The figures by scenario, each run's reconstruction snapshot after its figure when there is one.
+void writePlotsSection(std::ostringstream& md, const std::vector<Row>& rows,
+                       const std::string& benchmark_dir) {
   md << "\n## Plots\n\nPer run: trajectory top view (ground truth green, aligned estimate red, "
         "orange where more than 40 % of the pixels are dynamic), position error over time "
         "(occluded "
         "frames shaded), static IoU over time, time per call of each stage (median, p95).\n";
+  std::error_code ec;
   std::string scenario;
   for (const Row& row : rows) {
     if (row.run->scenario != scenario) {
@@ -488,6 +496,29 @@ int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& ti
          << fs::relative(bird, benchmark_dir).string() << ")\n";
     }
   }
+}
+
+}  // namespace
+
+int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& title) {
+  std::error_code exists_ec;
+  if (!fs::is_directory(fs::path(benchmark_dir) / "runs", exists_ec)) {
+    throw InputError(benchmark_dir, 0, "no runs/ folder (not a scripts/benchmark.sh output folder)");
+  }
+  const std::vector<RunRecord> runs = findRuns(benchmark_dir);
+  const std::string plots_dir = benchmark_dir + "/plots";
+  const std::string cache_dir = benchmark_dir + "/cache";
+  std::error_code ec;
+  fs::create_directories(plots_dir, ec);
+  if (ec) throw InputError(plots_dir, 0, "cannot create folder (" + ec.message() + ")");
+  const std::vector<Row> rows = plotRuns(runs, benchmark_dir, cache_dir);
+
+  std::ostringstream md;
+  writeIntroduction(md, title, runs.size());
+  writeSummaryTable(md, rows);
+  writeAllRunsTable(md, rows);
+  writeReconstructionTable(md, rows);
+  writePlotsSection(md, rows, benchmark_dir);
   const std::string path = benchmark_dir + "/report.md";
   std::ofstream out(path);
   if (!out) throw InputError(path, 0, "cannot open for writing");

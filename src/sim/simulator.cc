@@ -328,10 +328,10 @@ SequenceStats writeSequence(const SimOptions& options, const std::string& out_di
   return stats;
 }
 
-SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int progress_every) {
+namespace {
+
+void createSequenceFolders(const std::string& out_dir) {
   namespace fs = std::filesystem;
-  const SimOptions& options = sim.options();
-  const auto start = std::chrono::steady_clock::now();
   std::error_code error;
   for (const char* sub : {"rgb", "depth", "masks"}) {
     fs::create_directories(fs::path(out_dir) / sub, error);
@@ -339,6 +339,10 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
       throw InputError(out_dir, 0,
                        "cannot create directory " + std::string(sub) + ": " + error.message());
   }
+}
+
+void logSequenceStart(const Simulator& sim) {
+  const SimOptions& options = sim.options();
   log::info("simulate: scenario ", scenarioName(options.scenario), ", seed ", options.seed, ", ",
             options.duration_s, " s at ", options.fps, " fps, ", options.width_px, "x",
             options.height_px, options.noise_free ? ", noise-free" : "", ", textures: ",
@@ -346,142 +350,168 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
                 ? std::to_string(sim.scene().photo_paths.size()) + " photographs"
                 : "procedural",
             ", ", sim.scene().boxes.size(), " dynamic boxes");
+}
 
+bool inImuGap(const SimOptions& options, double t_s) {
+  return std::any_of(options.outages.begin(), options.outages.end(), [t_s](const SensorOutage& o) {
+    return o.kind == SensorOutage::Kind::kImuGap && o.covers(t_s);
+  });
+}
+
+// imu.txt (the samples outside IMU gaps, nan for a sensor without a sample at the stamp) and
+// imu_biases.txt (the true biases at every sample, gaps included).
+void writeImuFiles(const Simulator& sim, const std::string& dir) {
+  const SimOptions& options = sim.options();
   const SensorProfile& profile = options.sensor;
-  if (!profile.isIdeal()) log::info("simulate: sensor ", profile.describe());
-  const std::string dir = out_dir + "/";
-  sim.calib().write(dir + "calib.yaml");
-  io::writeTumTrajectory(dir + "groundtruth.txt", sim.groundTruth());
-  sim.scene().writePly(dir + "scene.ply");
-  {
-    std::ofstream imu = openText(dir + "imu.txt");
-    std::ofstream biases = openText(dir + "imu_biases.txt");
-    imu << "# timestamp gx gy gz ax ay az (s, rad/s, m/s^2, body frame)\n";
-    if (profile.imu_clocks_enable && !profile.merged_rows)
-      imu << "# gyroscope and accelerometer on their own clocks: nan = that sensor has no sample at this stamp\n";
-    biases << "# timestamp bgx bgy bgz bax bay baz (true biases, ground truth)\n";
-    char line[256];
-    const auto in_imu_gap = [&options](double t_s) {
-      return std::any_of(options.outages.begin(), options.outages.end(), [t_s](const SensorOutage& o) {
-        return o.kind == SensorOutage::Kind::kImuGap && o.covers(t_s);
-      });
-    };
-    for (const ImuSample& s : sim.imu()) {
-      if (!in_imu_gap(s.t_s)) {
-        if (s.has_gyro && s.has_acc) {
-          std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
-                        s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(),
-                        s.acc_mps2.y(), s.acc_mps2.z());
-        } else if (s.has_gyro) {
-          std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f nan nan nan\n", s.t_s, s.gyro_rad_s.x(),
-                        s.gyro_rad_s.y(), s.gyro_rad_s.z());
-        } else {
-          std::snprintf(line, sizeof(line), "%.6f nan nan nan %.9f %.9f %.9f\n", s.t_s, s.acc_mps2.x(),
-                        s.acc_mps2.y(), s.acc_mps2.z());
-        }
-        imu << line;
+  std::ofstream imu = openText(dir + "imu.txt");
+  std::ofstream biases = openText(dir + "imu_biases.txt");
+  imu << "# timestamp gx gy gz ax ay az (s, rad/s, m/s^2, body frame)\n";
+  if (profile.imu_clocks_enable && !profile.merged_rows)
+    imu << "# gyroscope and accelerometer on their own clocks: nan = that sensor has no sample at this stamp\n";
+  biases << "# timestamp bgx bgy bgz bax bay baz (true biases, ground truth)\n";
+  char line[256];
+  for (const ImuSample& s : sim.imu()) {
+    if (!inImuGap(options, s.t_s)) {
+      if (s.has_gyro && s.has_acc) {
+        std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
+                      s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(), s.acc_mps2.x(),
+                      s.acc_mps2.y(), s.acc_mps2.z());
+      } else if (s.has_gyro) {
+        std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f nan nan nan\n", s.t_s, s.gyro_rad_s.x(),
+                      s.gyro_rad_s.y(), s.gyro_rad_s.z());
+      } else {
+        std::snprintf(line, sizeof(line), "%.6f nan nan nan %.9f %.9f %.9f\n", s.t_s, s.acc_mps2.x(),
+                      s.acc_mps2.y(), s.acc_mps2.z());
       }
-      std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
-                    s.bias_gyro.x(), s.bias_gyro.y(), s.bias_gyro.z(), s.bias_acc.x(),
-                    s.bias_acc.y(), s.bias_acc.z());
-      biases << line;
+      imu << line;
     }
-    if (!imu || !biases) throw InputError(dir + "imu.txt", 0, "write failed");
+    std::snprintf(line, sizeof(line), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f\n", s.t_s,
+                  s.bias_gyro.x(), s.bias_gyro.y(), s.bias_gyro.z(), s.bias_acc.x(),
+                  s.bias_acc.y(), s.bias_acc.z());
+    biases << line;
+  }
+  if (!imu || !biases) throw InputError(dir + "imu.txt", 0, "write failed");
+}
+
+// rgb.txt, depth.txt and associations.txt: one line per written frame.
+class FrameIndexFiles {
+ public:
+  FrameIndexFiles(const std::string& dir, double depth_map_factor)
+      : rgb_txt_(openText(dir + "rgb.txt")),
+        depth_txt_(openText(dir + "depth.txt")),
+        assoc_txt_(openText(dir + "associations.txt")) {
+    rgb_txt_ << "# colour images\n# timestamp filename\n";
+    depth_txt_ << "# depth images (16-bit, metres = value / " << depth_map_factor
+               << ")\n# timestamp filename\n";
+    assoc_txt_ << "# t_rgb rgb t_depth depth\n";
+  }
+  void add(const std::string& name) {
+    rgb_txt_ << name << " rgb/" << name << ".png\n";
+    depth_txt_ << name << " depth/" << name << ".png\n";
+    assoc_txt_ << name << " rgb/" << name << ".png " << name << " depth/" << name << ".png\n";
   }
 
-  std::ofstream rgb_txt = openText(dir + "rgb.txt"), depth_txt = openText(dir + "depth.txt"),
-                assoc_txt = openText(dir + "associations.txt");
-  rgb_txt << "# colour images\n# timestamp filename\n";
-  depth_txt << "# depth images (16-bit, metres = value / " << options.depth_map_factor
-            << ")\n# timestamp filename\n";
-  assoc_txt << "# t_rgb rgb t_depth depth\n";
+ private:
+  std::ofstream rgb_txt_, depth_txt_, assoc_txt_;
+};
 
-  // PNG encoding runs on two writer threads; file contents never depend on their timing.
-  FrameQueue queue(6);
-  std::mutex error_mutex;
-  std::exception_ptr writer_error;
-  std::vector<double> png_time_s(2, 0.0);
-  auto writeFrames = [&](int worker) {
+// PNG encoding runs on two writer threads; file contents never depend on their timing.
+class PngWriters {
+ public:
+  PngWriters(const std::string& dir, int png_compression) : dir_(dir), png_compression_(png_compression) {
+    for (int worker = 0; worker < 2; ++worker) writers_.emplace_back(&PngWriters::writeFrames, this, worker);
+  }
+  void push(SimFrame frame) { queue_.push(std::move(frame)); }
+  /// Closes the queue and waits until the writers have written everything queued.
+  void join() {
+    queue_.close();
+    for (std::thread& writer : writers_) writer.join();
+  }
+  /// The first error a writer met (after join()).
+  void rethrowError() const {
+    if (writer_error_) std::rethrow_exception(writer_error_);
+  }
+  double pngTimeS() const { return png_time_s_[0] + png_time_s_[1]; }
+
+ private:
+  void writeFrames(int worker) {
     log::setThreadName("png" + std::to_string(worker));
     SimFrame frame;
-    while (queue.pop(&frame)) {
+    while (queue_.pop(&frame)) {
       try {
         const auto t0 = std::chrono::steady_clock::now();
         const std::string name = stamp(frame.t_s) + ".png";
-        writePng(dir + "rgb/" + name, frame.bgr, options.png_compression);
-        writePng(dir + "depth/" + name, frame.depth_raw, options.png_compression);
-        writePng(dir + "masks/" + name, frame.mask, options.png_compression);
-        png_time_s[worker] +=
+        writePng(dir_ + "rgb/" + name, frame.bgr, png_compression_);
+        writePng(dir_ + "depth/" + name, frame.depth_raw, png_compression_);
+        writePng(dir_ + "masks/" + name, frame.mask, png_compression_);
+        png_time_s_[worker] +=
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } catch (...) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!writer_error) writer_error = std::current_exception();
+        std::lock_guard<std::mutex> lock(error_mutex_);
+        if (!writer_error_) writer_error_ = std::current_exception();
       }
     }
-  };
-  std::vector<std::thread> writers;
-  for (int worker = 0; worker < 2; ++worker) writers.emplace_back(writeFrames, worker);
-  auto joinWriters = [&] {
-    queue.close();
-    for (std::thread& writer : writers) writer.join();
-  };
+  }
 
-  SequenceStats stats;
-  stats.duration_s = options.duration_s;
-  std::vector<WrittenFrame> written;
+  const std::string dir_;
+  const int png_compression_;
+  FrameQueue queue_{6};
+  std::mutex error_mutex_;
+  std::exception_ptr writer_error_;
+  std::vector<double> png_time_s_ = std::vector<double>(2, 0.0);
+  std::vector<std::thread> writers_;  // last: the threads start once the members above exist
+};
+
+// Dynamic-share statistics over the written frames.
+struct OcclusionTally {
   int occluded = 0, run = 0, longest_run = 0;
   double dynamic_sum = 0.0, present_sum = 0.0;
   int present = 0;
-  auto last_report = std::chrono::steady_clock::now();
-  try {
-    for (int i = 0; i < sim.numFrames(); ++i) {
-      if (sim.frameDropped(i)) {  // never rendered: the driver lost it
-        ++stats.num_dropped;
-        continue;
-      }
-      ++stats.num_frames;
-      SimFrame frame = sim.renderFrame(i);
-      if (!profile.isIdeal()) written.push_back({i, frame.t_s, frame.t_true_s, frame.gain});
-      const std::string name = stamp(frame.t_s);
-      rgb_txt << name << " rgb/" << name << ".png\n";
-      depth_txt << name << " depth/" << name << ".png\n";
-      assoc_txt << name << " rgb/" << name << ".png " << name << " depth/" << name << ".png\n";
-      dynamic_sum += frame.dynamic_fraction;
-      if (frame.dynamic_fraction > 0.01) {
-        ++present;
-        present_sum += frame.dynamic_fraction;
-      }
-      if (frame.dynamic_fraction > kLargeOcclusion) {
-        ++occluded;
-        longest_run = std::max(longest_run, ++run);
-      } else {
-        run = 0;
-      }
-      queue.push(std::move(frame));
-      if (progress_every > 0 && (i + 1) % progress_every == 0) {
-        const auto now = std::chrono::steady_clock::now();
-        const double dt = std::chrono::duration<double>(now - last_report).count();
-        log::info("frame ", i + 1, "/", sim.numFrames(), ", ", progress_every / std::max(dt, 1e-9),
-                  " fps");
-        last_report = now;
-      }
+
+  void add(double dynamic_fraction) {
+    dynamic_sum += dynamic_fraction;
+    if (dynamic_fraction > 0.01) {
+      ++present;
+      present_sum += dynamic_fraction;
     }
-  } catch (...) {
-    joinWriters();
-    throw;
+    if (dynamic_fraction > kLargeOcclusion) {
+      ++occluded;
+      longest_run = std::max(longest_run, ++run);
+    } else {
+      run = 0;
+    }
   }
-  joinWriters();
-  if (writer_error) std::rethrow_exception(writer_error);
+};
 
-  const double elapsed_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  stats.path_length_m = sim.trajectory().pathLength(options.duration_s);
-  stats.occluded_share = occluded / static_cast<double>(stats.num_frames);
-  stats.mean_dynamic_fraction = dynamic_sum / stats.num_frames;
-  stats.longest_occlusion_s = longest_run / options.fps;
-  stats.mean_fraction_when_present = present > 0 ? present_sum / present : 0.0;
-  stats.frames_per_s = stats.num_frames / elapsed_s;
+// Renders every frame the driver does not drop, indexes it and queues it for the PNG writers.
+void renderFrames(Simulator& sim, int progress_every, FrameIndexFiles* index, PngWriters* writers,
+                  SequenceStats* stats, std::vector<WrittenFrame>* written, OcclusionTally* tally) {
+  const SensorProfile& profile = sim.options().sensor;
+  auto last_report = std::chrono::steady_clock::now();
+  for (int i = 0; i < sim.numFrames(); ++i) {
+    if (sim.frameDropped(i)) {  // never rendered: the driver lost it
+      ++stats->num_dropped;
+      continue;
+    }
+    ++stats->num_frames;
+    SimFrame frame = sim.renderFrame(i);
+    if (!profile.isIdeal()) written->push_back({i, frame.t_s, frame.t_true_s, frame.gain});
+    index->add(stamp(frame.t_s));
+    tally->add(frame.dynamic_fraction);
+    writers->push(std::move(frame));
+    if (progress_every > 0 && (i + 1) % progress_every == 0) {
+      const auto now = std::chrono::steady_clock::now();
+      const double dt = std::chrono::duration<double>(now - last_report).count();
+      log::info("frame ", i + 1, "/", sim.numFrames(), ", ", progress_every / std::max(dt, 1e-9),
+                " fps");
+      last_report = now;
+    }
+  }
+}
 
+void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std::string& dir) {
+  const SimOptions& options = sim.options();
+  const SensorProfile& profile = options.sensor;
   std::ofstream out = openText(dir + "stats.txt");
   out << "scenario " << scenarioName(options.scenario) << "\nseed " << options.seed
       << "\nduration_s " << stats.duration_s << "\nnum_frames " << stats.num_frames << "\nfps "
@@ -507,6 +537,49 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
       << (sim.scene().photo_textures ? "photographs" : "procedural") << "\n";
   for (const std::string& path : sim.scene().photo_paths) out << "texture_photo " << path << "\n";
   if (!out) throw InputError(dir + "stats.txt", 0, "write failed");
+}
+
+}  // namespace
+
+SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int progress_every) {
+  const SimOptions& options = sim.options();
+  const auto start = std::chrono::steady_clock::now();
+  createSequenceFolders(out_dir);
+  logSequenceStart(sim);
+
+  const SensorProfile& profile = options.sensor;
+  if (!profile.isIdeal()) log::info("simulate: sensor ", profile.describe());
+  const std::string dir = out_dir + "/";
+  sim.calib().write(dir + "calib.yaml");
+  io::writeTumTrajectory(dir + "groundtruth.txt", sim.groundTruth());
+  sim.scene().writePly(dir + "scene.ply");
+  writeImuFiles(sim, dir);
+
+  FrameIndexFiles index(dir, options.depth_map_factor);
+  PngWriters writers(dir, options.png_compression);
+  SequenceStats stats;
+  stats.duration_s = options.duration_s;
+  std::vector<WrittenFrame> written;
+  OcclusionTally tally;
+  try {
+    renderFrames(sim, progress_every, &index, &writers, &stats, &written, &tally);
+  } catch (...) {
+    writers.join();
+    throw;
+  }
+  writers.join();
+  writers.rethrowError();
+
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stats.path_length_m = sim.trajectory().pathLength(options.duration_s);
+  stats.occluded_share = tally.occluded / static_cast<double>(stats.num_frames);
+  stats.mean_dynamic_fraction = tally.dynamic_sum / stats.num_frames;
+  stats.longest_occlusion_s = tally.longest_run / options.fps;
+  stats.mean_fraction_when_present = tally.present > 0 ? tally.present_sum / tally.present : 0.0;
+  stats.frames_per_s = stats.num_frames / elapsed_s;
+
+  writeStatsFile(sim, stats, dir);
   if (!profile.isIdeal()) {
     std::vector<double> frame_times(sim.numFrames());
     for (int i = 0; i < sim.numFrames(); ++i) frame_times[i] = sim.frameTime(i);
@@ -519,7 +592,7 @@ SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int prog
             stats.longest_occlusion_s, " s");
   log::info("simulate: per frame ", 1e3 * sim.renderTimeS() / stats.num_frames, " ms render, ",
             1e3 * sim.effectsTimeS() / stats.num_frames, " ms sensor effects, ",
-            1e3 * (png_time_s[0] + png_time_s[1]) / stats.num_frames, " ms PNG (2 writer threads)");
+            1e3 * writers.pngTimeS() / stats.num_frames, " ms PNG (2 writer threads)");
   return stats;
 }
 
