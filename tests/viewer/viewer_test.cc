@@ -188,7 +188,9 @@ TEST(RunReplay, EachFrameSeesTheRunUpToItsTime) {
     EXPECT_TRUE(s.replay);
     EXPECT_EQ(s.frame.index, i);
     EXPECT_EQ(s.frame.has_pose, i != 2) << i;
-    if (s.frame.has_pose) EXPECT_NEAR(s.frame.T_w_c.translation().x(), 0.5 * i, 1e-12) << i;
+    if (s.frame.has_pose) {
+      EXPECT_NEAR(s.frame.T_w_c.translation().x(), 0.5 * i, 1e-12) << i;
+    }
     EXPECT_EQ(s.map.trajectory_w.size(), static_cast<std::size_t>(i < 2 ? i + 1 : i)) << i;
     EXPECT_EQ(s.map.keyframes_T_w_c.size(), i < 3 ? 1u : 2u) << i;
     EXPECT_EQ(s.map.maps, i < 3 ? 1 : 2) << i;
