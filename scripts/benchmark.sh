@@ -12,6 +12,8 @@
 #             the others are generated into OUT/sequences/ (simulate)
 #   SETTINGS  [config_yaml/synthetic.yaml]   RECON [1]: reconstruct + check_surfels the
 #             rgbd_inertial runs   BUILD [1]: build first (scripts/build.sh)
+#   RESULTS_MD [unset]  e.g. docs/results.md: its benchmark block becomes this report's summary
+#             (scripts/update_results.sh)
 #
 # Resumable: a run folder with a DONE file is skipped, so the command can be stopped and started
 # again; a failed run is reported and retried on the next start. Progress: one line per run.
@@ -120,4 +122,5 @@ commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 echo
 sed -n '/^## Summary/,/^## All runs/p' "$OUT/report.md" | sed '$d'
 echo "report: $OUT/report.md   plots: $OUT/plots/"
+if [ -n "${RESULTS_MD:-}" ]; then scripts/update_results.sh "$OUT/report.md" "$RESULTS_MD"; fi
 [ "$failed" = 0 ]
