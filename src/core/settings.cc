@@ -126,6 +126,9 @@ void visitLoop(O& o, V& v) {
   v.boolean("Loop.Proximity", o.proximity);
   v.integer("Loop.RefineKeyFrames", o.refine_keyframes, 0, 1000);
   v.real("Loop.ProximitySigma", o.proximity_sigma_m, 0.005, 5.0);
+  v.real("Loop.ProximityMinAge", o.proximity_min_age_s, 0.0, 3600.0);
+  v.real("Loop.ProximityMaxDistance", o.proximity_max_distance_m, 0.1, 100.0);
+  v.real("Loop.RejoinMaxSigma", o.rejoin_max_sigma_m, 0.01, 100.0);
 }
 
 template <typename O, typename V>

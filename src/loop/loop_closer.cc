@@ -35,10 +35,9 @@ constexpr double kRejoinRefineSigma_m = 0.02;
 constexpr double kRejoinRefineSigma_rad = 0.01;
 /// Descriptor distance of a vote for the world offset (ORB's strict match threshold).
 constexpr int kRejoinVoteDescriptorDistance = 50;
-/// The proximity loop search (Loop.Proximity): keyframes at least this old (s) and this near (m);
-/// its rotation sigma; a found pose closer to kf's than both minima is no loop to correct.
-constexpr double kProximityMinAge_s = 10.0;
-constexpr double kProximityMaxDistance_m = 2.0;
+/// The proximity loop search (Loop.Proximity; its age and distance limits are Loop.ProximityMinAge
+/// and Loop.ProximityMaxDistance): its rotation sigma; a found pose closer to kf's than both minima
+/// is no loop to correct.
 constexpr double kProximitySigma_rad = 0.01;
 constexpr double kProximityMinCorrection_m = 0.01;
 constexpr double kProximityMinCorrection_rad = 0.005;
@@ -48,8 +47,6 @@ constexpr double kProximityMinCorrection_rad = 0.005;
 /// matched in a sliver of the view beside a box, 0.78 and 0.92 deg.
 constexpr double kMaxCorrectionYawSigma_rad = 0.5 * M_PI / 180.0;
 bool fixesYaw(const GuidedPlaceMatch& found) { return found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad; }
-/// Largest position sigma (m) of a rejoin search: 3 sigma reaches 3 m, a room's scale.
-constexpr double kRejoinMaxSigma_m = 1.0;
 /// Ancestors of a map's origin chain searched by the rejoin (the parent first).
 constexpr int kRejoinMaxAncestors = 4;
 /// Best covisibles forming a candidate's group (consistency) and setting the BoW score threshold.
@@ -299,8 +296,8 @@ bool LoopCloser::Impl::tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf
   if (keyframes_since_correction <= kKeyFramesBetweenLoops || !gravity()) return false;
   GuidedPlaceMatchOptions search = guidedSearch(*kf, options.loop.proximity_sigma_m, kProximitySigma_rad, 37u);
   // Old keyframes only, outside kf's neighbourhood, in reach of kf's view.
-  search.max_keyframe_t_s = kf->t_s() - kProximityMinAge_s;
-  search.max_keyframe_distance_m = kProximityMaxDistance_m;
+  search.max_keyframe_t_s = kf->t_s() - options.loop.proximity_min_age_s;
+  search.max_keyframe_distance_m = options.loop.proximity_max_distance_m;
   search.excluded_keyframes.push_back(kf->id());
   for (const auto& [id, weight] : kf->covisibles()) search.excluded_keyframes.push_back(id);
   const SE3 T_w_c = kf->T_w_c();
@@ -424,7 +421,7 @@ bool LoopCloser::Impl::tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::
     }
     // Beyond this the prediction no longer knows where the map is: not a guided search (BoW may
     // still merge it).
-    if (target_sigma_m > kRejoinMaxSigma_m) break;
+    if (target_sigma_m > options.loop.rejoin_max_sigma_m) break;  // Loop.RejoinMaxSigma
     if (std::find(searched.begin(), searched.end(), target_id) == searched.end()) {
       searched.push_back(target_id);
       map::Map* target = atlas.map(target_id);

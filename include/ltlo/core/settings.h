@@ -307,6 +307,17 @@ struct LoopOptions {
   bool proximity = true;
   /// standard deviation of that drift, m (Loop.ProximitySigma, [0.005, 5])
   double proximity_sigma_m = 0.10;
+  /// The proximity search looks at keyframes at least this old, s (Loop.ProximityMinAge, [0, 3600]):
+  /// younger ones are still covisible with the keyframe, so a match with them closes no loop
+  double proximity_min_age_s = 10.0;
+  /// and at most this far from the keyframe, m (Loop.ProximityMaxDistance, [0.1, 100]): the generated
+  /// rooms' laps return within 0.2-1.5 m of an old keyframe (check_loops.py on static/mtlo/ltlo/carried
+  /// seeds 1-3); a larger space, or a wider lap, needs more
+  double proximity_max_distance_m = 2.0;
+  /// Largest position sigma of the dead reckoning a map's rejoin still searches by guided matching,
+  /// m (Loop.RejoinMaxSigma, [0.01, 100]): 3 sigma reaches 3 m, a room's scale; beyond it only BoW
+  /// place recognition can merge the map
+  double rejoin_max_sigma_m = 1.0;
   /// The full BA after a loop or merge sees only the matches of that one keyframe; the keyframes
   /// that follow keep observing the old side. This many keyframes after a correction the full BA
   /// runs once more, with that evidence (Loop.RefineKeyFrames; 0: off)
