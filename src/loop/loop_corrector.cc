@@ -92,109 +92,138 @@ std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::K
   return loop;
 }
 
-LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, const LoopCorrectionOptions& options) {
-  LoopCorrectionResult result;
-  const std::shared_ptr<map::KeyFrame> current = map.keyFrame(loop.current);
-  const std::shared_ptr<map::KeyFrame> loop_kf = map.keyFrame(loop.loop);
-  LTLO_ASSERT(current && loop_kf,
-              "correctLoop: keyframe " << loop.current << " or " << loop.loop << " is not in map " << map.id());
+namespace {
 
-  // Pre-loop state: poses and the edges whose relative poses stay measurements.
-  const std::vector<std::shared_ptr<map::KeyFrame>> keyframes = map.keyFrames();
-  std::unordered_map<map::KeyFrameId, SE3> T_w_b_old;
-  for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) T_w_b_old[kf->id()] = kf->T_w_b();
-  const bool with_gravity = options.g_w.has_value();
+/// Keyframe poses by id, m and rad (T_w_b).
+using KeyFramePoses = std::unordered_map<map::KeyFrameId, SE3>;
+
+/// Pre-loop state: poses and the edges whose relative poses stay measurements.
+struct PreLoopState {
+  KeyFramePoses T_w_b_old;
   std::set<std::pair<map::KeyFrameId, map::KeyFrameId>> old_edges;
-  for (const map::EssentialEdge& e : map::essentialGraphEdges(map, map::kEssentialCovisibilityWeight, with_gravity)) {
-    old_edges.insert(orderedPair(e.from, e.to));
-  }
+};
 
-  // 1. The current keyframe's covisible window moves rigidly with it: T_new = C * T_old (with
-  //    gravity: C's yaw and the translation that puts the current keyframe where the loop says).
-  const SE3& T_w_b_current_old = T_w_b_old.at(current->id());
+PreLoopState preLoopState(const map::Map& map, bool with_gravity) {
+  PreLoopState state;
+  const std::vector<std::shared_ptr<map::KeyFrame>> keyframes = map.keyFrames();
+  for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) state.T_w_b_old[kf->id()] = kf->T_w_b();
+  for (const map::EssentialEdge& e : map::essentialGraphEdges(map, map::kEssentialCovisibilityWeight, with_gravity)) {
+    state.old_edges.insert(orderedPair(e.from, e.to));
+  }
+  return state;
+}
+
+/// The current keyframe's covisible window (without the loop keyframe) after the loop's rigid
+/// correction, and which window keyframe moved each of their points.
+struct MovedWindow {
+  std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
+  std::unordered_map<map::MapPointId, map::KeyFrameId> corrected_by;
+};
+
+/// 1. The current keyframe's covisible window moves rigidly with it: T_new = C * T_old (with
+///    gravity: C's yaw and the translation that puts the current keyframe where the loop says).
+MovedWindow moveWindowRigidly(map::Map& map, const LoopClosure& loop, const map::KeyFrame& loop_kf,
+                              const std::shared_ptr<map::KeyFrame>& current, const SE3& T_w_b_current_old,
+                              const LoopCorrectionOptions& options) {
+  const bool with_gravity = options.g_w.has_value();
   SE3 C = loop.T_w_b_current_corrected * T_w_b_current_old.inverse();
   if (with_gravity) C = optim::fourDofCorrection(C, *options.g_w, T_w_b_current_old.translation());
   const Mat3 R_C = C.rotationMatrix();
-  std::vector<std::shared_ptr<map::KeyFrame>> window{current};
+  MovedWindow window;
+  window.keyframes.push_back(current);
   for (const auto& [id, weight] : current->covisibles()) {
-    if (id == loop_kf->id()) continue;
-    if (std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id); kf && !kf->isBad()) window.push_back(kf);
+    if (id == loop_kf.id()) continue;
+    if (std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id); kf && !kf->isBad()) window.keyframes.push_back(kf);
   }
-  result.window_size = static_cast<int>(window.size());
-  std::unordered_map<map::MapPointId, map::KeyFrameId> corrected_by;
-  for (const std::shared_ptr<map::KeyFrame>& kf : window) {
+  for (const std::shared_ptr<map::KeyFrame>& kf : window.keyframes) {
     for (const map::MapPointId point_id : kf->mapPoints()) {
-      if (!point_id.valid() || corrected_by.count(point_id) > 0) continue;
+      if (!point_id.valid() || window.corrected_by.count(point_id) > 0) continue;
       const std::shared_ptr<map::MapPoint> point = map.mapPoint(point_id);
       if (!point || point->isBad()) continue;
       point->setPosition(C * point->p_w());
-      corrected_by[point_id] = kf->id();
+      window.corrected_by[point_id] = kf->id();
     }
     kf->setPose_T_w_b(C * kf->T_w_b());
     if (with_gravity) kf->setVelocity(R_C * kf->v_w_b());
   }
+  return window;
+}
 
-  // 2. Fusion: the current keyframe's keypoints take the loop points.
+/// 2. Fusion: the current keyframe's keypoints take the loop points.
+void fuseLoopPoints(map::Map& map, const LoopClosure& loop, map::KeyFrame& current, LoopCorrectionResult* result) {
   for (const LoopMatch& match : loop.matches) {
     const std::shared_ptr<map::MapPoint> loop_point = map.mapPoint(match.loop_point);
     if (!loop_point || loop_point->isBad()) continue;
-    const map::MapPointId existing = current->mapPoint(match.keypoint);
+    const map::MapPointId existing = current.mapPoint(match.keypoint);
     if (existing == match.loop_point) continue;
     if (existing.valid()) {
-      if (map.replaceMapPoint(existing, match.loop_point)) ++result.fused_points;
-    } else if (!loop_point->indexIn(current->id()) && map.addObservation(*current, match.keypoint, *loop_point)) {
-      ++result.added_observations;
+      if (map.replaceMapPoint(existing, match.loop_point)) ++result->fused_points;
+    } else if (!loop_point->indexIn(current.id()) && map.addObservation(current, match.keypoint, *loop_point)) {
+      ++result->added_observations;
     }
   }
-  for (const std::shared_ptr<map::KeyFrame>& kf : window) map.updateConnections(*kf);
-  current->addLoopEdge(loop_kf->id());
-  loop_kf->addLoopEdge(current->id());
+}
 
-  // 3. Essential graph with the loop keyframe fixed.
-  std::vector<std::shared_ptr<map::KeyFrame>> nodes_kf = map.keyFrames();
+/// The essential graph of the map's keyframes (from `keyframes`, the bad ones left out) with the
+/// loop keyframe fixed.
+struct EssentialPoseGraph {
   std::unordered_map<map::KeyFrameId, int> node_of;
   std::vector<optim::PoseGraphNode> nodes;
-  std::unordered_map<map::KeyFrameId, SE3> T_w_b_input;
-  for (const std::shared_ptr<map::KeyFrame>& kf : nodes_kf) {
+  KeyFramePoses T_w_b_input;  ///< the nodes' poses as given to the optimiser
+  std::vector<optim::PoseGraphEdge> edges;
+};
+
+/// 3. Essential graph with the loop keyframe fixed. Edges that existed before the correction keep
+///    their pre-loop relative pose; new ones take the corrected poses.
+EssentialPoseGraph essentialPoseGraph(const map::Map& map, const std::vector<std::shared_ptr<map::KeyFrame>>& keyframes,
+                                      map::KeyFrameId loop_kf, const PreLoopState& pre_loop, bool with_gravity) {
+  EssentialPoseGraph graph;
+  for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) {
     if (kf->isBad()) continue;
     optim::PoseGraphNode node;
-    node.id = static_cast<int>(nodes.size());
+    node.id = static_cast<int>(graph.nodes.size());
     node.T_w_b = kf->T_w_b();
-    node.fixed = kf->id() == loop_kf->id();
-    node_of[kf->id()] = node.id;
-    T_w_b_input[kf->id()] = node.T_w_b;
-    nodes.push_back(node);
+    node.fixed = kf->id() == loop_kf;
+    graph.node_of[kf->id()] = node.id;
+    graph.T_w_b_input[kf->id()] = node.T_w_b;
+    graph.nodes.push_back(node);
   }
-  std::vector<optim::PoseGraphEdge> edges;
+  const KeyFramePoses& T_w_b_old = pre_loop.T_w_b_old;
   for (const map::EssentialEdge& e : map::essentialGraphEdges(map, map::kEssentialCovisibilityWeight, with_gravity)) {
-    if (node_of.count(e.from) == 0 || node_of.count(e.to) == 0) continue;
-    const bool existed =
-        old_edges.count(orderedPair(e.from, e.to)) > 0 && T_w_b_old.count(e.from) > 0 && T_w_b_old.count(e.to) > 0;
-    const std::unordered_map<map::KeyFrameId, SE3>& poses = existed ? T_w_b_old : T_w_b_input;
+    if (graph.node_of.count(e.from) == 0 || graph.node_of.count(e.to) == 0) continue;
+    const bool existed = pre_loop.old_edges.count(orderedPair(e.from, e.to)) > 0 && T_w_b_old.count(e.from) > 0 &&
+                         T_w_b_old.count(e.to) > 0;
+    const KeyFramePoses& poses = existed ? T_w_b_old : graph.T_w_b_input;
     optim::PoseGraphEdge edge;
-    edge.id_i = node_of.at(e.from);
-    edge.id_j = node_of.at(e.to);
+    edge.id_i = graph.node_of.at(e.from);
+    edge.id_j = graph.node_of.at(e.to);
     edge.T_i_j = poses.at(e.from).inverse() * poses.at(e.to);
-    edges.push_back(edge);
+    graph.edges.push_back(edge);
   }
-  result.graph_edges = static_cast<int>(edges.size());
-  const optim::PoseGraphResult optimised =
-      with_gravity ? optim::optimizePoseGraph4Dof(nodes, edges, *options.g_w, options.iterations)
-                   : optim::optimizePoseGraph(nodes, edges, options.iterations);
-  result.initial_cost = optimised.summary.initial_chi2;
-  result.final_cost = optimised.summary.final_chi2;
+  return graph;
+}
 
-  // 4. Write back poses; points move with their keyframe's correction.
-  std::unordered_map<map::KeyFrameId, SE3> correction;  // T_new * T_input^-1
-  for (const std::shared_ptr<map::KeyFrame>& kf : nodes_kf) {
-    const auto it = node_of.find(kf->id());
-    if (it == node_of.end()) continue;
+/// 4. Write back poses; returns each keyframe's correction T_new * T_input^-1.
+KeyFramePoses writeOptimisedPoses(const std::vector<std::shared_ptr<map::KeyFrame>>& keyframes,
+                                  const EssentialPoseGraph& graph, const optim::PoseGraphResult& optimised,
+                                  bool with_gravity) {
+  KeyFramePoses correction;  // T_new * T_input^-1
+  for (const std::shared_ptr<map::KeyFrame>& kf : keyframes) {
+    const auto it = graph.node_of.find(kf->id());
+    if (it == graph.node_of.end()) continue;
     const SE3& T_new = optimised.nodes[static_cast<std::size_t>(it->second)].T_w_b;
-    correction[kf->id()] = T_new * T_w_b_input.at(kf->id()).inverse();
+    correction[kf->id()] = T_new * graph.T_w_b_input.at(kf->id()).inverse();
     kf->setPose_T_w_b(T_new);
     // The velocity is in the world frame: it turns with the pose (a yaw about gravity here).
     if (with_gravity) kf->setVelocity(correction[kf->id()].rotationMatrix() * kf->v_w_b());
   }
+  return correction;
+}
+
+/// Points move with their keyframe's correction: the window keyframe that corrected them, else
+/// their reference keyframe, else their first observer with a correction.
+void movePointsWithKeyFrames(const map::Map& map, const std::unordered_map<map::MapPointId, map::KeyFrameId>& corrected_by,
+                             const KeyFramePoses& correction) {
   for (const std::shared_ptr<map::MapPoint>& point : map.mapPoints()) {
     if (point->isBad()) continue;
     map::KeyFrameId by;
@@ -216,6 +245,39 @@ LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, const L
     if (!by.valid()) continue;
     point->setPosition(correction.at(by) * point->p_w());
   }
+}
+
+}  // namespace
+
+LoopCorrectionResult correctLoop(map::Map& map, const LoopClosure& loop, const LoopCorrectionOptions& options) {
+  LoopCorrectionResult result;
+  const std::shared_ptr<map::KeyFrame> current = map.keyFrame(loop.current);
+  const std::shared_ptr<map::KeyFrame> loop_kf = map.keyFrame(loop.loop);
+  LTLO_ASSERT(current && loop_kf,
+              "correctLoop: keyframe " << loop.current << " or " << loop.loop << " is not in map " << map.id());
+  const bool with_gravity = options.g_w.has_value();
+  const PreLoopState pre_loop = preLoopState(map, with_gravity);
+
+  const MovedWindow window =
+      moveWindowRigidly(map, loop, *loop_kf, current, pre_loop.T_w_b_old.at(current->id()), options);
+  result.window_size = static_cast<int>(window.keyframes.size());
+
+  fuseLoopPoints(map, loop, *current, &result);
+  for (const std::shared_ptr<map::KeyFrame>& kf : window.keyframes) map.updateConnections(*kf);
+  current->addLoopEdge(loop_kf->id());
+  loop_kf->addLoopEdge(current->id());
+
+  const std::vector<std::shared_ptr<map::KeyFrame>> nodes_kf = map.keyFrames();
+  const EssentialPoseGraph graph = essentialPoseGraph(map, nodes_kf, loop_kf->id(), pre_loop, with_gravity);
+  result.graph_edges = static_cast<int>(graph.edges.size());
+  const optim::PoseGraphResult optimised =
+      with_gravity ? optim::optimizePoseGraph4Dof(graph.nodes, graph.edges, *options.g_w, options.iterations)
+                   : optim::optimizePoseGraph(graph.nodes, graph.edges, options.iterations);
+  result.initial_cost = optimised.summary.initial_chi2;
+  result.final_cost = optimised.summary.final_chi2;
+
+  const KeyFramePoses correction = writeOptimisedPoses(nodes_kf, graph, optimised, with_gravity);
+  movePointsWithKeyFrames(map, window.corrected_by, correction);
   map.bumpVersion();
   log::info("loop closed: kf ", loop.current, " -> kf ", loop.loop, ", window ", result.window_size, ", fused ",
             result.fused_points, ", ", (with_gravity ? "4-DoF" : "SE3"), " graph ", result.graph_edges,

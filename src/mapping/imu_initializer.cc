@@ -129,45 +129,54 @@ double gammaOf(const map::KeyFrame& kf, const std::vector<double>& gamma, int ke
   return cluster >= 0 && cluster < static_cast<int>(gamma.size()) ? gamma[static_cast<std::size_t>(cluster)] : 1.0;
 }
 
-}  // namespace
+/// A keyframe of the refinement's problem (problem order).
+struct RefinementEntry {
+  std::shared_ptr<map::KeyFrame> kf;
+  bool fixed = false;
+  bool pose_only = false;  ///< gauge: pose held, velocity and biases optimised
+  std::vector<double> gamma;
+};
 
-std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, const ImuChain& chain, const Vec3& g_w,
-                                                             const ImuInitOptions& options,
-                                                             const RefinementContext& context,
-                                                             ImuRefinementStats* stats) {
-  LTLO_ASSERT(chain.keyframes.size() >= 2 && chain.pims.size() + 1 == chain.keyframes.size(),
-              "IMU refinement on a chain of " << chain.keyframes.size() << " keyframes and " << chain.pims.size()
-                                              << " preintegrations");
-  LTLO_ASSERT(!context.level_sigma2.empty(), "IMU refinement needs the per-level keypoint variances");
-  // ---- keyframes: the chain's latest (optimised), the one before them (held), observers (held) ----
-  const std::size_t count = chain.keyframes.size();
-  const std::size_t window = std::min<std::size_t>(count, static_cast<std::size_t>(std::max(3, options.refine_max_keyframes)));
-  const std::size_t first = count - window;
-  struct Entry {
-    std::shared_ptr<map::KeyFrame> kf;
-    bool fixed = false;
-    bool pose_only = false;  ///< gauge: pose held, velocity and biases optimised
-    std::vector<double> gamma;
-  };
-  std::vector<Entry> entries;
+/// The keyframes of the refinement and the points they see.
+struct RefinementWindow {
+  std::vector<RefinementEntry> entries;
   std::unordered_map<map::KeyFrameId, std::size_t> index_of;
-  auto add = [&](const std::shared_ptr<map::KeyFrame>& kf, bool fixed) {
+  /// entries [0, optimised_end) are the chain's (the optimised ones and the one before them)
+  std::size_t optimised_end = 0;
+  /// the map points seen by the optimised keyframes, in the order first seen
+  std::vector<std::shared_ptr<map::MapPoint>> candidates;
+
+  void add(const std::shared_ptr<map::KeyFrame>& kf, bool fixed) {
     if (!usable(kf) || !index_of.emplace(kf->id(), entries.size()).second) return;
     entries.push_back({kf, fixed, false, kf->gamma()});
-  };
-  optim::LocalBaProblem problem;
-  const std::size_t border = first > 0 ? first - 1 : first;
-  for (std::size_t k = border; k < count; ++k) add(chain.keyframes[k], k < first);
-  for (std::size_t k = border + 1; k < count; ++k) {
-    const auto i = index_of.find(chain.keyframes[k - 1]->id());
-    const auto j = index_of.find(chain.keyframes[k]->id());
-    if (i == index_of.end() || j == index_of.end()) continue;
-    problem.inertial.push_back({static_cast<int>(i->second), static_cast<int>(j->second), chain.pims[k - 1]});
   }
-  if (problem.inertial.empty()) return std::nullopt;
-  const std::size_t optimised_end = entries.size();
+};
 
-  std::vector<std::shared_ptr<map::MapPoint>> candidates;
+/// The chain's keyframes from `first` (optimised) and the one before them (held), with the inertial
+/// links between them in `problem`; false when no link is left.
+bool addChainKeyFrames(const ImuChain& chain, std::size_t first, RefinementWindow* window,
+                       optim::LocalBaProblem* problem) {
+  const std::size_t count = chain.keyframes.size();
+  const std::size_t border = first > 0 ? first - 1 : first;
+  for (std::size_t k = border; k < count; ++k) window->add(chain.keyframes[k], k < first);
+  for (std::size_t k = border + 1; k < count; ++k) {
+    const auto i = window->index_of.find(chain.keyframes[k - 1]->id());
+    const auto j = window->index_of.find(chain.keyframes[k]->id());
+    if (i == window->index_of.end() || j == window->index_of.end()) continue;
+    problem->inertial.push_back({static_cast<int>(i->second), static_cast<int>(j->second), chain.pims[k - 1]});
+  }
+  if (problem->inertial.empty()) return false;
+  window->optimised_end = window->entries.size();
+  return true;
+}
+
+/// The points seen by the optimised keyframes (beta at least min_point_beta) and, held, up to
+/// `max_observers` other keyframes seeing most of them; without any held keyframe the oldest of the
+/// chain is the gauge.
+void addObservedPoints(const map::Map& map, double min_point_beta, std::size_t max_observers,
+                       RefinementWindow* window) {
+  std::vector<RefinementEntry>& entries = window->entries;
+  const std::size_t optimised_end = window->optimised_end;
   std::unordered_set<map::MapPointId> seen;
   std::unordered_map<map::KeyFrameId, int> observer_counts;
   for (std::size_t k = 0; k < optimised_end; ++k) {
@@ -175,10 +184,10 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
     for (const map::MapPointId id : entries[k].kf->mapPoints()) {
       if (!id.valid() || !seen.insert(id).second) continue;
       const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
-      if (!point || point->isBad() || point->beta() < context.min_point_beta) continue;
-      candidates.push_back(point);
+      if (!point || point->isBad() || point->beta() < min_point_beta) continue;
+      window->candidates.push_back(point);
       for (const auto& [observer, index] : point->observations()) {
-        if (index_of.count(observer) == 0) ++observer_counts[observer];
+        if (window->index_of.count(observer) == 0) ++observer_counts[observer];
       }
     }
   }
@@ -186,49 +195,62 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
   for (const auto& [id, observations] : observer_counts) by_count.emplace_back(-observations, id);
   std::sort(by_count.begin(), by_count.end());
   for (const auto& [negative_count, id] : by_count) {
-    if (entries.size() - optimised_end >= window) break;
-    add(map.keyFrame(id), true);
+    if (entries.size() - optimised_end >= max_observers) break;
+    window->add(map.keyFrame(id), true);
   }
-  if (std::none_of(entries.begin(), entries.end(), [](const Entry& e) { return e.fixed; })) {
+  if (std::none_of(entries.begin(), entries.end(), [](const RefinementEntry& e) { return e.fixed; })) {
     entries.front().fixed = true;  // the oldest of the chain: gauge (gravity is optimised)
     entries.front().pose_only = true;
   }
+}
 
-  // ---- the problem ----
+/// The problem's camera model, gravity, weights and keyframe states, and the weak zero-mean bias
+/// prior on the chain's oldest optimised keyframe (chain.keyframes[first]).
+void setUpRefinementProblem(const ImuChain& chain, std::size_t first, const Vec3& g_w, const ImuInitOptions& options,
+                            const RefinementContext& context, const RefinementWindow& window,
+                            optim::LocalBaProblem* problem) {
   const map::KeyFrame& newest = *chain.keyframes.back();
-  problem.model.camera = newest.camera();
-  problem.model.T_c_x = newest.T_b_c().inverse();
-  problem.model.bf_px_m = context.bf_px_m;
-  problem.g_w = g_w;
-  problem.estimate_gravity = true;
-  problem.lambda_imu = context.lambda_imu;
-  for (std::size_t k = 0; k < entries.size(); ++k) {
+  problem->model.camera = newest.camera();
+  problem->model.T_c_x = newest.T_b_c().inverse();
+  problem->model.bf_px_m = context.bf_px_m;
+  problem->g_w = g_w;
+  problem->estimate_gravity = true;
+  problem->lambda_imu = context.lambda_imu;
+  for (std::size_t k = 0; k < window.entries.size(); ++k) {
+    const RefinementEntry& entry = window.entries[k];
     optim::BaKeyFrame v;
     v.id = static_cast<int>(k);
-    v.T_w_b = entries[k].kf->T_w_b();
-    v.v_w_b = entries[k].kf->v_w_b();
-    v.bias = entries[k].kf->bias();
-    v.fixed = entries[k].fixed;
-    v.fixed_pose_only = entries[k].pose_only;
-    problem.keyframes.push_back(v);
+    v.T_w_b = entry.kf->T_w_b();
+    v.v_w_b = entry.kf->v_w_b();
+    v.bias = entry.kf->bias();
+    v.fixed = entry.fixed;
+    v.fixed_pose_only = entry.pose_only;
+    problem->keyframes.push_back(v);
   }
   // The weak zero-mean bias prior (as the initialisation's) on the oldest optimised keyframe; the
   // random walk carries it along the chain.
   const optim::BiasPriorInformation prior =
       optim::biasPriorInformation(chain.pims.front()->noise(), chain.span_s(), options.bias_prior_samples);
-  const auto oldest_free = index_of.find(chain.keyframes[first]->id());
-  if ((prior.gyro > 0.0 || prior.acc > 0.0) && oldest_free != index_of.end()) {
-    problem.bias_priors.push_back({static_cast<int>(oldest_free->second), imu::ImuBias(), prior.gyro, prior.acc});
+  const auto oldest_free = window.index_of.find(chain.keyframes[first]->id());
+  if ((prior.gyro > 0.0 || prior.acc > 0.0) && oldest_free != window.index_of.end()) {
+    problem->bias_priors.push_back({static_cast<int>(oldest_free->second), imu::ImuBias(), prior.gyro, prior.acc});
   }
+}
+
+/// The candidate points seen by at least two of the window's keyframes and their observations into
+/// `problem`; returns the points in problem order.
+std::vector<std::shared_ptr<map::MapPoint>> addPointObservations(const RefinementWindow& window,
+                                                                 const RefinementContext& context,
+                                                                 optim::LocalBaProblem* problem) {
   std::vector<std::shared_ptr<map::MapPoint>> points;
-  for (const std::shared_ptr<map::MapPoint>& point : candidates) {
+  for (const std::shared_ptr<map::MapPoint>& point : window.candidates) {
     const int point_id = static_cast<int>(points.size());
     const double beta = point->beta();
     std::vector<optim::BaObservation> observations;
     for (const auto& [observer, index] : point->observations()) {
-      const auto it = index_of.find(observer);
-      if (it == index_of.end()) continue;
-      const Entry& entry = entries[it->second];
+      const auto it = window.index_of.find(observer);
+      if (it == window.index_of.end()) continue;
+      const RefinementEntry& entry = window.entries[it->second];
       if (index < 0 || index >= entry.kf->numKeypoints()) continue;
       const features::Keypoint& kp = entry.kf->keypoints()[static_cast<std::size_t>(index)];
       const std::size_t level =
@@ -243,58 +265,66 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
       observations.push_back(obs);
     }
     if (observations.size() < 2) continue;
-    problem.points.push_back(optim::BaPoint{point_id, point->p_w()});
+    problem->points.push_back(optim::BaPoint{point_id, point->p_w()});
     points.push_back(point);
-    problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
+    problem->observations.insert(problem->observations.end(), observations.begin(), observations.end());
   }
+  return points;
+}
 
-  if (context.visual_variance_estimation) problem.inertial_information_scale = optim::inertialInformationScale(problem);
+/// What the refinement's BA held, optimised and found.
+ImuRefinementStats refinementStats(const RefinementWindow& window, std::size_t num_points,
+                                   const optim::LocalBaProblem& problem, const optim::LocalBaResult& result) {
+  ImuRefinementStats stats;
+  for (const RefinementEntry& e : window.entries) (e.fixed ? stats.fixed_keyframes : stats.optimised_keyframes)++;
+  stats.points = static_cast<int>(num_points);
+  stats.observations = static_cast<int>(problem.observations.size());
+  stats.visual_sigma_scale = std::sqrt(problem.inertial_information_scale);
+  stats.initial_chi2 = result.initial_chi2;
+  stats.final_chi2 = result.summary.final_chi2;
+  return stats;
+}
 
-  optim::LocalBaOptions ba_options;
-  ba_options.iterations = options.refine_iterations;
-  ba_options.num_threads = context.num_threads;
-  const optim::LocalBaResult result = optim::localBundleAdjust(problem, ba_options);
-  if (stats != nullptr) {
-    *stats = ImuRefinementStats();
-    for (const Entry& e : entries) (e.fixed ? stats->fixed_keyframes : stats->optimised_keyframes)++;
-    stats->points = static_cast<int>(points.size());
-    stats->observations = static_cast<int>(problem.observations.size());
-    stats->visual_sigma_scale = std::sqrt(problem.inertial_information_scale);
-    stats->initial_chi2 = result.initial_chi2;
-    stats->final_chi2 = result.summary.final_chi2;
-  }
+/// Gravity and the chain keyframes' states [0, optimised_end) of the BA result are finite.
+bool refinedStatesFinite(const optim::LocalBaResult& result, std::size_t optimised_end) {
   bool finite = result.g_w.allFinite();
   for (std::size_t k = 0; k < optimised_end; ++k) {
     const optim::BaKeyFrame& out = result.keyframes[k];
     finite = finite && out.T_w_b.translation().allFinite() && out.T_w_b.quaternion().coeffs().allFinite() &&
              out.v_w_b.allFinite() && out.bias.b_g.allFinite() && out.bias.b_a.allFinite();
   }
-  if (!finite) return std::nullopt;
-  // The refined estimate's own uncertainty (inertial evidence over the optimised keyframes).
+  return finite;
+}
+
+/// The refined estimate's own uncertainty (inertial evidence over the optimised keyframes, the
+/// chain's from `first`); nullopt when one of them went bad meanwhile.
+std::optional<Mat3> refinedAccelerationCovariance(const ImuChain& chain, std::size_t first,
+                                                  const RefinementWindow& window,
+                                                  const optim::LocalBaResult& result, const ImuInitOptions& options) {
+  const std::size_t count = chain.keyframes.size();
   std::vector<SE3> refined_T_w_b;
   std::vector<Vec3> refined_v_w_b;
   for (std::size_t k = first; k < count; ++k) {
-    const auto it = index_of.find(chain.keyframes[k]->id());
-    if (it == index_of.end()) break;
+    const auto it = window.index_of.find(chain.keyframes[k]->id());
+    if (it == window.index_of.end()) break;
     refined_T_w_b.push_back(result.keyframes[it->second].T_w_b);
     refined_v_w_b.push_back(result.keyframes[it->second].v_w_b);
   }
-  if (refined_T_w_b.size() != window) return std::nullopt;  // a chain keyframe went bad meanwhile
-  const Mat3 acceleration_covariance_w = chainAccelerationCovariance(
-      chain, refined_T_w_b, refined_v_w_b, result.keyframes[optimised_end - 1].bias, result.g_w, options);
-  const double sigma_m_s2 = optim::accelerationSigma(acceleration_covariance_w);
-  if (!(sigma_m_s2 <= context.max_acceleration_sigma_m_s2)) {
-    log::info("IMU refinement not applied: acceleration sigma ", sigma_m_s2, " m/s^2 over ", window,
-              " keyframes, the current estimate's is ", context.max_acceleration_sigma_m_s2, " m/s^2");
-    return std::nullopt;
-  }
+  if (refined_T_w_b.size() != count - first) return std::nullopt;  // a chain keyframe went bad meanwhile
+  return chainAccelerationCovariance(chain, refined_T_w_b, refined_v_w_b,
+                                     result.keyframes[window.optimised_end - 1].bias, result.g_w, options);
+}
 
-  // ---- write back (what went bad meanwhile is skipped) ----
-  for (std::size_t k = 0; k < optimised_end; ++k) {
-    map::KeyFrame& kf = *entries[k].kf;
+/// The refined states of the chain's keyframes and the points' positions into the map (what went
+/// bad meanwhile is skipped).
+void writeRefinement(map::Map& map, const RefinementWindow& window,
+                     const std::vector<std::shared_ptr<map::MapPoint>>& points, const optim::LocalBaResult& result) {
+  for (std::size_t k = 0; k < window.optimised_end; ++k) {
+    const RefinementEntry& entry = window.entries[k];
+    map::KeyFrame& kf = *entry.kf;
     const optim::BaKeyFrame& out = result.keyframes[k];
-    if (kf.isBad() || (entries[k].fixed && !entries[k].pose_only)) continue;
-    if (!entries[k].fixed) kf.setPose_T_w_b(out.T_w_b);
+    if (kf.isBad() || (entry.fixed && !entry.pose_only)) continue;
+    if (!entry.fixed) kf.setPose_T_w_b(out.T_w_b);
     kf.setVelocity(out.v_w_b);
     kf.setBias(out.bias);
   }
@@ -302,14 +332,59 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
     if (!points[m]->isBad() && result.points[m].p_w.allFinite()) points[m]->setPosition(result.points[m].p_w);
   }
   map.bumpVersion();
+}
+
+}  // namespace
+
+std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, const ImuChain& chain, const Vec3& g_w,
+                                                             const ImuInitOptions& options,
+                                                             const RefinementContext& context,
+                                                             ImuRefinementStats* stats) {
+  LTLO_ASSERT(chain.keyframes.size() >= 2 && chain.pims.size() + 1 == chain.keyframes.size(),
+              "IMU refinement on a chain of " << chain.keyframes.size() << " keyframes and " << chain.pims.size()
+                                              << " preintegrations");
+  LTLO_ASSERT(!context.level_sigma2.empty(), "IMU refinement needs the per-level keypoint variances");
+  // ---- keyframes: the chain's latest (optimised), the one before them (held), observers (held) ----
+  const std::size_t count = chain.keyframes.size();
+  const std::size_t window_size =
+      std::min<std::size_t>(count, static_cast<std::size_t>(std::max(3, options.refine_max_keyframes)));
+  const std::size_t first = count - window_size;
+  RefinementWindow window;
+  optim::LocalBaProblem problem;
+  if (!addChainKeyFrames(chain, first, &window, &problem)) return std::nullopt;
+  addObservedPoints(map, context.min_point_beta, window_size, &window);
+
+  // ---- the problem ----
+  setUpRefinementProblem(chain, first, g_w, options, context, window, &problem);
+  const std::vector<std::shared_ptr<map::MapPoint>> points = addPointObservations(window, context, &problem);
+  if (context.visual_variance_estimation) problem.inertial_information_scale = optim::inertialInformationScale(problem);
+
+  optim::LocalBaOptions ba_options;
+  ba_options.iterations = options.refine_iterations;
+  ba_options.num_threads = context.num_threads;
+  const optim::LocalBaResult result = optim::localBundleAdjust(problem, ba_options);
+  if (stats != nullptr) *stats = refinementStats(window, points.size(), problem, result);
+  if (!refinedStatesFinite(result, window.optimised_end)) return std::nullopt;
+  const std::optional<Mat3> acceleration_covariance_w =
+      refinedAccelerationCovariance(chain, first, window, result, options);
+  if (!acceleration_covariance_w) return std::nullopt;
+  const double sigma_m_s2 = optim::accelerationSigma(*acceleration_covariance_w);
+  if (!(sigma_m_s2 <= context.max_acceleration_sigma_m_s2)) {
+    log::info("IMU refinement not applied: acceleration sigma ", sigma_m_s2, " m/s^2 over ", window_size,
+              " keyframes, the current estimate's is ", context.max_acceleration_sigma_m_s2, " m/s^2");
+    return std::nullopt;
+  }
+
+  // ---- write back (what went bad meanwhile is skipped) ----
+  writeRefinement(map, window, points, result);
 
   ImuInitEstimate estimate;
   estimate.g_w = result.g_w;
-  estimate.bias = result.keyframes[optimised_end - 1].bias;
-  estimate.keyframes = static_cast<int>(window);
+  estimate.bias = result.keyframes[window.optimised_end - 1].bias;
+  estimate.keyframes = static_cast<int>(window_size);
   estimate.span_s = chain.keyframes.back()->t_s() - chain.keyframes[first]->t_s();
   estimate.final_chi2 = result.summary.final_chi2;
-  estimate.acceleration_covariance_w = acceleration_covariance_w;
+  estimate.acceleration_covariance_w = *acceleration_covariance_w;
   return estimate;
 }
 

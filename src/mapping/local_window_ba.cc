@@ -90,20 +90,21 @@ double gammaOfKeypoint(const WindowKeyFrame& entry, int i) {
 
 bool usable(const std::shared_ptr<map::KeyFrame>& kf) { return kf != nullptr && !kf->isBad(); }
 
-Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const WindowBaOptions& options,
-                     const std::vector<float>& level_sigma2) {
-  Window window;
-  std::vector<WindowKeyFrame>& keyframes = window.keyframes;
-  optim::LocalBaProblem& problem = window.problem;
+/// The window's keyframes by id: index into Window::keyframes.
+using KeyFrameIndex = std::unordered_map<map::KeyFrameId, std::size_t>;
 
-  // ---- the optimised window (and, inertial, the fixed keyframe before it) ----
-  std::unordered_map<map::KeyFrameId, std::size_t> index_of;
-  auto add_keyframe = [&](const std::shared_ptr<map::KeyFrame>& k, bool fixed) {
-    if (!index_of.emplace(k->id(), keyframes.size()).second) return;
-    keyframes.push_back({k, fixed, k->gamma()});
-  };
+void addKeyFrame(const std::shared_ptr<map::KeyFrame>& k, bool fixed, Window* window, KeyFrameIndex* index_of) {
+  if (!index_of->emplace(k->id(), window->keyframes.size()).second) return;
+  window->keyframes.push_back({k, fixed, k->gamma()});
+}
+
+/// The optimised window (and, inertial, the fixed keyframe before it, with the inertial links):
+/// kf and the keyframes before it, else kf's best covisibles. The map's gauge keyframe is held.
+void addOptimisedKeyFrames(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const WindowBaOptions& options,
+                           Window* window, KeyFrameIndex* index_of) {
+  std::vector<WindowKeyFrame>& keyframes = window->keyframes;
   const std::size_t window_size = static_cast<std::size_t>(std::max(1, options.window_size));
-  add_keyframe(kf, false);
+  addKeyFrame(kf, false, window, index_of);
   if (options.inertial) {
     std::shared_ptr<map::KeyFrame> newer = kf;
     while (true) {
@@ -111,36 +112,41 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
       const std::optional<imu::Preintegrated> pim = newer->imuFromPrevious();
       if (!usable(older) || !pim) break;
       const bool border = keyframes.size() >= window_size;
-      add_keyframe(older, border);
-      problem.inertial.push_back({baId(older->id()), baId(newer->id()),
-                                  std::make_shared<const imu::Preintegrated>(*pim)});
+      addKeyFrame(older, border, window, index_of);
+      window->problem.inertial.push_back({baId(older->id()), baId(newer->id()),
+                                          std::make_shared<const imu::Preintegrated>(*pim)});
       if (border) break;
       newer = older;
     }
   } else {
     for (const map::KeyFrameId id : kf->bestCovisibles(window_size - 1)) {
       const std::shared_ptr<map::KeyFrame> other = map.keyFrame(id);
-      if (usable(other)) add_keyframe(other, false);
+      if (usable(other)) addKeyFrame(other, false, window, index_of);
     }
   }
   const map::KeyFrameId gauge = map.gaugeKeyFrame();
   for (WindowKeyFrame& entry : keyframes) {
     if (entry.kf->id() == gauge) entry.fixed = true;
   }
-  const std::size_t window_end = keyframes.size();
+}
 
-  // ---- points seen by the window, and the other keyframes seeing them (fixed) ----
+/// Points seen by the window's first `window_end` keyframes (beta at least Window.MinPointBeta, each
+/// id once in *point_seen), and the other keyframes seeing most of them (fixed). Returns the points.
+std::vector<std::shared_ptr<map::MapPoint>> addObservedPoints(map::Map& map, const WindowBaOptions& options,
+                                                              std::size_t window_end, Window* window,
+                                                              KeyFrameIndex* index_of,
+                                                              std::unordered_set<map::MapPointId>* point_seen) {
+  std::vector<WindowKeyFrame>& keyframes = window->keyframes;
   std::vector<std::shared_ptr<map::MapPoint>> points;
-  std::unordered_set<map::MapPointId> point_seen;
   std::unordered_map<map::KeyFrameId, int> fixed_counts;
   for (std::size_t k = 0; k < window_end; ++k) {
     for (const map::MapPointId id : keyframes[k].kf->mapPoints()) {
-      if (!id.valid() || !point_seen.insert(id).second) continue;
+      if (!id.valid() || !point_seen->insert(id).second) continue;
       const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
       if (!point || point->isBad() || point->beta() < options.min_point_beta) continue;
       points.push_back(point);
       for (const auto& [observer, index] : point->observations()) {
-        if (index_of.count(observer) == 0) ++fixed_counts[observer];
+        if (index_of->count(observer) == 0) ++fixed_counts[observer];
       }
     }
   }
@@ -150,7 +156,7 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
   for (const auto& [negative_count, id] : by_count) {
     if (keyframes.size() - window_end >= options.max_fixed_keyframes) break;
     const std::shared_ptr<map::KeyFrame> other = map.keyFrame(id);
-    if (usable(other)) add_keyframe(other, true);
+    if (usable(other)) addKeyFrame(other, true, window, index_of);
   }
   // Gauge: without any fixed keyframe, hold the oldest of the window.
   if (std::none_of(keyframes.begin(), keyframes.end(), [](const WindowKeyFrame& e) { return e.fixed; })) {
@@ -158,15 +164,19 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
       return a.kf->t_s() < b.kf->t_s();
     })->fixed = true;
   }
+  return points;
+}
 
-  // ---- the problem ----
-  problem.model.camera = kf->camera();
-  problem.model.T_c_x = kf->T_b_c().inverse();
+/// The problem's camera model (kf's), gravity, weights and the keyframe states.
+void setUpProblem(const map::KeyFrame& kf, const WindowBaOptions& options, Window* window) {
+  optim::LocalBaProblem& problem = window->problem;
+  problem.model.camera = kf.camera();
+  problem.model.T_c_x = kf.T_b_c().inverse();
   problem.model.bf_px_m = options.bf_px_m;
   problem.g_w = options.g_w;
   problem.lambda_imu = options.lambda_imu;
   problem.held_acc_bias_sigma_m_s2 = options.held_acc_bias_sigma_m_s2;
-  for (const WindowKeyFrame& entry : keyframes) {
+  for (const WindowKeyFrame& entry : window->keyframes) {
     optim::BaKeyFrame ba;
     ba.id = baId(entry.kf->id());
     ba.T_w_b = entry.kf->T_w_b();
@@ -175,55 +185,80 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
     ba.fixed = entry.fixed;
     problem.keyframes.push_back(ba);
   }
-  for (const std::shared_ptr<map::MapPoint>& point : points) {
-    const std::size_t point_index = window.points.size();
-    const double beta = point->beta();
-    std::vector<optim::BaObservation> observations;
-    std::vector<ObservationRef> point_refs;
-    bool has_depth = false;
-    for (const auto& [observer, index] : point->observations()) {
-      const auto it = index_of.find(observer);
-      if (it == index_of.end()) continue;
-      const WindowKeyFrame& entry = keyframes[it->second];
-      if (index < 0 || index >= entry.kf->numKeypoints()) continue;
-      const features::Keypoint& kp = entry.kf->keypoints()[static_cast<std::size_t>(index)];
-      optim::BaObservation obs;
-      obs.keyframe_id = baId(observer);
-      obs.point_id = baId(point->id());
-      obs.uv = Vec2(kp.x_px, kp.y_px);
-      obs.depth_m = entry.kf->depth_m(index);
-      obs.sigma_px = std::sqrt(static_cast<double>(
-          level_sigma2[std::min<std::size_t>(static_cast<std::size_t>(kp.octave), level_sigma2.size() - 1)]));
-      obs.static_weight = beta * gammaOfKeypoint(entry, index);
-      has_depth = has_depth || obs.depth_m > 0.0;
-      observations.push_back(obs);
-      point_refs.push_back({it->second, point_index, index});
-    }
-    // A point needs depth or two views to be constrained.
-    if (observations.empty() || (!has_depth && observations.size() < 2)) continue;
-    problem.points.push_back({baId(point->id()), point->p_w()});
-    window.points.push_back(point);
-    window.visibility.push_back(visibilityOf(*point));
-    window.sole_observer.push_back(point->numObservations() == 1 && point_refs.size() == 1
-                                       ? static_cast<int>(point_refs.front().keyframe)
-                                       : -1);
-    problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
-    window.refs.insert(window.refs.end(), point_refs.begin(), point_refs.end());
+}
+
+/// `point` with its observations by the window's keyframes into the problem, unless they leave it
+/// unconstrained.
+void addPoint(const std::shared_ptr<map::MapPoint>& point, const KeyFrameIndex& index_of,
+              const std::vector<float>& level_sigma2, Window* window) {
+  optim::LocalBaProblem& problem = window->problem;
+  const std::size_t point_index = window->points.size();
+  const double beta = point->beta();
+  std::vector<optim::BaObservation> observations;
+  std::vector<ObservationRef> point_refs;
+  bool has_depth = false;
+  for (const auto& [observer, index] : point->observations()) {
+    const auto it = index_of.find(observer);
+    if (it == index_of.end()) continue;
+    const WindowKeyFrame& entry = window->keyframes[it->second];
+    if (index < 0 || index >= entry.kf->numKeypoints()) continue;
+    const features::Keypoint& kp = entry.kf->keypoints()[static_cast<std::size_t>(index)];
+    optim::BaObservation obs;
+    obs.keyframe_id = baId(observer);
+    obs.point_id = baId(point->id());
+    obs.uv = Vec2(kp.x_px, kp.y_px);
+    obs.depth_m = entry.kf->depth_m(index);
+    obs.sigma_px = std::sqrt(static_cast<double>(
+        level_sigma2[std::min<std::size_t>(static_cast<std::size_t>(kp.octave), level_sigma2.size() - 1)]));
+    obs.static_weight = beta * gammaOfKeypoint(entry, index);
+    has_depth = has_depth || obs.depth_m > 0.0;
+    observations.push_back(obs);
+    point_refs.push_back({it->second, point_index, index});
   }
-  // Probe points for Eq. 56: the static points of the fixed keyframes the window does not see
-  // (a dynamic object may hide them from the window's keyframes).
-  if (options.robust) {
-    for (std::size_t k = window_end; k < keyframes.size(); ++k) {
-      for (const map::MapPointId id : keyframes[k].kf->mapPoints()) {
-        if (!id.valid() || !point_seen.insert(id).second) continue;
-        const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
-        if (!point || point->isBad()) continue;
-        const double beta = point->beta();
-        if (beta < options.min_point_beta) continue;
-        window.probes.push_back({point->p_w(), beta, visibilityOf(*point)});
-      }
+  // A point needs depth or two views to be constrained.
+  if (observations.empty() || (!has_depth && observations.size() < 2)) return;
+  problem.points.push_back({baId(point->id()), point->p_w()});
+  window->points.push_back(point);
+  window->visibility.push_back(visibilityOf(*point));
+  window->sole_observer.push_back(point->numObservations() == 1 && point_refs.size() == 1
+                                      ? static_cast<int>(point_refs.front().keyframe)
+                                      : -1);
+  problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
+  window->refs.insert(window->refs.end(), point_refs.begin(), point_refs.end());
+}
+
+/// Probe points for Eq. 56: the static points of the fixed keyframes (from `window_end` on) the
+/// window does not see (a dynamic object may hide them from the window's keyframes).
+void addProbePoints(map::Map& map, const WindowBaOptions& options, std::size_t window_end,
+                    std::unordered_set<map::MapPointId>* point_seen, Window* window) {
+  const std::vector<WindowKeyFrame>& keyframes = window->keyframes;
+  for (std::size_t k = window_end; k < keyframes.size(); ++k) {
+    for (const map::MapPointId id : keyframes[k].kf->mapPoints()) {
+      if (!id.valid() || !point_seen->insert(id).second) continue;
+      const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+      if (!point || point->isBad()) continue;
+      const double beta = point->beta();
+      if (beta < options.min_point_beta) continue;
+      window->probes.push_back({point->p_w(), beta, visibilityOf(*point)});
     }
   }
+}
+
+Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const WindowBaOptions& options,
+                     const std::vector<float>& level_sigma2) {
+  Window window;
+  KeyFrameIndex index_of;
+  // ---- the optimised window (and, inertial, the fixed keyframe before it) ----
+  addOptimisedKeyFrames(map, kf, options, &window, &index_of);
+  const std::size_t window_end = window.keyframes.size();
+  // ---- points seen by the window, and the other keyframes seeing them (fixed) ----
+  std::unordered_set<map::MapPointId> point_seen;
+  const std::vector<std::shared_ptr<map::MapPoint>> points =
+      addObservedPoints(map, options, window_end, &window, &index_of, &point_seen);
+  // ---- the problem ----
+  setUpProblem(*kf, options, &window);
+  for (const std::shared_ptr<map::MapPoint>& point : points) addPoint(point, index_of, level_sigma2, &window);
+  if (options.robust) addProbePoints(map, options, window_end, &point_seen, &window);
   return window;
 }
 

@@ -9,10 +9,6 @@ namespace ltlo::mapping {
 
 namespace {
 
-using Vec4 = Eigen::Matrix<double, 4, 1>;
-using Mat4 = Eigen::Matrix<double, 4, 4>;
-using Mat34 = Eigen::Matrix<double, 3, 4>;
-
 // The link's rotation residual at x = (shift, b_g).
 Vec3 rotationResidual(const TimeOffsetLink& link, const Vec4& x) {
   const double shift = x(0);
@@ -49,7 +45,7 @@ std::optional<TimeOffsetEstimate> estimateTimeOffset(const std::vector<TimeOffse
     for (std::size_t k = 0; k < links.size(); ++k) {
       const Vec3 r = rotationResidual(links[k], x);
       // Central differences: the model is four scalars, and the residual is smooth in them.
-      Mat34 J;
+      Eigen::Matrix<double, 3, 4> J;
       for (int p = 0; p < 4; ++p) {
         const double eps = p == 0 ? 1e-5 : 1e-6;
         Vec4 plus = x, minus = x;

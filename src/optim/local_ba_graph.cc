@@ -34,9 +34,11 @@ struct LocalBaGraph::Impl {
   LocalBaOptions options;
   sparse_opt::Graph graph;
   std::vector<KeyFrameVertices> keyframes;
+  std::unordered_map<int, int> keyframe_index;  // keyframe id -> input order
   VertexGravityDir* gravity = nullptr;  // with problem.estimate_gravity
   double gravity_m_s2 = 0.0;
   std::vector<VertexPoint*> points;
+  std::unordered_map<int, std::size_t> point_index;  // point id -> input order
   std::vector<ObservationEdge> edges;       // problem order
   std::vector<std::size_t> edge_point;      // point index of each observation
   std::vector<bool> has_depth;              // RGB-D edge (3-D) or monocular (2-D)
@@ -61,109 +63,132 @@ struct LocalBaGraph::Impl {
     }
     return active;
   }
+
+  // Ids: keyframe k (input order) uses 4k .. 4k+3, point m uses 4 K + m.
+  void addPoseVertices();
+  int indexOf(int keyframe_id) const;
+  void ensureInertialVertices(int k);
+  // Gravity direction (refinement of the IMU initialisation): one vertex after the points' ids.
+  void addGravityVertex();
+  void addInertialLink(const BaInertialLink& link);
+  void addInertialEdge(const BaInertialLink& link, const KeyFrameVertices& vi, const KeyFrameVertices& vj);
+  // Bias random walk between consecutive keyframes, Eq. 58.
+  void addBiasWalkEdge(const BaInertialLink& link, const KeyFrameVertices& vi, const KeyFrameVertices& vj);
+  void addBiasPriors();
+  void addPointVertices();
+  void addObservation(const BaObservation& obs);
 };
 
-LocalBaGraph::LocalBaGraph(const LocalBaProblem& problem, const LocalBaOptions& options)
-    : impl_(std::make_unique<Impl>()) {
-  Impl& d = *impl_;
-  d.problem = problem;
-  d.options = options;
-  sparse_opt::Graph& graph = d.graph;
-  // Ids: keyframe k (input order) uses 4k .. 4k+3, point m uses 4 K + m.
+void LocalBaGraph::Impl::addPoseVertices() {
   const int num_keyframes = static_cast<int>(problem.keyframes.size());
-  std::unordered_map<int, int> keyframe_index;
-  d.keyframes.resize(problem.keyframes.size());
+  keyframes.resize(problem.keyframes.size());
   for (int k = 0; k < num_keyframes; ++k) {
     const BaKeyFrame& kf = problem.keyframes[static_cast<std::size_t>(k)];
     LTLO_ASSERT(keyframe_index.emplace(kf.id, k).second, "localBundleAdjust: duplicate keyframe id " << kf.id);
     auto pose = std::make_unique<VertexPose>(4 * k, kf.T_w_b);
     pose->setFixed(kf.fixed);
-    d.keyframes[static_cast<std::size_t>(k)].pose = graph.addVertex(std::move(pose));
+    keyframes[static_cast<std::size_t>(k)].pose = graph.addVertex(std::move(pose));
   }
-  auto index_of = [&](int keyframe_id) {
-    const auto it = keyframe_index.find(keyframe_id);
-    LTLO_ASSERT(it != keyframe_index.end(), "localBundleAdjust: unknown keyframe id " << keyframe_id);
-    return it->second;
-  };
-  auto ensure_inertial_vertices = [&](int k) {
-    KeyFrameVertices& v = d.keyframes[static_cast<std::size_t>(k)];
-    if (v.velocity != nullptr) return;
-    const BaKeyFrame& kf = problem.keyframes[static_cast<std::size_t>(k)];
-    auto velocity = std::make_unique<VertexVelocity>(4 * k + 1, kf.v_w_b);
-    auto gyro_bias = std::make_unique<VertexGyroBias>(4 * k + 2, kf.bias.b_g);
-    auto acc_bias = std::make_unique<VertexAccBias>(4 * k + 3, kf.bias.b_a);
-    const bool state_fixed = kf.fixed && !kf.fixed_pose_only;
-    velocity->setFixed(state_fixed);
-    gyro_bias->setFixed(state_fixed);
-    acc_bias->setFixed(state_fixed);
-    v.velocity = graph.addVertex(std::move(velocity));
-    v.gyro_bias = graph.addVertex(std::move(gyro_bias));
-    v.acc_bias = graph.addVertex(std::move(acc_bias));
-  };
+}
 
-  // Gravity direction (refinement of the IMU initialisation): one vertex after the points' ids.
+int LocalBaGraph::Impl::indexOf(int keyframe_id) const {
+  const auto it = keyframe_index.find(keyframe_id);
+  LTLO_ASSERT(it != keyframe_index.end(), "localBundleAdjust: unknown keyframe id " << keyframe_id);
+  return it->second;
+}
+
+void LocalBaGraph::Impl::ensureInertialVertices(int k) {
+  KeyFrameVertices& v = keyframes[static_cast<std::size_t>(k)];
+  if (v.velocity != nullptr) return;
+  const BaKeyFrame& kf = problem.keyframes[static_cast<std::size_t>(k)];
+  auto velocity = std::make_unique<VertexVelocity>(4 * k + 1, kf.v_w_b);
+  auto gyro_bias = std::make_unique<VertexGyroBias>(4 * k + 2, kf.bias.b_g);
+  auto acc_bias = std::make_unique<VertexAccBias>(4 * k + 3, kf.bias.b_a);
+  const bool state_fixed = kf.fixed && !kf.fixed_pose_only;
+  velocity->setFixed(state_fixed);
+  gyro_bias->setFixed(state_fixed);
+  acc_bias->setFixed(state_fixed);
+  v.velocity = graph.addVertex(std::move(velocity));
+  v.gyro_bias = graph.addVertex(std::move(gyro_bias));
+  v.acc_bias = graph.addVertex(std::move(acc_bias));
+}
+
+void LocalBaGraph::Impl::addGravityVertex() {
   LTLO_ASSERT(!problem.estimate_gravity || !problem.inertial.empty(),
               "localBundleAdjust: the gravity direction needs inertial links");
-  d.gravity_m_s2 = problem.g_w.norm();
+  gravity_m_s2 = problem.g_w.norm();
   if (problem.estimate_gravity) {
+    const int num_keyframes = static_cast<int>(problem.keyframes.size());
     const int gravity_id = 4 * num_keyframes + static_cast<int>(problem.points.size());
-    d.gravity = graph.addVertex(
+    gravity = graph.addVertex(
         std::make_unique<VertexGravityDir>(gravity_id, imu::gravityRotationFromDirection(problem.g_w)));
   }
-  for (const BaInertialLink& link : problem.inertial) {
-    LTLO_ASSERT(link.pim != nullptr, "localBundleAdjust: inertial link without preintegration");
-    const int i = index_of(link.keyframe_i);
-    const int j = index_of(link.keyframe_j);
-    ensure_inertial_vertices(i);
-    ensure_inertial_vertices(j);
-    const KeyFrameVertices& vi = d.keyframes[static_cast<std::size_t>(i)];
-    const KeyFrameVertices& vj = d.keyframes[static_cast<std::size_t>(j)];
-    if (d.gravity != nullptr) {
-      auto inertial = std::make_unique<EdgeInertialGravity>(link.pim, d.gravity_m_s2);
-      inertial->setVertex(0, vi.pose);
-      inertial->setVertex(1, vi.velocity);
-      inertial->setVertex(2, vi.gyro_bias);
-      inertial->setVertex(3, vi.acc_bias);
-      inertial->setVertex(4, vj.pose);
-      inertial->setVertex(5, vj.velocity);
-      inertial->setVertex(6, d.gravity);
-      inertial->setInformation(problem.inertial_information_scale * inertial->information());
-      graph.addEdge(std::move(inertial));
-    } else {
-      auto inertial = std::make_unique<EdgeInertial>(link.pim, problem.g_w);
-      inertial->setVertex(0, vi.pose);
-      inertial->setVertex(1, vi.velocity);
-      inertial->setVertex(2, vi.gyro_bias);
-      inertial->setVertex(3, vi.acc_bias);
-      inertial->setVertex(4, vj.pose);
-      inertial->setVertex(5, vj.velocity);
-      inertial->setInformation(problem.inertial_information_scale * inertial->information());
-      graph.addEdge(std::move(inertial));
-    }
-    // Bias random walk between consecutive keyframes, Eq. 58.
-    auto walk = std::make_unique<EdgeBiasWalk>();
-    walk->setVertex(0, vi.gyro_bias);
-    walk->setVertex(1, vi.acc_bias);
-    walk->setVertex(2, vj.gyro_bias);
-    walk->setVertex(3, vj.acc_bias);
-    const double walk_s = std::max(link.pim->dt_s(), imu::kMinBiasWalkInterval_s);
-    Mat6 walk_information = biasWalkInformation(link.pim->noise(), walk_s, problem.lambda_imu);
-    if (problem.held_acc_bias_sigma_m_s2 > 0.0 && problem.lambda_imu > 0.0 &&
-        vi.acc_bias->fixed() != vj.acc_bias->fixed()) {
-      // One end held at an estimate known to held_acc_bias_sigma: its error adds to the walk's
-      // (covariance of the difference b_j - b_i; Eq. 58's weight applies to the walk part).
-      Mat6 covariance = link.pim->noise().biasWalkCovariance(walk_s) / problem.lambda_imu;
-      covariance.bottomRightCorner<3, 3>() +=
-          Mat3::Identity() * (problem.held_acc_bias_sigma_m_s2 * problem.held_acc_bias_sigma_m_s2);
-      walk_information = covariance.ldlt().solve(Mat6::Identity());
-      walk_information = 0.5 * (walk_information + walk_information.transpose());
-    }
-    walk->setInformation(problem.inertial_information_scale * walk_information);
-    graph.addEdge(std::move(walk));
-  }
+}
 
+void LocalBaGraph::Impl::addInertialLink(const BaInertialLink& link) {
+  LTLO_ASSERT(link.pim != nullptr, "localBundleAdjust: inertial link without preintegration");
+  const int i = indexOf(link.keyframe_i);
+  const int j = indexOf(link.keyframe_j);
+  ensureInertialVertices(i);
+  ensureInertialVertices(j);
+  const KeyFrameVertices& vi = keyframes[static_cast<std::size_t>(i)];
+  const KeyFrameVertices& vj = keyframes[static_cast<std::size_t>(j)];
+  addInertialEdge(link, vi, vj);
+  addBiasWalkEdge(link, vi, vj);
+}
+
+void LocalBaGraph::Impl::addInertialEdge(const BaInertialLink& link, const KeyFrameVertices& vi,
+                                         const KeyFrameVertices& vj) {
+  if (gravity != nullptr) {
+    auto inertial = std::make_unique<EdgeInertialGravity>(link.pim, gravity_m_s2);
+    inertial->setVertex(0, vi.pose);
+    inertial->setVertex(1, vi.velocity);
+    inertial->setVertex(2, vi.gyro_bias);
+    inertial->setVertex(3, vi.acc_bias);
+    inertial->setVertex(4, vj.pose);
+    inertial->setVertex(5, vj.velocity);
+    inertial->setVertex(6, gravity);
+    inertial->setInformation(problem.inertial_information_scale * inertial->information());
+    graph.addEdge(std::move(inertial));
+  } else {
+    auto inertial = std::make_unique<EdgeInertial>(link.pim, problem.g_w);
+    inertial->setVertex(0, vi.pose);
+    inertial->setVertex(1, vi.velocity);
+    inertial->setVertex(2, vi.gyro_bias);
+    inertial->setVertex(3, vi.acc_bias);
+    inertial->setVertex(4, vj.pose);
+    inertial->setVertex(5, vj.velocity);
+    inertial->setInformation(problem.inertial_information_scale * inertial->information());
+    graph.addEdge(std::move(inertial));
+  }
+}
+
+void LocalBaGraph::Impl::addBiasWalkEdge(const BaInertialLink& link, const KeyFrameVertices& vi,
+                                         const KeyFrameVertices& vj) {
+  auto walk = std::make_unique<EdgeBiasWalk>();
+  walk->setVertex(0, vi.gyro_bias);
+  walk->setVertex(1, vi.acc_bias);
+  walk->setVertex(2, vj.gyro_bias);
+  walk->setVertex(3, vj.acc_bias);
+  const double walk_s = std::max(link.pim->dt_s(), imu::kMinBiasWalkInterval_s);
+  Mat6 walk_information = biasWalkInformation(link.pim->noise(), walk_s, problem.lambda_imu);
+  if (problem.held_acc_bias_sigma_m_s2 > 0.0 && problem.lambda_imu > 0.0 &&
+      vi.acc_bias->fixed() != vj.acc_bias->fixed()) {
+    // One end held at an estimate known to held_acc_bias_sigma: its error adds to the walk's
+    // (covariance of the difference b_j - b_i; Eq. 58's weight applies to the walk part).
+    Mat6 covariance = link.pim->noise().biasWalkCovariance(walk_s) / problem.lambda_imu;
+    covariance.bottomRightCorner<3, 3>() +=
+        Mat3::Identity() * (problem.held_acc_bias_sigma_m_s2 * problem.held_acc_bias_sigma_m_s2);
+    walk_information = covariance.ldlt().solve(Mat6::Identity());
+    walk_information = 0.5 * (walk_information + walk_information.transpose());
+  }
+  walk->setInformation(problem.inertial_information_scale * walk_information);
+  graph.addEdge(std::move(walk));
+}
+
+void LocalBaGraph::Impl::addBiasPriors() {
   for (const BaBiasPrior& prior : problem.bias_priors) {
-    const KeyFrameVertices& v = d.keyframes[static_cast<std::size_t>(index_of(prior.keyframe_id))];
+    const KeyFrameVertices& v = keyframes[static_cast<std::size_t>(indexOf(prior.keyframe_id))];
     LTLO_ASSERT(v.gyro_bias != nullptr, "localBundleAdjust: bias prior on keyframe " << prior.keyframe_id
                                                                                    << " without an inertial link");
     if (prior.gyro_information > 0.0) {
@@ -181,52 +206,67 @@ LocalBaGraph::LocalBaGraph(const LocalBaProblem& problem, const LocalBaOptions& 
       graph.addEdge(std::move(edge));
     }
   }
+}
 
-  std::unordered_map<int, std::size_t> point_index;
+void LocalBaGraph::Impl::addPointVertices() {
+  const int num_keyframes = static_cast<int>(problem.keyframes.size());
   for (std::size_t m = 0; m < problem.points.size(); ++m) {
     auto point = std::make_unique<VertexPoint>(4 * num_keyframes + static_cast<int>(m), problem.points[m].p_w);
     point->setMarginalized(true);
     LTLO_ASSERT(point_index.emplace(problem.points[m].id, m).second,
                 "localBundleAdjust: duplicate point id " << problem.points[m].id);
-    d.points.push_back(graph.addVertex(std::move(point)));
+    points.push_back(graph.addVertex(std::move(point)));
   }
-  d.point_edges.resize(problem.points.size());
+  point_edges.resize(problem.points.size());
+}
 
-  d.edges.reserve(problem.observations.size());
-  for (const BaObservation& obs : problem.observations) {
-    const auto point_it = point_index.find(obs.point_id);
-    LTLO_ASSERT(point_it != point_index.end(), "localBundleAdjust: unknown point id " << obs.point_id);
-    LTLO_ASSERT(obs.sigma_px > 0.0, "localBundleAdjust: sigma_px = " << obs.sigma_px << ", expected > 0");
-    VertexPose* pose = d.keyframes[static_cast<std::size_t>(index_of(obs.keyframe_id))].pose;
-    VertexPoint* point = d.points[point_it->second];
-    const double inv_sigma2 = 1.0 / (obs.sigma_px * obs.sigma_px);
-    ObservationEdge entry;
-    if (obs.depth_m > 0.0) {
-      auto edge = std::make_unique<RgbdEdge>(problem.model);
-      edge->setVertex(0, pose);
-      edge->setVertex(1, point);
-      edge->setMeasurement(problem.model.rgbdObservation(obs.uv, obs.depth_m));
-      edge->setObservationInformation(inv_sigma2 * Mat3::Identity());
-      edge->setRobustKernel(std::make_unique<sparse_opt::HuberKernel>(std::sqrt(options.chi2_3d)));
-      entry.rgbd = graph.addEdge(std::move(edge));
-      entry.edge = entry.rgbd;
-      entry.threshold = options.chi2_3d;
-    } else {
-      auto edge = std::make_unique<MonoEdge>(problem.model);
-      edge->setVertex(0, pose);
-      edge->setVertex(1, point);
-      edge->setMeasurement(obs.uv);
-      edge->setObservationInformation(inv_sigma2 * Mat2::Identity());
-      edge->setRobustKernel(std::make_unique<sparse_opt::HuberKernel>(std::sqrt(options.chi2_2d)));
-      entry.mono = graph.addEdge(std::move(edge));
-      entry.edge = entry.mono;
-      entry.threshold = options.chi2_2d;
-    }
-    d.point_edges[point_it->second].push_back(d.edges.size());
-    d.edges.push_back(entry);
-    d.edge_point.push_back(point_it->second);
-    d.has_depth.push_back(obs.depth_m > 0.0);
+void LocalBaGraph::Impl::addObservation(const BaObservation& obs) {
+  const auto point_it = point_index.find(obs.point_id);
+  LTLO_ASSERT(point_it != point_index.end(), "localBundleAdjust: unknown point id " << obs.point_id);
+  LTLO_ASSERT(obs.sigma_px > 0.0, "localBundleAdjust: sigma_px = " << obs.sigma_px << ", expected > 0");
+  VertexPose* pose = keyframes[static_cast<std::size_t>(indexOf(obs.keyframe_id))].pose;
+  VertexPoint* point = points[point_it->second];
+  const double inv_sigma2 = 1.0 / (obs.sigma_px * obs.sigma_px);
+  ObservationEdge entry;
+  if (obs.depth_m > 0.0) {
+    auto edge = std::make_unique<RgbdEdge>(problem.model);
+    edge->setVertex(0, pose);
+    edge->setVertex(1, point);
+    edge->setMeasurement(problem.model.rgbdObservation(obs.uv, obs.depth_m));
+    edge->setObservationInformation(inv_sigma2 * Mat3::Identity());
+    edge->setRobustKernel(std::make_unique<sparse_opt::HuberKernel>(std::sqrt(options.chi2_3d)));
+    entry.rgbd = graph.addEdge(std::move(edge));
+    entry.edge = entry.rgbd;
+    entry.threshold = options.chi2_3d;
+  } else {
+    auto edge = std::make_unique<MonoEdge>(problem.model);
+    edge->setVertex(0, pose);
+    edge->setVertex(1, point);
+    edge->setMeasurement(obs.uv);
+    edge->setObservationInformation(inv_sigma2 * Mat2::Identity());
+    edge->setRobustKernel(std::make_unique<sparse_opt::HuberKernel>(std::sqrt(options.chi2_2d)));
+    entry.mono = graph.addEdge(std::move(edge));
+    entry.edge = entry.mono;
+    entry.threshold = options.chi2_2d;
   }
+  point_edges[point_it->second].push_back(edges.size());
+  edges.push_back(entry);
+  edge_point.push_back(point_it->second);
+  has_depth.push_back(obs.depth_m > 0.0);
+}
+
+LocalBaGraph::LocalBaGraph(const LocalBaProblem& problem, const LocalBaOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& d = *impl_;
+  d.problem = problem;
+  d.options = options;
+  d.addPoseVertices();
+  d.addGravityVertex();
+  for (const BaInertialLink& link : d.problem.inertial) d.addInertialLink(link);
+  d.addBiasPriors();
+  d.addPointVertices();
+  d.edges.reserve(problem.observations.size());
+  for (const BaObservation& obs : d.problem.observations) d.addObservation(obs);
   std::vector<double> weights;
   weights.reserve(problem.observations.size());
   for (const BaObservation& obs : problem.observations) weights.push_back(obs.static_weight);

@@ -196,6 +196,296 @@ struct detail::DenseSolverBuffers {
   BrightnessBlocks blocks;
 };
 
+namespace {
+
+/// One solve of Eq. 59 (DenseSolver::solve): the state, Gamma and the brightness change being
+/// estimated, with the frames, the motion prior and the solver's buffers they are estimated from.
+/// The steps of the coarse-to-fine alternation are its members.
+class DenseSolve {
+ public:
+  DenseSolve(const DenseSolverOptions& options, detail::DenseSolverBuffers& buffers, const DenseFrame& previous,
+             const std::vector<double>& previous_gamma, const DenseFrame& current,
+             const std::vector<ClusterEdge>& edges, const DensePrior& prior);
+
+  /// Runs the solve (once per DenseSolve).
+  DenseResult run();
+
+ private:
+  /// Brightness fit alone at the state on `level`, weighted by the previous scores at W(u, T).
+  void fitBrightness(int level);
+  /// Gamma step at the state, on `level`: Eq. 60 evidence per cluster and the warped prior.
+  void gammaStep(int level, bool record_prediction_cost);
+  /// The image motion of a body step delta = [phi; rho] at `level`, px: a point kNearPointDepth_m
+  /// in front of the camera moves by at most about f (|eps_phi| + |eps_rho| / z) (eps: camera twist).
+  double stepPx(const Vec6& delta, int level) const;
+  /// Only clusters at or above the static threshold take part in the state step (weighted by
+  /// gamma): a dynamic cluster, however large, cannot pull the state. Returns the largest change
+  /// of a state weight.
+  float updateStateWeights();
+  /// Gauss-Newton step on the state at `level` (Gamma fixed); returns the step's image motion, px.
+  double stateStep(int level);
+  /// The image term's normal equations at the state on `level`. With the brightness change, the
+  /// same pass gives the brightness fit at the step's start (both updates from one linearisation
+  /// point).
+  void accumulateImageTerm(int level, detail::ImageNormalEquations* image);
+  /// The state step with the IMU term and the bias regulariser, from the image term's normal
+  /// equations in the body twist.
+  double imuStateStep(const Mat6& H_pose, const Vec6& b_pose, int level);
+  /// The pose step with the relative-pose prior, from the image term's normal equations in the
+  /// body twist.
+  double relativePoseStateStep(const Mat6& H_pose, const Vec6& b_pose, int level);
+  /// Up to Dense.IterationsPerLevel Gauss-Newton steps on `level`, until the motion still to come
+  /// (from the level's last step, *previous_step_px) and the brightness fit's change are small
+  /// enough; returns whether they converged.
+  bool gaussNewtonSteps(int level, double* previous_step_px);
+  /// The alternations of every level, coarse to fine; returns whether Gamma was last solved at the
+  /// final state on the finest level.
+  bool alternateOverLevels(int coarsest, int finest);
+  /// The prior gate: false (and the state back at the prediction) when the refined state's prior
+  /// residual exceeds Dense.MaxPriorChi2.
+  bool passesPriorGate(int finest);
+  /// The result from the solve's state and scores.
+  DenseResult takeResult();
+
+  const DenseSolverOptions& options_;
+  detail::DenseSolverBuffers& buffers_;
+  const DenseFrame& previous_;
+  const DenseFrame& current_;
+  const DensePrior& prior_;
+  const int num_clusters_;  ///< K of the current frame
+  const bool with_imu_;
+  const detail::ResidualParams params_;
+  const Mat9 imu_information_;
+  const Mat6 bias_information_;
+  const Mat6 A_;  ///< camera twist eps = Ad(T_c_b) body twist delta
+
+  std::array<float, kMaxClusterLabels> previous_gamma_of_label_;
+  std::array<float, kMaxClusterLabels> gamma_of_label_;
+  std::array<float, kMaxClusterLabels> state_weight_of_label_;
+  State state_;
+  DenseResult result_;
+  std::vector<double> gamma_;
+  GammaProblem problem_;
+
+  // The brightness change (gain 1, offset 0 and never updated with Seg.AffineBrightness off).
+  const bool with_brightness_;
+  detail::Brightness brightness_;
+  double brightness_change_ = 0.0;  // of the last state step's fit
+};
+
+DenseSolve::DenseSolve(const DenseSolverOptions& options, detail::DenseSolverBuffers& buffers,
+                       const DenseFrame& previous, const std::vector<double>& previous_gamma,
+                       const DenseFrame& current, const std::vector<ClusterEdge>& edges, const DensePrior& prior)
+    : options_(options),
+      buffers_(buffers),
+      previous_(previous),
+      current_(current),
+      prior_(prior),
+      num_clusters_(current.numClusters()),
+      with_imu_(prior.kind == DensePrior::Kind::kImu),
+      params_{static_cast<float>(options.alpha_intensity), static_cast<float>(options.cauchy_c),
+              static_cast<float>(options.occlusion_gap_m)},
+      imu_information_(with_imu_ ? imuInformation(prior) : Mat9::Identity()),
+      bias_information_(with_imu_ ? biasInformation(prior, options.lambda_imu) : Mat6::Identity()),
+      A_(prior.T_b_c.inverse().adjoint()),
+      gamma_(static_cast<std::size_t>(num_clusters_), 1.0),
+      with_brightness_(options.affine_brightness) {
+  previous_gamma_of_label_.fill(1.0f);
+  for (std::size_t k = 0; k < previous_gamma.size(); ++k) previous_gamma_of_label_[k] = static_cast<float>(previous_gamma[k]);
+  gamma_of_label_.fill(1.0f);
+  state_weight_of_label_.fill(0.0f);
+
+  state_.T_w_b = prior.T_w_b_pred;
+  state_.v_w_b = prior.v_w_b_pred;
+  state_.bias = prior.bias_prev;
+
+  problem_.edges = edges;
+  problem_.lambda_d = options.lambda_d;
+  problem_.data.assign(static_cast<std::size_t>(num_clusters_), 0.0);
+  problem_.prior.assign(static_cast<std::size_t>(num_clusters_), 1.0);
+}
+
+void DenseSolve::fitBrightness(int level) {
+  detail::accumulateBrightness(previous_.level(level), current_.level(level), warpOf(prior_, state_.T_w_b),
+                               previous_gamma_of_label_.data(), params_, &buffers_.blocks);
+  brightness_ = solveBrightness(buffers_.blocks, brightness_, options_.brightness_prior, /*plain_first_round=*/true);
+}
+
+void DenseSolve::gammaStep(int level, bool record_prediction_cost) {
+  const int K = num_clusters_;
+  detail::ClusterEvidence& evidence = buffers_.evidence;
+  evidence.reset(K + 1);
+  detail::clusterEvidence(previous_.level(level), current_.level(level), warpOf(prior_, state_.T_w_b),
+                          previous_gamma_of_label_.data(), params_, brightness_, &evidence);
+  if (record_prediction_cost) result_.cost_at_prediction.assign(static_cast<std::size_t>(K) + 1, -1.0);
+  for (int k = 0; k < K; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    const int n = evidence.num_pixels[kk];
+    problem_.data[kk] = (evidence.cost_sum[kk] - options_.dynamic_cost * n) / std::max(n, kMinEvidencePixels);
+    const int m = evidence.prior_count[kk];
+    problem_.prior[kk] = m > 0 ? evidence.prior_sum[kk] / m : 1.0;
+    if (record_prediction_cost && n > 0) result_.cost_at_prediction[kk] = evidence.cost_sum[kk] / n;
+  }
+  gamma_ = solveGamma(problem_, gamma_);
+  for (int k = 0; k < K; ++k) gamma_of_label_[static_cast<std::size_t>(k)] = static_cast<float>(gamma_[static_cast<std::size_t>(k)]);
+}
+
+double DenseSolve::stepPx(const Vec6& delta, int level) const {
+  const Vec6 eps = A_ * delta;
+  return current_.level(level).camera.fx * (eps.head<3>().norm() + eps.tail<3>().norm() / kNearPointDepth_m);
+}
+
+float DenseSolve::updateStateWeights() {
+  float largest_change = 0.0f;
+  for (std::size_t k = 0; k < state_weight_of_label_.size(); ++k) {
+    const float weight = gamma_of_label_[k] >= options_.static_threshold ? gamma_of_label_[k] : 0.0f;
+    largest_change = std::max(largest_change, std::abs(weight - state_weight_of_label_[k]));
+    state_weight_of_label_[k] = weight;
+  }
+  return largest_change;
+}
+
+void DenseSolve::accumulateImageTerm(int level, detail::ImageNormalEquations* image) {
+  if (with_brightness_) {
+    detail::accumulateImageTerm(previous_.level(level), current_.level(level), warpOf(prior_, state_.T_w_b),
+                                state_weight_of_label_.data(), params_, &buffers_.rows, image, &brightness_,
+                                &buffers_.blocks);
+    const detail::Brightness fitted =
+        solveBrightness(buffers_.blocks, brightness_, options_.brightness_prior, /*plain_first_round=*/false);
+    brightness_change_ = brightnessChange(brightness_, fitted);
+    brightness_ = fitted;
+  } else {
+    detail::accumulateImageTerm(previous_.level(level), current_.level(level), warpOf(prior_, state_.T_w_b),
+                                state_weight_of_label_.data(), params_, &buffers_.rows, image);
+  }
+}
+
+double DenseSolve::stateStep(int level) {
+  detail::ImageNormalEquations image;
+  accumulateImageTerm(level, &image);
+  ++result_.gauss_newton_steps;
+  const Mat6 H_pose = A_.transpose() * image.H * A_;
+  const Vec6 b_pose = A_.transpose() * image.b;
+  if (with_imu_) return imuStateStep(H_pose, b_pose, level);
+  return relativePoseStateStep(H_pose, b_pose, level);
+}
+
+double DenseSolve::imuStateStep(const Mat6& H_pose, const Vec6& b_pose, int level) {
+  Mat15 H = Mat15::Zero();
+  Vec15 b = Vec15::Zero();
+  H.block<6, 6>(0, 0) = H_pose;
+  b.head<6>() = b_pose;
+  const imu::InertialResidualJacobians jac = imu::inertialResidualJacobians(
+      navState(prior_.T_w_b_prev, prior_.v_w_b_prev), navState(state_.T_w_b, state_.v_w_b), state_.bias,
+      *prior_.pim, prior_.g_w);
+  Eigen::Matrix<double, 9, 15> J;
+  J << jac.d_r_d_R_j, jac.d_r_d_p_j * state_.T_w_b.rotationMatrix(), jac.d_r_d_v_j, jac.d_r_d_b_g, jac.d_r_d_b_a;
+  H += J.transpose() * imu_information_ * J;
+  b += J.transpose() * imu_information_ * jac.residual;
+  Vec6 r_bias;
+  r_bias << state_.bias.b_g - prior_.bias_prev.b_g, state_.bias.b_a - prior_.bias_prev.b_a;
+  H.block<6, 6>(9, 9) += bias_information_;
+  b.tail<6>() += bias_information_ * r_bias;
+  const Vec15 delta = -H.ldlt().solve(b);
+  if (!delta.allFinite()) return 0.0;
+  state_.T_w_b = state_.T_w_b * SE3::exp(delta.head<6>());
+  state_.v_w_b += delta.segment<3>(6);
+  state_.bias.b_g += delta.segment<3>(9);
+  state_.bias.b_a += delta.segment<3>(12);
+  return stepPx(delta.head<6>(), level);
+}
+
+double DenseSolve::relativePoseStateStep(const Mat6& H_pose, const Vec6& b_pose, int level) {
+  // Relative-pose prior r = Log(T_pred^-1 T) with d r / d delta ~ I near the prediction.
+  const Vec6 r = (prior_.T_w_b_pred.inverse() * state_.T_w_b).log();
+  const Mat6 H = H_pose + prior_.pose_information;
+  const Vec6 b = b_pose + prior_.pose_information * r;
+  const Vec6 delta = -H.ldlt().solve(b);
+  if (!delta.allFinite()) return 0.0;
+  state_.T_w_b = state_.T_w_b * SE3::exp(delta);
+  return stepPx(delta, level);
+}
+
+bool DenseSolve::gaussNewtonSteps(int level, double* previous_step_px) {
+  bool converged = false;
+  for (int iteration = 0; iteration < options_.iterations_per_level && !converged; ++iteration) {
+    const double step_px = stateStep(level);
+    converged = remainingPx(step_px, *previous_step_px) <= options_.step_tolerance_px &&
+                brightness_change_ <= kBrightnessTolerance;
+    *previous_step_px = step_px;
+  }
+  return converged;
+}
+
+bool DenseSolve::alternateOverLevels(int coarsest, int finest) {
+  bool gamma_at_final_state = false;
+  for (int level = coarsest; level >= finest; --level) {
+    bool converged = false;
+    double previous_step_px = -1.0;  // the level's last step, px (< 0: none yet)
+    for (int alternation = 0; alternation < options_.alternations; ++alternation) {
+      gammaStep(level, level == coarsest && alternation == 0);
+      const float weight_change = updateStateWeights();
+      if (converged && weight_change <= kSameStateWeight) {
+        // The state step converged and Gamma poses it the same problem: the remaining
+        // alternations of this level would repeat the same two steps.
+        gamma_at_final_state = level == finest;
+        break;
+      }
+      converged = gaussNewtonSteps(level, &previous_step_px);
+    }
+  }
+  return gamma_at_final_state;
+}
+
+bool DenseSolve::passesPriorGate(int finest) {
+  result_.prior_chi2 = priorChi2(prior_, state_, imu_information_);
+  if (result_.prior_chi2 > options_.max_prior_chi2) {
+    // The images pulled the state away from the motion prior: keep the prediction.
+    result_.prior_rejected = true;
+    state_.T_w_b = prior_.T_w_b_pred;
+    state_.v_w_b = prior_.v_w_b_pred;
+    state_.bias = prior_.bias_prev;
+    result_.prior_chi2 = priorChi2(prior_, state_, imu_information_);
+    if (with_brightness_) fitBrightness(finest);  // the brightness change at the kept prediction
+    return false;
+  }
+  return true;
+}
+
+DenseResult DenseSolve::takeResult() {
+  result_.state_refined = num_clusters_ > 0 && !result_.prior_rejected;
+  result_.T_w_b = state_.T_w_b;
+  result_.v_w_b = state_.v_w_b;
+  result_.bias = state_.bias;
+  result_.brightness_gain = brightness_.gain;
+  result_.brightness_offset = brightness_.offset;
+  result_.gamma = gamma_;
+  result_.gamma.push_back(1.0);  // the no-depth cluster K
+  result_.prior_gamma = problem_.prior;
+  result_.prior_gamma.push_back(1.0);
+  result_.data_coefficient = problem_.data;
+  result_.data_coefficient.push_back(0.0);
+  return std::move(result_);
+}
+
+DenseResult DenseSolve::run() {
+  const int coarsest = current_.numLevels() - 1;
+  const int finest = std::clamp(options_.finest_level, 0, coarsest);
+  if (num_clusters_ > 0) {
+    // The brightness change before the first Gamma step judges the clusters: an exposure step
+    // would otherwise raise every cluster's cost at the prediction.
+    if (with_brightness_) fitBrightness(coarsest);
+    // Gamma was last solved at the current state on the finest level (the final Gamma step would
+    // repeat it).
+    bool gamma_at_final_state = alternateOverLevels(coarsest, finest);
+    if (!passesPriorGate(finest)) gamma_at_final_state = false;
+    if (!gamma_at_final_state) gammaStep(finest, false);
+  }
+  return takeResult();
+}
+
+}  // namespace
+
 DenseSolverOptions DenseSolverOptions::from(const SegmentationOptions& segmentation, const DenseOptions& dense,
                                             const LocalMappingOptions& local_mapping) {
   DenseSolverOptions options;
@@ -236,196 +526,7 @@ DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<dou
   LTLO_ASSERT(static_cast<int>(previous_gamma.size()) == previous.numClusters() + 1,
               previous_gamma.size() << " previous scores for " << previous.numClusters() << " clusters");
   LTLO_ASSERT(prior.kind != DensePrior::Kind::kImu || prior.pim != nullptr, "an IMU prior needs the preintegration");
-  const int K = current.numClusters();
-  const bool with_imu = prior.kind == DensePrior::Kind::kImu;
-  detail::DenseSolverBuffers& buffers = *buffers_;
-  const detail::ResidualParams params{static_cast<float>(options_.alpha_intensity),
-                                      static_cast<float>(options_.cauchy_c),
-                                      static_cast<float>(options_.occlusion_gap_m)};
-
-  std::array<float, kMaxClusterLabels> previous_gamma_of_label;
-  previous_gamma_of_label.fill(1.0f);
-  for (std::size_t k = 0; k < previous_gamma.size(); ++k) previous_gamma_of_label[k] = static_cast<float>(previous_gamma[k]);
-  std::array<float, kMaxClusterLabels> gamma_of_label;
-  gamma_of_label.fill(1.0f);
-
-  State state;
-  state.T_w_b = prior.T_w_b_pred;
-  state.v_w_b = prior.v_w_b_pred;
-  state.bias = prior.bias_prev;
-  const Mat9 imu_information = with_imu ? imuInformation(prior) : Mat9::Identity();
-  const Mat6 bias_information = with_imu ? biasInformation(prior, options_.lambda_imu) : Mat6::Identity();
-  const Mat6 A = prior.T_b_c.inverse().adjoint();  // camera twist eps = Ad(T_c_b) body twist delta
-
-  DenseResult result;
-  std::vector<double> gamma(static_cast<std::size_t>(K), 1.0);
-  GammaProblem problem;
-  problem.edges = edges;
-  problem.lambda_d = options_.lambda_d;
-  problem.data.assign(static_cast<std::size_t>(K), 0.0);
-  problem.prior.assign(static_cast<std::size_t>(K), 1.0);
-
-  // The brightness change (gain 1, offset 0 and never updated with Seg.AffineBrightness off).
-  const bool with_brightness = options_.affine_brightness;
-  detail::Brightness brightness;
-  double brightness_change = 0.0;  // of the last state step's fit
-
-  // Brightness fit alone at the state on `level`, weighted by the previous scores at W(u, T).
-  auto fitBrightness = [&](int level) {
-    detail::accumulateBrightness(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
-                                 previous_gamma_of_label.data(), params, &buffers.blocks);
-    brightness = solveBrightness(buffers.blocks, brightness, options_.brightness_prior, /*plain_first_round=*/true);
-  };
-
-  // Gamma step at the state, on `level`: Eq. 60 evidence per cluster and the warped prior.
-  auto gammaStep = [&](int level, bool record_prediction_cost) {
-    buffers.evidence.reset(K + 1);
-    detail::clusterEvidence(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
-                            previous_gamma_of_label.data(), params, brightness, &buffers.evidence);
-    if (record_prediction_cost) result.cost_at_prediction.assign(static_cast<std::size_t>(K) + 1, -1.0);
-    for (int k = 0; k < K; ++k) {
-      const auto kk = static_cast<std::size_t>(k);
-      const int n = buffers.evidence.num_pixels[kk];
-      problem.data[kk] = (buffers.evidence.cost_sum[kk] - options_.dynamic_cost * n) / std::max(n, kMinEvidencePixels);
-      const int m = buffers.evidence.prior_count[kk];
-      problem.prior[kk] = m > 0 ? buffers.evidence.prior_sum[kk] / m : 1.0;
-      if (record_prediction_cost && n > 0) result.cost_at_prediction[kk] = buffers.evidence.cost_sum[kk] / n;
-    }
-    gamma = solveGamma(problem, gamma);
-    for (int k = 0; k < K; ++k) gamma_of_label[static_cast<std::size_t>(k)] = static_cast<float>(gamma[static_cast<std::size_t>(k)]);
-  };
-
-  // The image motion of a body step delta = [phi; rho] at `level`, px: a point kNearPointDepth_m
-  // in front of the camera moves by at most about f (|eps_phi| + |eps_rho| / z) (eps: camera twist).
-  auto stepPx = [&](const Vec6& delta, int level) {
-    const Vec6 eps = A * delta;
-    return current.level(level).camera.fx * (eps.head<3>().norm() + eps.tail<3>().norm() / kNearPointDepth_m);
-  };
-
-  // Only clusters at or above the static threshold take part in the state step (weighted by gamma):
-  // a dynamic cluster, however large, cannot pull the state.
-  std::array<float, kMaxClusterLabels> state_weight_of_label;
-  auto updateStateWeights = [&]() {
-    float largest_change = 0.0f;
-    for (std::size_t k = 0; k < state_weight_of_label.size(); ++k) {
-      const float weight = gamma_of_label[k] >= options_.static_threshold ? gamma_of_label[k] : 0.0f;
-      largest_change = std::max(largest_change, std::abs(weight - state_weight_of_label[k]));
-      state_weight_of_label[k] = weight;
-    }
-    return largest_change;
-  };
-  state_weight_of_label.fill(0.0f);
-
-  // Gauss-Newton step on the state at `level` (Gamma fixed); returns the step's image motion, px.
-  // With the brightness change, the same pass gives the brightness fit at the step's start (both
-  // updates from one linearisation point).
-  auto stateStep = [&](int level) {
-    detail::ImageNormalEquations image;
-    if (with_brightness) {
-      detail::accumulateImageTerm(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
-                                  state_weight_of_label.data(), params, &buffers.rows, &image, &brightness,
-                                  &buffers.blocks);
-      const detail::Brightness fitted =
-          solveBrightness(buffers.blocks, brightness, options_.brightness_prior, /*plain_first_round=*/false);
-      brightness_change = brightnessChange(brightness, fitted);
-      brightness = fitted;
-    } else {
-      detail::accumulateImageTerm(previous.level(level), current.level(level), warpOf(prior, state.T_w_b),
-                                  state_weight_of_label.data(), params, &buffers.rows, &image);
-    }
-    ++result.gauss_newton_steps;
-    const Mat6 H_pose = A.transpose() * image.H * A;
-    const Vec6 b_pose = A.transpose() * image.b;
-    if (with_imu) {
-      Mat15 H = Mat15::Zero();
-      Vec15 b = Vec15::Zero();
-      H.block<6, 6>(0, 0) = H_pose;
-      b.head<6>() = b_pose;
-      const imu::InertialResidualJacobians jac = imu::inertialResidualJacobians(
-          navState(prior.T_w_b_prev, prior.v_w_b_prev), navState(state.T_w_b, state.v_w_b), state.bias,
-          *prior.pim, prior.g_w);
-      Eigen::Matrix<double, 9, 15> J;
-      J << jac.d_r_d_R_j, jac.d_r_d_p_j * state.T_w_b.rotationMatrix(), jac.d_r_d_v_j, jac.d_r_d_b_g, jac.d_r_d_b_a;
-      H += J.transpose() * imu_information * J;
-      b += J.transpose() * imu_information * jac.residual;
-      Vec6 r_bias;
-      r_bias << state.bias.b_g - prior.bias_prev.b_g, state.bias.b_a - prior.bias_prev.b_a;
-      H.block<6, 6>(9, 9) += bias_information;
-      b.tail<6>() += bias_information * r_bias;
-      const Vec15 delta = -H.ldlt().solve(b);
-      if (!delta.allFinite()) return 0.0;
-      state.T_w_b = state.T_w_b * SE3::exp(delta.head<6>());
-      state.v_w_b += delta.segment<3>(6);
-      state.bias.b_g += delta.segment<3>(9);
-      state.bias.b_a += delta.segment<3>(12);
-      return stepPx(delta.head<6>(), level);
-    }
-    // Relative-pose prior r = Log(T_pred^-1 T) with d r / d delta ~ I near the prediction.
-    const Vec6 r = (prior.T_w_b_pred.inverse() * state.T_w_b).log();
-    const Mat6 H = H_pose + prior.pose_information;
-    const Vec6 b = b_pose + prior.pose_information * r;
-    const Vec6 delta = -H.ldlt().solve(b);
-    if (!delta.allFinite()) return 0.0;
-    state.T_w_b = state.T_w_b * SE3::exp(delta);
-    return stepPx(delta, level);
-  };
-
-  const int coarsest = current.numLevels() - 1;
-  const int finest = std::clamp(options_.finest_level, 0, coarsest);
-  if (K > 0) {
-    // Gamma was last solved at the current state on the finest level (the final Gamma step would
-    // repeat it).
-    bool gamma_at_final_state = false;
-    // The brightness change before the first Gamma step judges the clusters: an exposure step
-    // would otherwise raise every cluster's cost at the prediction.
-    if (with_brightness) fitBrightness(coarsest);
-    for (int level = coarsest; level >= finest; --level) {
-      bool converged = false;
-      double previous_step_px = -1.0;  // the level's last step, px (< 0: none yet)
-      for (int alternation = 0; alternation < options_.alternations; ++alternation) {
-        gammaStep(level, level == coarsest && alternation == 0);
-        const float weight_change = updateStateWeights();
-        if (converged && weight_change <= kSameStateWeight) {
-          // The state step converged and Gamma poses it the same problem: the remaining
-          // alternations of this level would repeat the same two steps.
-          gamma_at_final_state = level == finest;
-          break;
-        }
-        converged = false;
-        for (int iteration = 0; iteration < options_.iterations_per_level && !converged; ++iteration) {
-          const double step_px = stateStep(level);
-          converged = remainingPx(step_px, previous_step_px) <= options_.step_tolerance_px &&
-                      brightness_change <= kBrightnessTolerance;
-          previous_step_px = step_px;
-        }
-      }
-    }
-    result.prior_chi2 = priorChi2(prior, state, imu_information);
-    if (result.prior_chi2 > options_.max_prior_chi2) {
-      // The images pulled the state away from the motion prior: keep the prediction.
-      result.prior_rejected = true;
-      state.T_w_b = prior.T_w_b_pred;
-      state.v_w_b = prior.v_w_b_pred;
-      state.bias = prior.bias_prev;
-      result.prior_chi2 = priorChi2(prior, state, imu_information);
-      gamma_at_final_state = false;
-      if (with_brightness) fitBrightness(finest);  // the brightness change at the kept prediction
-    }
-    if (!gamma_at_final_state) gammaStep(finest, false);
-  }
-  result.state_refined = K > 0 && !result.prior_rejected;
-  result.T_w_b = state.T_w_b;
-  result.v_w_b = state.v_w_b;
-  result.bias = state.bias;
-  result.brightness_gain = brightness.gain;
-  result.brightness_offset = brightness.offset;
-  result.gamma = gamma;
-  result.gamma.push_back(1.0);  // the no-depth cluster K
-  result.prior_gamma = problem.prior;
-  result.prior_gamma.push_back(1.0);
-  result.data_coefficient = problem.data;
-  result.data_coefficient.push_back(0.0);
-  return result;
+  return DenseSolve(options_, *buffers_, previous, previous_gamma, current, edges, prior).run();
 }
 
 }  // namespace ltlo::segmentation
