@@ -10,7 +10,7 @@
 #include <cmath>
 
 #include "ltlo/core/log.h"
-#include "ltlo/loop/guided_place_match.h"
+#include "ltlo/place/guided_place_match.h"
 #include "ltlo/tracking/tracker.h"
 #include "tracker_util.h"
 
@@ -19,8 +19,8 @@ namespace ltlo::tracking {
 using detail::clearMatches;
 using detail::staticKeypointsWithDepth;
 
-loop::GuidedPlaceMatchOptions reacquireSearchOptions(const TrackerOptions& options) {
-  loop::GuidedPlaceMatchOptions search;
+place::GuidedPlaceMatchOptions reacquireSearchOptions(const TrackerOptions& options) {
+  place::GuidedPlaceMatchOptions search;
   search.gate_sigmas = options.tracking.reacquire_gate_sigmas;
   search.min_rotation_gate_deg = options.tracking.reacquire_min_rotation_gate_deg;
   search.min_radius_px = options.local_map_radius_px;
@@ -40,11 +40,11 @@ int Tracker::reacquire(map::Frame& frame, const SE3& T_w_b_pred) {
   const SE3 T_w_c_pred = T_w_b_pred * frame.T_b_c();
   const Vec3 centre_w = T_w_c_pred.translation();
 
-  loop::GuidedPlaceMatchOptions search = reacquireSearchOptions(options_);
+  place::GuidedPlaceMatchOptions search = reacquireSearchOptions(options_);
   search.sigma_position_m = sigma_p;
   search.sigma_rotation_rad = sigma_r;
   search.seed = static_cast<std::uint32_t>(std::llround(frame.t_s() * 1000.0)) * 7919u + 29u;
-  const loop::GuidedPlaceMatch found = loop::guidedPlaceMatch(frame, active, T_w_c_pred, search);
+  const place::GuidedPlaceMatch found = place::guidedPlaceMatch(frame, active, T_w_c_pred, search);
   log::debug("re-acquisition at t = ", frame.t_s(), " s: sigma ", sigma_p, " m / ", sigma_r, " rad, ",
              found.keyframes, " keyframes, ", found.projected, " points projected, ", found.correspondences,
              " matches of ", staticKeypointsWithDepth(frame), " static keypoints with depth, ", found.ransac_inliers,
@@ -71,7 +71,7 @@ int Tracker::reacquire(map::Frame& frame, const SE3& T_w_b_pred) {
   }
   stats_.predicted_position_sigma_m = saved_sigma_p;
   stats_.predicted_rotation_sigma_rad = saved_sigma_r;
-  const bool refined_within_gate = loop::withinPredictionGate(frame.T_w_c(), T_w_c_pred, search);
+  const bool refined_within_gate = place::withinPredictionGate(frame.T_w_c(), T_w_c_pred, search);
   if (inliers >= o.reacquire_min_inliers && refined_within_gate) {
     log::info("re-acquired map ", active.id(), " at t = ", frame.t_s(), " s after ", frame.t_s() - last_tracked_t_s_,
               " s lost: ", found.ransac_inliers, " RANSAC inliers of ", found.correspondences, ", ", inliers,

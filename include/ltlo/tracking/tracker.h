@@ -46,12 +46,12 @@
 #include "ltlo/core/settings.h"
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/imu/preintegration.h"
-#include "ltlo/loop/guided_place_match.h"
 #include "ltlo/map/frame.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
 #include "ltlo/optim/pose_only_problem.h"
+#include "ltlo/place/guided_place_match.h"
 #include "ltlo/tracking/frame_segmenter.h"
 #include "ltlo/tracking/relocaliser.h"
 
@@ -116,7 +116,7 @@ struct TrackerOptions {
 /// The guided search of the re-acquisition (Tracking.Reacquire*, the local-map window floor and
 /// keyframes, the descriptor and RANSAC thresholds), without its sigmas and seed; the loop
 /// closer's rejoin (Loop.Rejoin) searches with the same settings.
-loop::GuidedPlaceMatchOptions reacquireSearchOptions(const TrackerOptions& options);
+place::GuidedPlaceMatchOptions reacquireSearchOptions(const TrackerOptions& options);
 
 /// Per-frame numbers for logs and tests.
 struct TrackingStats {
