@@ -15,10 +15,21 @@
 #include "ltlo/loop/loop_corrector.h"
 #include "ltlo/loop/loop_detector.h"
 #include "ltlo/loop/map_merger.h"
-#include "ltlo/loop/pooled_place_match.h"
 #include "ltlo/map/keyframe_database.h"
+#include "ltlo/place/pooled_place_match.h"
 
 namespace ltlo::loop {
+
+// The place matching (place/) the rejoin and proximity searches are built on.
+using place::GuidedPlaceMatch;
+using place::GuidedPlaceMatchOptions;
+using place::WorldOffsetVote;
+using place::guidedPlaceMatch;
+using place::pooledPlaceMatch;
+using place::poolingWindow;
+using place::translationWithHeldRotation;
+using place::voteWorldOffset;
+using place::withinPredictionGate;
 
 namespace {
 

@@ -56,10 +56,10 @@ LoopCorrespondences findLoopCorrespondences(const map::KeyFrame& current, const 
       if (!point || point->isBad()) continue;
       keypoint_used[static_cast<std::size_t>(m.query)] = true;
       point_used.insert(point_id);
-      Correspondence3d c;
+      place::Correspondence3d c;
       c.p_a = current.p_c(m.query);
       c.p_b = point->p_w();
-      c.sigma_m = std::sqrt(2.0) * depthSigma_m(current.depth_m(m.query));  // both ends see similar depths
+      c.sigma_m = std::sqrt(2.0) * place::depthSigma_m(current.depth_m(m.query));  // both ends see similar depths
       out.correspondences.push_back(c);
       out.matches.push_back(LoopMatch{m.query, point_id});
     }
@@ -68,15 +68,15 @@ LoopCorrespondences findLoopCorrespondences(const map::KeyFrame& current, const 
 }
 
 std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate, const map::Map& map,
-                                      const LoopOptions& options, Se3RansacResult* ransac_out) {
+                                      const LoopOptions& options, place::Se3RansacResult* ransac_out) {
   LoopCorrespondences found = findLoopCorrespondences(current, candidate, map);
-  Se3RansacOptions ransac_options;
+  place::Se3RansacOptions ransac_options;
   // The depth-noise gate grows with depth^2; Loop.InlierThreshold caps the inlier distance.
   const double max_sigma_m = options.inlier_threshold_m / std::sqrt(ransac_options.chi2_3d);
-  for (Correspondence3d& c : found.correspondences) c.sigma_m = std::min(c.sigma_m, max_sigma_m);
+  for (place::Correspondence3d& c : found.correspondences) c.sigma_m = std::min(c.sigma_m, max_sigma_m);
   ransac_options.min_inliers = options.min_inliers;
   ransac_options.seed = static_cast<std::uint32_t>(current.id().value * 7919u + candidate.id().value);
-  const Se3RansacResult ransac = estimateSe3Ransac(found.correspondences, ransac_options);
+  const place::Se3RansacResult ransac = place::estimateSe3Ransac(found.correspondences, ransac_options);
   if (ransac_out != nullptr) *ransac_out = ransac;
   log::debug("loop: kf ", current.id(), " vs ", candidate.id(), ": ", found.correspondences.size(), " 3-D matches, ",
              ransac.num_inliers, " inliers");

@@ -5,7 +5,7 @@
 
 #include "ltlo/core/log.h"
 #include "ltlo/features/matching.h"
-#include "ltlo/loop/se3_ransac.h"
+#include "ltlo/place/se3_ransac.h"
 
 namespace ltlo::tracking {
 
@@ -31,7 +31,7 @@ std::vector<RelocalisationHypothesis> relocalisationHypotheses(const map::Frame&
     const std::vector<features::Match> matches =
         features::matchByBow(frame.featureVector(), frame.features(), kf->featureVector(), kf_features, matching);
     // 3-D-3-D correspondences p_c (frame, from depth) ~ T_c_w * p_w (map point).
-    std::vector<loop::Correspondence3d> correspondences;
+    std::vector<place::Correspondence3d> correspondences;
     std::vector<std::pair<int, map::MapPointId>> matched;
     std::unordered_set<map::MapPointId> used;
     for (const features::Match& m : matches) {
@@ -42,10 +42,10 @@ std::vector<RelocalisationHypothesis> relocalisationHypotheses(const map::Frame&
       const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
       if (!point || point->isBad()) continue;
       used.insert(id);
-      loop::Correspondence3d c;
+      place::Correspondence3d c;
       c.p_a = frame.p_c(m.query);
       c.p_b = point->p_w();
-      c.sigma_m = std::sqrt(2.0) * loop::depthSigma_m(depth);  // the point's depth noise is similar
+      c.sigma_m = std::sqrt(2.0) * place::depthSigma_m(depth);  // the point's depth noise is similar
       correspondences.push_back(c);
       matched.emplace_back(m.query, id);
     }
@@ -53,10 +53,10 @@ std::vector<RelocalisationHypothesis> relocalisationHypotheses(const map::Frame&
       log::debug("relocalisation: keyframe ", kf->id(), ": ", correspondences.size(), " 3-D matches");
       continue;
     }
-    loop::Se3RansacOptions ransac_options;
+    place::Se3RansacOptions ransac_options;
     ransac_options.min_inliers = options.min_ransac_inliers;
     ransac_options.seed = static_cast<std::uint32_t>(kf->id().value * 7919u + 17u);
-    const loop::Se3RansacResult ransac = loop::estimateSe3Ransac(correspondences, ransac_options);
+    const place::Se3RansacResult ransac = place::estimateSe3Ransac(correspondences, ransac_options);
     log::debug("relocalisation: keyframe ", kf->id(), ": ", correspondences.size(), " 3-D matches, ",
                ransac.num_inliers, " RANSAC inliers");
     if (!ransac.success) continue;

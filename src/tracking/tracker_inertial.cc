@@ -1,6 +1,6 @@
-// Tracker, part 3: the motion prediction (IMU or constant velocity), the inertial link of the
-// pose-inertial optimisation (last keyframe or last frame with its marginal as a prior) and the
-// pose optimisation itself.
+// Tracker, part 3: the motion prediction (IMU or constant velocity) and the segmentation step's
+// motion prior from it, the inertial link of the pose-inertial optimisation (last keyframe or last
+// frame with its marginal as a prior) and the pose optimisation itself.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -86,16 +86,8 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
         const double lever_m = sigma_r * frame.T_b_c().translation().norm();
         stats_.predicted_rotation_sigma_rad = sigma_r;
         stats_.predicted_position_sigma_m = std::hypot(sigma_p, bias_drift_m) + lever_m;
-        // Over an IMU-carried stretch the acceleration error integrates from the last visual fix
-        // (the anchored frame, or points placed at the prediction that tracking then held), on
-        // top of that fix's own error (tracker.h, carried_fix_t_s_).
-        if (carried_first_point_.valid()) {
-          const double drift_s = frame.t_s() - carried_fix_t_s_;
-          carried_position_sigma_m_ =
-              std::hypot(carried_fix_sigma_m_, std::hypot(sigma_p, 0.5 * sigma_a * drift_s * drift_s)) + lever_m;
-        } else {
-          carried_position_sigma_m_ = std::hypot(sigma_p, bias_drift_m) + lever_m;
-        }
+        // The loss policy's sigma, over an IMU-carried stretch from its last visual fix.
+        loss_.updateCarriedSigma(frame.t_s(), sigma_p, sigma_a, bias_drift_m, lever_m);
       }
     }
     return imu_prediction_.state.T_w_b;
@@ -115,6 +107,26 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
   }
   frame.setVelocity(keep_moving ? prev_v_w_b_ : Vec3::Zero());
   return T_w_c * frame.T_b_c().inverse();
+}
+
+MotionPrior Tracker::motionPrior(const map::Frame& frame, const SE3& T_w_b_pred) const {
+  MotionPrior prior;
+  prior.T_b_c = frame.T_b_c();
+  prior.T_w_b_prev = prev_T_w_b_;
+  prior.v_w_b_prev = prev_v_w_b_;
+  prior.bias_prev = imu_initialised_ ? prev_bias_ : bias_;
+  if (prev_information_.valid) prior.prev_information = prev_information_.information;
+  prior.T_w_b_pred = T_w_b_pred;
+  prior.v_w_b_pred = frame.v_w_b();
+  prior.dt_s = frame.t_s() - prev_t_s_;
+  prior.g_w = g_w_;
+  if (frame.imu_from_last_frame) {
+    prior.pim = std::make_shared<const imu::Preintegrated>(*frame.imu_from_last_frame);
+    prior.kind = imu_initialised_ ? MotionPrior::Kind::kImu : MotionPrior::Kind::kGyroConstantVelocity;
+  } else if (velocity_T_last_cur_) {
+    prior.kind = MotionPrior::Kind::kConstantVelocity;
+  }
+  return prior;
 }
 
 Tracker::ImuPrediction Tracker::predictWithImu(const map::Frame& frame) {

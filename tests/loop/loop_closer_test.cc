@@ -15,11 +15,15 @@
 
 #include "bow/vocabulary.h"
 #include "loop_scene.h"
-#include "ltlo/loop/guided_place_match.h"
+#include "ltlo/place/guided_place_match.h"
 
 namespace ltlo::loop {
 namespace {
 
+using place::GuidedPlaceMatch;
+using place::GuidedPlaceMatchOptions;
+using place::guidedPlaceMatch;
+using place::translationWithHeldRotation;
 // The lap (loop_scene.h).
 using test::driftStep;
 using test::kCamera;

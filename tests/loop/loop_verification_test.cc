@@ -90,7 +90,7 @@ TEST(LoopVerification, RecoversTheCurrentPoseFromThreeDMatches) {
   LoopScene scene;
   buildLoopScene(scene, scene.map, scene.map);
   LoopOptions options;
-  Se3RansacResult ransac;
+  place::Se3RansacResult ransac;
   const std::optional<LoopClosure> loop = verifyLoop(*scene.current, *scene.candidate, scene.map, options, &ransac);
   ASSERT_TRUE(loop.has_value());
   const SE3 error = scene.T_w_b_current_true.inverse() * loop->T_w_b_current_corrected;

@@ -3,7 +3,7 @@
 // as behind a box), placed in a world 0.15 m and 0.5 deg (yaw) off, as a map started after a long
 // dead-reckoned stretch is. One keyframe of it matches too few points to be accepted; the window of
 // four, pooled by their relative poses, recovers the true pose with a yaw it can fix.
-#include "ltlo/loop/pooled_place_match.h"
+#include "ltlo/place/pooled_place_match.h"
 
 #include <gtest/gtest.h>
 
@@ -17,6 +17,11 @@
 namespace ltlo::loop {
 namespace {
 
+using place::GuidedPlaceMatch;
+using place::GuidedPlaceMatchOptions;
+using place::guidedPlaceMatch;
+using place::pooledPlaceMatch;
+using place::poolingWindow;
 using test::kStepsPerLap;
 using test::SceneBuilder;
 using test::truePose_T_w_b;

@@ -26,9 +26,9 @@
 #include "ltlo/core/settings.h"
 #include "ltlo/core/timing.h"
 #include "ltlo/loop/global_ba.h"
-#include "ltlo/loop/guided_place_match.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
+#include "ltlo/place/guided_place_match.h"
 
 namespace ltlo::loop {
 
@@ -47,7 +47,7 @@ struct LoopCloserOptions {
   bool run_global_ba = true;       ///< full BA after each loop (in its own thread)
   /// The rejoin's guided search (Loop.Rejoin): windows, gate, keyframes, descriptor distance (the
   /// tracker's re-acquisition settings); its sigmas come from each map's MapOrigin.
-  GuidedPlaceMatchOptions rejoin_search;
+  place::GuidedPlaceMatchOptions rejoin_search;
   std::size_t queue_capacity = 64;
 };
 

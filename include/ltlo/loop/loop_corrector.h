@@ -11,8 +11,8 @@
 #include "ltlo/core/lie.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/features/matching.h"
-#include "ltlo/loop/se3_ransac.h"
 #include "ltlo/map/map.h"
+#include "ltlo/place/se3_ransac.h"
 
 namespace ltlo::loop {
 
@@ -25,7 +25,7 @@ struct LoopMatch {
 /// correspondences[k]: p_a = current keypoint in the current camera frame (m), p_b = the loop map
 /// point in the world (m); the alignment is T_c_w of the current keyframe. matches[k] is the same pair.
 struct LoopCorrespondences {
-  std::vector<Correspondence3d> correspondences;
+  std::vector<place::Correspondence3d> correspondences;
   std::vector<LoopMatch> matches;
 };
 
@@ -48,7 +48,7 @@ struct LoopClosure {
 /// depth noise of the current keypoint, the distance capped at Loop.InlierThreshold), nullopt when
 /// rejected. Reads the map only (thread-safe).
 std::optional<LoopClosure> verifyLoop(const map::KeyFrame& current, const map::KeyFrame& candidate, const map::Map& map,
-                                      const LoopOptions& options, Se3RansacResult* ransac_out = nullptr);
+                                      const LoopOptions& options, place::Se3RansacResult* ransac_out = nullptr);
 
 struct LoopCorrectionResult {
   int window_size = 0;         ///< keyframes moved with the current one

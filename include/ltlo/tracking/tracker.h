@@ -21,39 +21,26 @@
 /// differences. The predicted state carries its propagated information too: its standard
 /// deviations widen the search windows after a gap.
 ///
-/// Loss policy: a frame with fewer pose inliers than needed (Tracking.MinInliers by vision,
-/// Tracking.MinInliersImu with the inertial optimisation) is not tracked (kLost) and gets the
-/// predicted state (with the IMU: the IMU-only prediction and its propagated information; else the
-/// constant-velocity model for up to max_prediction_s after the last tracked frame, then the last
-/// pose held). While lost, every frame first tries the motion model (doubled windows), then
-/// relocalisation in the active map (with a vocabulary); with the IMU's link and
-/// Tracking.Reacquire, the guided re-acquisition comes before the relocalisation: the keyframes
-/// around the IMU-predicted pose are projected with it, matched in windows of the predicted
-/// uncertainty and verified by a 3-D-3-D RANSAC pose gated by the prediction (tracker_reacquire.cc).
-/// Lost for new_map_after_s and the frame has
-/// enough static keypoints: with the IMU and the predicted position still within
-/// Tracking.MaxImuPositionSigma, a keyframe extends the active map at the predicted pose (the IMU
-/// chain continues); otherwise Atlas::createNewMap() and a new map is initialised at the frame's
-/// predicted pose (same world frame; the old map is kept for merging).
+/// Loss policy (loss_recovery.h): re-acquire -> relocalise -> the predicted state, a keyframe at
+/// the IMU prediction or a new map, decided by a LossRecovery for every frame the motion model
+/// does not track.
 #include <cstdint>
 #include <functional>
-#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
 
 #include "ltlo/core/lie.h"
-#include "ltlo/core/settings.h"
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/imu/preintegration.h"
-#include "ltlo/loop/guided_place_match.h"
 #include "ltlo/map/frame.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/map.h"
 #include "ltlo/optim/pose_only_problem.h"
 #include "ltlo/tracking/frame_segmenter.h"
-#include "ltlo/tracking/relocaliser.h"
+#include "ltlo/tracking/loss_recovery.h"
+#include "ltlo/tracking/tracker_options.h"
 
 namespace bow {
 class Vocabulary;
@@ -65,58 +52,6 @@ namespace ltlo::tracking {
 /// or started a new map). kLost: the last frame was not tracked; it carries the predicted pose.
 enum class TrackingState { kNotInitialised, kOk, kLost };
 const char* trackingStateName(TrackingState state);
-
-struct TrackerOptions {
-  KeyFrameOptions keyframe;  ///< overlap / weak-tracking / interval decision (core settings)
-  /// inertial pose optimisation, inlier thresholds, new-map policy, IMU re-anchoring, virtual
-  /// baseline of the RGB-D edges (core settings, Tracking.* / RGBD.*)
-  TrackingOptions tracking;
-  /// static keypoints with depth needed by the first frame to start a map
-  int min_init_features = 100;
-  /// fewest frames between keyframes (0: a keyframe may follow the previous one directly)
-  int min_frames_between_keyframes = 0;
-  /// Longest keyframe interval while the IMU is used but not yet initialised, s (0: only
-  /// keyframe.max_interval_s). The initialisation waits for ImuInit.MinKeyFrames keyframes spanning
-  /// ImuInit.MinTime; System sets MinTime / (MinKeyFrames - 1) so the map can initialise when
-  /// MinTime has passed, not only after MinKeyFrames x KF.MaxInterval (an early occlusion would
-  /// otherwise meet a vision-only tracker).
-  double imu_init_keyframe_interval_s = 0.0;
-  /// new map points: all unmatched static keypoints closer than this (m), else the closest
-  /// min_new_points ones (ORB-SLAM's RGB-D insertion)
-  double close_depth_m = 3.0;
-  int min_new_points = 100;
-  /// Hamming threshold of a projection match (of 256 bits)
-  int max_descriptor_distance = 100;
-  /// half window of the last-frame search, level-0 px (times the keypoint's scale)
-  double last_frame_radius_px = 15.0;
-  /// half window of the local-map search, level-0 px (times the predicted scale)
-  double local_map_radius_px = 3.0;
-  /// With the IMU, a search window is at least this many standard deviations of the predicted
-  /// reprojection (from the predicted state's covariance), up to max_search_radius_px.
-  double search_sigmas = 3.0;
-  double max_search_radius_px = 80.0;
-  /// ratio test of the local-map search (best vs second best on the same level)
-  double local_map_ratio = 0.8;
-  /// local keyframes at most
-  int max_local_keyframes = 60;
-  /// Without the inertial optimisation (the ablation), an IMU-predicted frame's velocity is the
-  /// predicted one corrected by this share of (finite difference of the optimised positions -
-  /// predicted): a complementary filter (1: the plain finite difference). Unused with it.
-  double velocity_gain = 0.1;
-
-  // ---- tracking loss ----
-  /// While lost without the IMU, the constant-velocity model keeps predicting for this long after
-  /// the last tracked frame (s); later frames hold the last predicted pose.
-  double max_prediction_s = 1.0;
-  /// Relocalisation is accepted with at least this many pose inliers after the local-map search.
-  int min_relocalisation_inliers = 50;
-  RelocalisationOptions relocalisation;
-};
-
-/// The guided search of the re-acquisition (Tracking.Reacquire*, the local-map window floor and
-/// keyframes, the descriptor and RANSAC thresholds), without its sigmas and seed; the loop
-/// closer's rejoin (Loop.Rejoin) searches with the same settings.
-loop::GuidedPlaceMatchOptions reacquireSearchOptions(const TrackerOptions& options);
 
 /// Per-frame numbers for logs and tests.
 struct TrackingStats {
@@ -144,8 +79,8 @@ struct TrackingStats {
 };
 
 /// Not thread-safe (the tracking thread owns it). Reads and writes the Atlas' active map through
-/// its thread-safe API.
-class Tracker {
+/// its thread-safe API. Runs the loss policy's steps (RecoverySteps) for its LossRecovery.
+class Tracker : private RecoverySteps {
  public:
   /// `level_sigma2` is OrbExtractor::levelSigma2() (keypoint variance per pyramid level).
   Tracker(map::Atlas& atlas, const TrackerOptions& options, std::vector<float> level_sigma2);
@@ -217,7 +152,7 @@ class Tracker {
   /// frame's pose are consistent (the frame's pose was estimated against the map holding it).
   std::shared_ptr<map::KeyFrame> referenceKeyFramePtr() const { return reference_kf_ptr_; }
   /// Maps started by the loss policy (the first map is not counted).
-  int numMapsCreated() const { return maps_created_; }
+  int numMapsCreated() const { return loss_.mapsCreated(); }
   /// Declares tracking lost (the next frame goes through the lost path: motion model with wide
   /// windows, relocalisation). For tests and resets; no-op before initialisation.
   void forceLost();
@@ -240,31 +175,42 @@ class Tracker {
   };
 
   TrackingState initialise(map::Frame& frame);
+  /// IMU since the last keyframe, appended across lost frames (re-anchored while lost for long).
+  void accumulateImuSinceKeyFrame(const map::Frame& frame);
+  /// Segmentation step at the prediction; returns the prediction, refined by it where it applies.
+  SE3 segmentAtPrediction(map::Frame& frame, const SE3& T_w_b_pred);
+  /// The Tracker's state the loss policy reads and sets for this frame.
+  LossContext lossContext(bool was_lost);
+  /// A frame tracked (or recovered) with `inliers` pose inliers: map-point counters, the stretch,
+  /// overlap, the constant-velocity model, the last frame.
+  void recordTrackedFrame(map::Frame& frame, int inliers, bool was_lost);
   /// Re-derives the last frame's pose from its reference keyframe after a map change.
   void refreshAfterMapChange(map::Map& map);
   /// Predicted body pose of `frame` (sets its velocity and bias with the IMU; fills imu_prediction_).
   SE3 predictPose_T_w_b(map::Frame& frame);
   /// IMU prediction and inertial link from the last keyframe or the last frame (tracker_inertial.cc).
   ImuPrediction predictWithImu(const map::Frame& frame);
-  /// The motion prior of the segmentation step for `frame` predicted at T_w_b_pred.
+  /// The motion prior of the segmentation step for `frame` predicted at T_w_b_pred (tracker_inertial.cc).
   MotionPrior motionPrior(const map::Frame& frame, const SE3& T_w_b_pred) const;
   /// Runs the segmentation step (no-op without a segmenter); returns the refined state if any.
   SegmentationOutcome segment(map::Frame& frame, const MotionPrior& prior);
   /// Motion-model tracking: last-frame search, local map; returns pose inliers.
   int trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred);
-  /// Relocalisation in the active map; returns pose inliers (0 when not relocalised).
-  int relocalise(map::Frame& frame);
-  /// Guided re-acquisition of the active map by a lost frame at the IMU prediction T_w_b_pred
-  /// (Tracking.Reacquire, tracker_reacquire.cc); returns pose inliers (0 when not re-acquired).
-  int reacquire(map::Frame& frame, const SE3& T_w_b_pred);
+  // ---- RecoverySteps (loss_recovery.h): the loss policy's searches and map changes ----
+  /// Guided re-acquisition (Tracking.Reacquire, tracker_reacquire.cc).
+  int reacquire(map::Frame& frame, const SE3& T_w_b_pred, double sigma_position_m) override;
+  /// Relocalisation in the active map (tracker_reacquire.cc).
+  int relocalise(map::Frame& frame) override;
+  void holdPrediction(map::Frame& frame, const SE3& T_w_b_pred, const Vec3& v_w_b_pred) override;
+  /// The frame's static keypoints that match nothing become map points of a keyframe at its
+  /// (IMU-predicted) pose in the active map (tracker_keyframe.cc).
+  void extendMapAtPrediction(map::Frame& frame) override;
+  void initialiseNewMap(map::Frame& frame) override;
+  void recordFramePose(const map::Frame& frame) override;
   /// After a relocalisation or re-acquisition: the frame's state re-optimised with the IMU link to
   /// the previous (predicted) frame, whose prior keeps velocity and biases only. Returns the
   /// inliers of that optimisation (0 when there is no link).
   int optimiseStateAfterGap(map::Frame& frame);
-  /// Lost frame: the predicted state, then a new map or a keyframe at the prediction when due.
-  void handleLostFrame(map::Frame& frame, const SE3& T_w_b_pred, const Vec3& v_w_b_pred);
-  /// Bookkeeping of a frame that leaves track() with a pose (tracked or predicted).
-  void recordFramePose(const map::Frame& frame);
   int matchLastFrame(map::Frame& frame, double radius_scale);
   int searchLocalMap(map::Frame& frame);
   /// Search half window (px) for a point predicted at depth_m: base_px, widened to search_sigmas
@@ -279,9 +225,6 @@ class Tracker {
   const optim::InertialLink* inertialLink() const;
   /// Inlier threshold of the current frame (with or without the inertial optimisation).
   int minInliers() const;
-  /// The frame's static keypoints that match nothing become map points of a keyframe at its
-  /// (IMU-predicted) pose in the active map; the IMU chain continues.
-  void extendMapAtPrediction(map::Frame& frame);
   void updateLocalMap(const map::Frame& frame);
   int addNewMapPoints(map::KeyFrame& kf, map::Frame& frame);
 
@@ -316,7 +259,6 @@ class Tracker {
   Vec3 last_kf_v_w_b_seen_ = Vec3::Zero();
   imu::ImuBias last_kf_bias_seen_;
   bool frame_tracked_ = false;
-  int maps_created_ = 0;
   // Map-change detection: the active map and its version seen by the last frame.
   map::MapId map_id_;
   std::uint64_t map_version_ = 0;
@@ -327,26 +269,7 @@ class Tracker {
   Vec3 prev_v_w_b_ = Vec3::Zero();
   double prev_t_s_ = 0.0;
   double last_tracked_t_s_ = 0.0;
-  /// IMU-carried stretch: keyframes placed at the IMU prediction (extendMapAtPrediction) are not a
-  /// fix in the map's world: the stretch lasts from the last frame tracked against the map as it
-  /// was before it (anchored_t_s_) until a frame matches at least minInliers() points older than
-  /// the stretch's first point (carried_first_point_; invalid when no stretch is open).
-  double anchored_t_s_ = 0.0;
-  map::MapPointId carried_first_point_;
-  /// The position sigma the loss policy compares with Tracking.MaxImuPositionSigma (m).
-  double carried_position_sigma_m_ = std::numeric_limits<double>::infinity();
-  /// Over an open stretch, the loss policy's sigma integrates the acceleration error from the last
-  /// visual fix (carried_fix_t_s_, sigma carried_fix_sigma_m_): at first the last anchored frame;
-  /// once frames have tracked the points of a keyframe placed at the prediction for
-  /// kCarriedFixSeconds in a row, vision observes the velocity again and that keyframe's placement
-  /// sigma (carried_placement_sigma_m_) becomes the fix, renewed by every further tracked frame.
-  /// Points placed and lost again within a few frames do not stop the drift.
-  static constexpr double kCarriedFixSeconds = 0.5;
-  double carried_placement_sigma_m_ = 0.0;
-  double carried_fix_sigma_m_ = 0.0;
-  double carried_fix_t_s_ = 0.0;
-  /// first frame of the current run of tracked frames (NaN after a lost frame)
-  double tracked_run_start_s_ = std::numeric_limits<double>::quiet_NaN();
+  LossRecovery loss_;  ///< the loss policy and the IMU-carried stretch
   int num_keyframes_ = 0;
   std::vector<map::KeyFrameId> local_keyframes_;
   std::vector<map::MapPointId> local_points_;

@@ -1,5 +1,5 @@
 #pragma once
-/// Place matching guided by a pose prediction (namespace ltlo::loop): the map points of the
+/// Place matching guided by a pose prediction (namespace ltlo::place): the map points of the
 /// keyframes of a map around a predicted camera pose are projected with it and matched to the
 /// static keypoints with depth of a view (a Frame or a KeyFrame) in windows of the prediction's
 /// uncertainty; a 3-D-3-D RANSAC pose (depth on both sides) must then agree with the prediction
@@ -17,10 +17,10 @@
 #include <vector>
 
 #include "ltlo/core/lie.h"
-#include "ltlo/loop/se3_ransac.h"
 #include "ltlo/map/map.h"
+#include "ltlo/place/se3_ransac.h"
 
-namespace ltlo::loop {
+namespace ltlo::place {
 
 struct GuidedPlaceMatchOptions {
   double sigma_position_m = 0.1;     ///< standard deviation of the predicted camera position
@@ -146,4 +146,4 @@ Se3RansacOptions ransacOptionsOf(const GuidedPlaceMatchOptions& options);
 bool withinPredictionGate(const SE3& T_w_c, const SE3& T_w_c_pred, const GuidedPlaceMatchOptions& options,
                           double* distance_m = nullptr, double* rotation_rad = nullptr);
 
-}  // namespace ltlo::loop
+}  // namespace ltlo::place

@@ -1,12 +1,12 @@
 // SE3 RANSAC on synthetic 3-D-3-D correspondences (fixed seeds).
-#include "ltlo/loop/se3_ransac.h"
+#include "ltlo/place/se3_ransac.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-namespace ltlo::loop {
+namespace ltlo::place {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
@@ -96,4 +96,4 @@ TEST(Se3Ransac, RejectsTooFewCorrespondences) {
 }
 
 }  // namespace
-}  // namespace ltlo::loop
+}  // namespace ltlo::place

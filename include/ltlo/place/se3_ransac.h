@@ -1,5 +1,5 @@
 #pragma once
-/// Rigid alignment of 3-D-3-D correspondences (namespace ltlo::loop): closed-form SE3 (Umeyama
+/// Rigid alignment of 3-D-3-D correspondences (namespace ltlo::place): closed-form SE3 (Umeyama
 /// without scale, depth fixes it) and a deterministic RANSAC on minimal sets of three.
 #include <cstdint>
 #include <vector>
@@ -7,7 +7,7 @@
 #include "ltlo/core/eigen_types.h"
 #include "ltlo/core/lie.h"
 
-namespace ltlo::loop {
+namespace ltlo::place {
 
 /// One correspondence p_a ~ T_a_b * p_b (m), with the standard deviation of the distance after
 /// alignment (m per axis, e.g. from both points' depth noise, see depthSigma_m).
@@ -48,4 +48,4 @@ struct Se3RansacResult {
 Se3RansacResult estimateSe3Ransac(const std::vector<Correspondence3d>& correspondences,
                                   const Se3RansacOptions& options = Se3RansacOptions());
 
-}  // namespace ltlo::loop
+}  // namespace ltlo::place

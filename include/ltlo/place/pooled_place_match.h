@@ -1,6 +1,6 @@
 #pragma once
 /// Place matching of a window of keyframes of one map against another map, pooled (namespace
-/// ltlo::loop): the guided window search of guided_place_match.h run for every keyframe of the
+/// ltlo::place): the guided window search of guided_place_match.h run for every keyframe of the
 /// window at the prediction the first keyframe's prediction gives it through their relative pose in
 /// their own map, the matches pooled into the first keyframe's camera frame, one 3-D-3-D RANSAC over
 /// all of them and a refinement with each match's own anisotropic RGB-D noise.
@@ -14,9 +14,9 @@
 #include <memory>
 #include <vector>
 
-#include "ltlo/loop/guided_place_match.h"
+#include "ltlo/place/guided_place_match.h"
 
-namespace ltlo::loop {
+namespace ltlo::place {
 
 /// The first keyframe of the window, its best covisibles in its own map after it (at most
 /// max_keyframes in all, none bad).
@@ -38,4 +38,4 @@ GuidedPlaceMatch pooledPlaceMatch(const std::vector<std::shared_ptr<map::KeyFram
                                   const map::Map& target, const SE3& T_w_c_pred,
                                   const GuidedPlaceMatchOptions& options, bool hold_rotation = false);
 
-}  // namespace ltlo::loop
+}  // namespace ltlo::place

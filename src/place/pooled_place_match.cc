@@ -1,15 +1,15 @@
-#include "ltlo/loop/pooled_place_match.h"
+#include "ltlo/place/pooled_place_match.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
 
-#include "ltlo/loop/se3_ransac.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/optim/reprojection_edges.h"
+#include "ltlo/place/se3_ransac.h"
 
-namespace ltlo::loop {
+namespace ltlo::place {
 
 namespace {
 
@@ -220,4 +220,4 @@ GuidedPlaceMatch pooledPlaceMatch(const std::vector<std::shared_ptr<map::KeyFram
   return result;
 }
 
-}  // namespace ltlo::loop
+}  // namespace ltlo::place

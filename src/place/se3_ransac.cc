@@ -1,4 +1,4 @@
-#include "ltlo/loop/se3_ransac.h"
+#include "ltlo/place/se3_ransac.h"
 
 #include <Eigen/SVD>
 #include <algorithm>
@@ -6,7 +6,7 @@
 
 #include "ltlo/core/assert.h"
 
-namespace ltlo::loop {
+namespace ltlo::place {
 
 double depthSigma_m(double depth_m, double coefficient_per_m, double min_sigma_m) {
   return std::max(min_sigma_m, coefficient_per_m * depth_m * depth_m);
@@ -127,4 +127,4 @@ Se3RansacResult estimateSe3Ransac(const std::vector<Correspondence3d>& correspon
   return result;
 }
 
-}  // namespace ltlo::loop
+}  // namespace ltlo::place

@@ -1,4 +1,4 @@
-#include "ltlo/loop/guided_place_match.h"
+#include "ltlo/place/guided_place_match.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,12 +8,12 @@
 #include <unordered_set>
 
 #include "ltlo/features/matching.h"
-#include "ltlo/loop/se3_ransac.h"
 #include "ltlo/map/frame.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/optim/pose_only_problem.h"
+#include "ltlo/place/se3_ransac.h"
 
-namespace ltlo::loop {
+namespace ltlo::place {
 
 namespace {
 
@@ -398,4 +398,4 @@ template GuidedPlaceMatch guidedPlaceMatch<map::Frame>(const map::Frame&, const 
 template GuidedPlaceMatch guidedPlaceMatch<map::KeyFrame>(const map::KeyFrame&, const map::Map&, const SE3&,
                                                          const GuidedPlaceMatchOptions&);
 
-}  // namespace ltlo::loop
+}  // namespace ltlo::place

@@ -1,0 +1,184 @@
+#include "ltlo/tracking/loss_recovery.h"
+
+#include <cmath>
+#include <optional>
+
+#include "ltlo/core/assert.h"
+#include "ltlo/core/log.h"
+#include "ltlo/tracking/tracker.h"
+#include "tracker_util.h"
+
+namespace ltlo::tracking {
+
+using detail::clearMatches;
+using detail::isMatched;
+using detail::staticKeypointsWithDepth;
+
+LossDecision LossRecovery::recover(map::Frame& frame, int inliers, const LossContext& context, RecoverySteps& steps,
+                                   const SE3& T_w_b_pred, const Vec3& v_w_b_pred) {
+  TrackingStats& stats = context.stats;
+  if (inliers < context.min_inliers && context.was_lost && options_.tracking.reacquire && context.imu_link) {
+    // The IMU knows roughly where the camera is: look for the map there before anything else.
+    const int reacquired = steps.reacquire(frame, context.T_w_b_imu, carried_position_sigma_m_);
+    if (reacquired > 0) {
+      inliers = reacquired;
+      stats.relocalised = true;
+      stats.reacquired = true;
+    }
+  }
+  if (inliers < context.min_inliers && !stats.reacquired && context.has_vocabulary) {
+    const int relocalised = steps.relocalise(frame);
+    if (relocalised > 0) {
+      inliers = relocalised;
+      stats.relocalised = true;
+    }
+  }
+  stats.inliers = inliers;
+  frame.reference_keyframe = context.reference_kf;
+  if (inliers < context.min_inliers) return handleLostFrame(frame, context, steps, T_w_b_pred, v_w_b_pred);
+  LossDecision decision;
+  decision.inliers = inliers;
+  if (stats.reacquired) {
+    decision.recovery = Recovery::kReacquired;
+  } else if (stats.relocalised) {
+    decision.recovery = Recovery::kRelocalised;
+  }
+  return decision;
+}
+
+void LossRecovery::onTrackedFrame(const map::Frame& frame, int min_inliers) {
+  int anchored_inliers = 0;
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    if (isMatched(frame, i) && frame.map_points[static_cast<std::size_t>(i)] < carried_first_point_) ++anchored_inliers;
+  }
+  // An open IMU-carried stretch closes when the frame matches the map from before it.
+  if (carried_first_point_.valid() && anchored_inliers >= min_inliers) {
+    log::info("IMU-carried stretch anchored at t = ", frame.t_s(), " s: ", anchored_inliers,
+              " inliers on points older than ", carried_first_point_, " after ", frame.t_s() - anchored_t_s_, " s");
+    carried_first_point_ = map::MapPointId();
+  }
+  if (std::isnan(tracked_run_start_s_)) tracked_run_start_s_ = frame.t_s();
+  if (!carried_first_point_.valid()) {
+    anchored_t_s_ = frame.t_s();
+    carried_fix_t_s_ = frame.t_s();
+    carried_fix_sigma_m_ = 0.0;
+  } else if (frame.t_s() - tracked_run_start_s_ >= kCarriedFixSeconds) {
+    carried_fix_t_s_ = frame.t_s();
+    carried_fix_sigma_m_ = carried_placement_sigma_m_;
+  }
+}
+
+void LossRecovery::updateCarriedSigma(double t_s, double sigma_p, double sigma_a, double bias_drift_m,
+                                      double lever_m) {
+  // Over an IMU-carried stretch the acceleration error integrates from the last visual fix
+  // (the anchored frame, or points placed at the prediction that tracking then held), on
+  // top of that fix's own error (loss_recovery.h, carried_fix_t_s_).
+  if (carried_first_point_.valid()) {
+    const double drift_s = t_s - carried_fix_t_s_;
+    carried_position_sigma_m_ =
+        std::hypot(carried_fix_sigma_m_, std::hypot(sigma_p, 0.5 * sigma_a * drift_s * drift_s)) + lever_m;
+  } else {
+    carried_position_sigma_m_ = std::hypot(sigma_p, bias_drift_m) + lever_m;
+  }
+}
+
+LossDecision LossRecovery::handleLostFrame(map::Frame& frame, const LossContext& context, RecoverySteps& steps,
+                                           const SE3& T_w_b_pred, const Vec3& v_w_b_pred) {
+  const TrackingStats& stats = context.stats;
+  if (context.state != TrackingState::kLost) {
+    log::warn("tracking lost at t = ", frame.t_s(), " s: ", stats.inliers, " inliers (", context.min_inliers,
+              " needed), ", frame.numKeypoints(), " keypoints");
+  }
+  context.state = TrackingState::kLost;
+  tracked_run_start_s_ = std::numeric_limits<double>::quiet_NaN();
+  clearMatches(frame);
+  steps.holdPrediction(frame, T_w_b_pred, v_w_b_pred);
+  const double lost_for_s = frame.t_s() - context.last_tracked_t_s;
+  log::debug("frame t = ", frame.t_s(), ": lost, ", stats.inliers, " inliers, link ", stats.inertial_link,
+             ", sigma ", stats.predicted_position_sigma_m, " m, p = ", frame.T_w_b().translation().transpose(),
+             ", ref ", context.reference_kf);
+  const TrackingOptions& o = options_.tracking;
+  const int static_with_depth = lost_for_s >= o.new_map_after_s ? staticKeypointsWithDepth(frame) : 0;
+  const double sigma_m = context.imu_link ? carried_position_sigma_m_ : std::numeric_limits<double>::infinity();
+  const bool keyframe_in_map = context.last_kf_ptr && !context.last_kf_ptr->isBad() &&
+                               context.last_kf_ptr->mapId() == context.atlas.activeMap().id();
+  const bool can_extend =
+      sigma_m <= o.max_imu_position_sigma_m && keyframe_in_map && static_with_depth >= o.min_extend_features;
+  LossDecision decision;
+  decision.inliers = stats.inliers;
+  decision.recovery = Recovery::kLost;
+  if (o.new_map_after_s >= 0.0 && lost_for_s >= o.new_map_after_s &&
+      (can_extend || static_with_depth >= options_.min_init_features)) {
+    if (can_extend) {
+      extendMap(frame, context, steps, lost_for_s, sigma_m);
+      decision.recovery = Recovery::kMapExtended;
+      return decision;
+    }
+    startNewMap(frame, context, steps, lost_for_s, sigma_m, keyframe_in_map);
+    decision.recovery = Recovery::kNewMap;
+    return decision;
+  }
+  steps.recordFramePose(frame);
+  return decision;
+}
+
+void LossRecovery::extendMap(map::Frame& frame, const LossContext& context, RecoverySteps& steps, double lost_for_s,
+                             double sigma_m) {
+  // The IMU still knows where the camera is: what the frame sees is unmapped (revealed behind
+  // an occluder, or new), so it extends the map at the predicted pose, linked by the IMU.
+  log::warn("lost for ", lost_for_s, " s: keyframe at the IMU-predicted pose (position sigma ", sigma_m,
+            " m) extends map ", context.atlas.activeMap().id(), " at t = ", frame.t_s(), " s");
+  steps.extendMapAtPrediction(frame);
+  // The new points carry the prediction's error: the fix once frames hold them (onTrackedFrame).
+  carried_placement_sigma_m_ = sigma_m;
+  if (!carried_first_point_.valid()) {
+    // The stretch opens: every point from here on was placed by the IMU.
+    for (const map::MapPointId id : frame.map_points) {
+      if (id.valid() && (!carried_first_point_.valid() || id < carried_first_point_)) carried_first_point_ = id;
+    }
+  }
+  context.stats.map_extended = true;
+  context.frame_tracked = true;
+  context.state = TrackingState::kOk;
+  steps.recordFramePose(frame);
+}
+
+void LossRecovery::startNewMap(map::Frame& frame, const LossContext& context, RecoverySteps& steps,
+                               double lost_for_s, double sigma_m, bool keyframe_in_map) {
+  // New map at the predicted pose: same world frame (gravity stays valid), old map kept.
+  const map::MapId parent = context.atlas.activeMap().id();
+  std::optional<map::MapOrigin> origin;
+  if (context.imu_predicted && context.imu_link && std::isfinite(sigma_m)) {
+    // The dead reckoning placed it in the parent's world: the loop closer may rejoin the two by
+    // a search within this uncertainty (Loop.Rejoin).
+    origin.emplace();
+    origin->parent = parent;
+    origin->sigma_position_m = sigma_m;
+    origin->sigma_rotation_rad = context.stats.predicted_rotation_sigma_rad;
+    origin->t_s = frame.t_s();
+    if (keyframe_in_map && context.imu_since_keyframe && !context.imu_chain_broken) {
+      // The IMU from the parent's last keyframe to this frame (the new map's first keyframe).
+      origin->parent_keyframe = context.last_kf;
+      origin->T_w_b_parent_keyframe = context.last_kf_ptr->T_w_b();
+      origin->imu_across = std::make_shared<const imu::Preintegrated>(*context.imu_since_keyframe);
+    }
+  }
+  map::Map& created = context.atlas.createNewMap();
+  ++maps_created_;
+  log::warn("lost for ", lost_for_s, " s: new map ", created.id(), " at t = ", frame.t_s(), " s");
+  steps.initialiseNewMap(frame);
+  LTLO_ASSERT(context.state == TrackingState::kOk, "new map not initialised");
+  if (origin) {
+    // Before the keyframe leaves tracking (the loop closer reads the origin with it).
+    if (origin->imu_across) origin->first_keyframe = context.last_kf;
+    created.setOrigin(*origin);
+  }
+  carried_first_point_ = map::MapPointId();
+  carried_fix_sigma_m_ = 0.0;
+  carried_fix_t_s_ = frame.t_s();
+  anchored_t_s_ = frame.t_s();
+  context.stats.new_map = true;
+  context.frame_tracked = true;
+}
+
+}  // namespace ltlo::tracking
