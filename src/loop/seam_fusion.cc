@@ -4,19 +4,21 @@
 #include <unordered_set>
 
 #include "ltlo/features/matching.h"
+#include "ltlo/map/map_point.h"
+#include "ltlo/optim/reprojection_edges.h"
 
 namespace ltlo::loop {
 
 namespace {
 
 /// Chi-square 95% gates of the RGB-D [u, v, u_r] and monocular [u, v] observation (px^2 / sigma^2).
-constexpr double kGate3Dof = 7.815;
-constexpr double kGate2Dof = 5.991;
+constexpr double kGate3Dof = optim::kChi2Threshold3Dof;
+constexpr double kGate2Dof = optim::kChi2Threshold2Dof;
 constexpr double kMinDepth_m = 0.05;
-/// Scale-invariance range widened as ORB-SLAM does (0.8 / 1.2), and the viewing-angle limit.
-constexpr double kMinDistanceFactor = 0.8;
-constexpr double kMaxDistanceFactor = 1.2;
-constexpr double kMinViewingCos = 0.5;
+/// The point's distance range and viewing cone (map_point.h's visibility test).
+using map::kMaxDistanceFactor;
+using map::kMinDistanceFactor;
+using map::kMinViewingCos;
 
 /// The best static keypoint of `target` for a point at p_w, or -1.
 int bestKeypoint(const map::KeyFrame& target, const SE3& T_c_w, const Vec3& centre_w, const map::MapPoint& point,

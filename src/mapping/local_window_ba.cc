@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "ltlo/core/log.h"
+#include "ltlo/map/map_point.h"
 #include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/optim/local_ba_graph.h"
 
@@ -59,11 +60,11 @@ struct Window {
   optim::LocalBaProblem problem;
 };
 
-/// A point seen from outside [0.8, 1.2] x its distance range or more than 60 degrees off its mean
-/// viewing direction is not expected in the image (its descriptor would not be found there either).
-constexpr double kMinDistanceFactor = 0.8;
-constexpr double kMaxDistanceFactor = 1.2;
-constexpr double kMinViewingCos = 0.5;
+/// A point seen from outside its distance range or viewing cone is not expected in the image
+/// (map_point.h's visibility test).
+using map::kMaxDistanceFactor;
+using map::kMinDistanceFactor;
+using map::kMinViewingCos;
 
 Visibility visibilityOf(const map::MapPoint& point) {
   return {point.normal_w(), point.minDistance_m(), point.maxDistance_m()};

@@ -5,6 +5,7 @@
 #include <unordered_set>
 
 #include "ltlo/features/matching.h"
+#include "ltlo/map/map_point.h"
 #include "ltlo/optim/reprojection_edges.h"
 
 namespace ltlo::mapping {
@@ -13,11 +14,10 @@ namespace {
 
 /// Points closer than this to the camera plane are not projected (m).
 constexpr double kMinDepth_m = 0.05;
-/// Scale-invariance range of a point's descriptor is widened by these factors (ORB-SLAM's 0.8/1.2).
-constexpr double kMinDistanceFactor = 0.8;
-constexpr double kMaxDistanceFactor = 1.2;
-/// A point seen more than 60 degrees away from its mean viewing direction is not searched.
-constexpr double kMinViewingCos = 0.5;
+/// A point outside its distance range or viewing cone is not searched (map_point.h).
+using map::kMaxDistanceFactor;
+using map::kMinDistanceFactor;
+using map::kMinViewingCos;
 
 std::vector<std::shared_ptr<map::MapPoint>> livePointsOf(const map::Map& map, const map::KeyFrame& kf) {
   std::vector<std::shared_ptr<map::MapPoint>> points;

@@ -5,6 +5,7 @@
 #include <unordered_set>
 
 #include "ltlo/features/matching.h"
+#include "ltlo/map/map_point.h"
 #include "ltlo/tracking/tracker.h"
 #include "tracker_util.h"
 
@@ -196,12 +197,13 @@ int Tracker::searchLocalMap(map::Frame& frame) {
     const Vec3 ray_w = p_w - centre_w;
     const double distance_m = ray_w.norm();
     if (point->maxDistance_m() > 0.0 &&
-        (distance_m < 0.8 * point->minDistance_m() || distance_m > 1.2 * point->maxDistance_m())) {
+        (distance_m < map::kMinDistanceFactor * point->minDistance_m() ||
+         distance_m > map::kMaxDistanceFactor * point->maxDistance_m())) {
       continue;
     }
     const Vec3 normal_w = point->normal_w();
     const double view_cos = normal_w.squaredNorm() > 0.0 ? ray_w.dot(normal_w) / distance_m : 1.0;
-    if (view_cos < 0.5) continue;
+    if (view_cos < map::kMinViewingCos) continue;
     point->increaseVisible();
     const int level = point->predictScale(distance_m, frame.scaleFactors());
     const double window = view_cos > 0.998 ? 2.5 : 4.0;

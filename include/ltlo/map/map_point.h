@@ -12,6 +12,15 @@
 
 namespace ltlo::map {
 
+/// Where a map point is expected to be found again (ORB-SLAM's visibility test, used by tracking's
+/// local-map search, local mapping's fusion and window, and loop closing's seam fusion): from within
+/// [kMinDistanceFactor, kMaxDistanceFactor] x its distance range (the scale invariance of its
+/// descriptor, widened) and no more than 60 degrees off its mean viewing direction (kMinViewingCos);
+/// outside, its descriptor would not be found in the image either.
+inline constexpr double kMinDistanceFactor = 0.8;
+inline constexpr double kMaxDistanceFactor = 1.2;
+inline constexpr double kMinViewingCos = 0.5;
+
 /// Thread-safe: every member is guarded by the point's own mutex_ and returned as a copy; the
 /// innermost lock of the order in atlas.h (MapPoint methods take no other lock).
 class MapPoint {
