@@ -18,7 +18,7 @@
 #include "ltlo/map/keyframe.h"
 #include "ltlo/mapping/local_mapper.h"
 #include "ltlo/optim/bundle_adjust.h"
-#include "ltlo/system/carried_stretch.h"
+#include "ltlo/system/run_recorder.h"
 #include "ltlo/system/segmentation_writer.h"
 #include "ltlo/tracking/dense_segmenter.h"
 #include "ltlo/tracking/frame_builder.h"
@@ -27,22 +27,6 @@
 
 namespace ltlo::system {
 namespace {
-
-/// BGR of the raw image pixel nearest to each keypoint (ideal level-0 coordinates, taken back through
-/// the lens when it distorts; clamped to the image).
-std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector<features::Keypoint>& keypoints,
-                                     const Undistorter& undistorter) {
-  std::vector<cv::Vec3b> colours(keypoints.size(), cv::Vec3b(128, 128, 128));
-  if (color_bgr.empty() || color_bgr.type() != CV_8UC3) return colours;
-  for (std::size_t i = 0; i < keypoints.size(); ++i) {
-    Vec2 u(keypoints[i].x_px, keypoints[i].y_px);
-    if (undistorter.active()) u = undistorter.model().distortPixel(u);
-    const int col = std::clamp(static_cast<int>(std::lround(u.x())), 0, color_bgr.cols - 1);
-    const int row = std::clamp(static_cast<int>(std::lround(u.y())), 0, color_bgr.rows - 1);
-    colours[i] = color_bgr.at<cv::Vec3b>(row, col);
-  }
-  return colours;
-}
 
 /// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit), or the ground-truth
 /// masks of the --oracle-masks ablation; its stages go to `timing`.
@@ -71,6 +55,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   if (!use_imu_) calib.has_imu = false;  // frames are then built without preintegration
 
   atlas_ = std::make_unique<map::Atlas>(vocabulary_->numWords());
+  recorder_ = std::make_unique<RunRecorder>(*atlas_, settings_.tracking);
   builder_ = std::make_unique<tracking::FrameBuilder>(settings_.orb, calib);
   const std::vector<float> level_sigma2 = builder_->extractor().levelSigma2();
 
@@ -194,9 +179,7 @@ void System::pollImuState() {
 
 void System::onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) {
   if (current_input_ != nullptr) {
-    std::vector<cv::Vec3b> colours = sampleColours(current_input_->color_bgr, kf->keypoints(), *builder_->undistorter());
-    std::lock_guard<std::mutex> lock(records_mutex_);
-    colours_[kf->id().value] = std::move(colours);
+    recorder_->recordKeyFrameColours(*kf, current_input_->color_bgr, *builder_->undistorter());
   }
   // Handed on after the frame's tracking section (trackFrame).
   pending_keyframes_.push_back(kf);
@@ -268,54 +251,8 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
                                camera.width(), camera.height());
   }
 
-  ++frames_;
-  if (frame.hasPose()) {
-    FrameRecord record;
-    record.t_s = input.t_s;
-    record.tracked = tracker_->frameTracked();
-    const SE3 T_w_c = frame.T_w_c();
-    record.T_w_c_online = T_w_c;
-    if (std::shared_ptr<map::KeyFrame> reference = tracker_->referenceKeyFramePtr()) {
-      record.map_online = reference->mapId();
-      record.T_refb_c = map::latestPose_T_w_b(*reference).inverse() * T_w_c;
-      record.reference = std::move(reference);
-    } else {
-      record.T_w_c = T_w_c;
-    }
-    if (record.tracked) ++frames_tracked_;
-    const std::optional<SE3> predicted_T_w_b = tracker_->imuPredicted_T_w_b();
-    record.carried = !record.tracked && predicted_T_w_b && record.reference;
-    if (record.tracked && carried_reference_ && predicted_T_w_b) {
-      // The first frame anchored after an IMU-carried stretch: where the dead reckoning put it,
-      // relative to the keyframe the stretch hung on (trajectory() spreads the difference).
-      record.stretch_reference = carried_reference_;
-      record.T_stretchrefb_c_predicted =
-          map::latestPose_T_w_b(*carried_reference_).inverse() * (*predicted_T_w_b * frame.T_b_c());
-    }
-    if (record.tracked && carried_reference_ && !predicted_T_w_b) {
-      log::debug("system: the frame at t = ", record.t_s, " s ends a carried stretch without an IMU prediction");
-    }
-    if (record.carried) {
-      if (!carried_reference_) carried_reference_ = record.reference;
-    } else {
-      carried_reference_.reset();
-    }
-    const tracking::TrackingStats& stats = tracker_->stats();
-    if (record.tracked && stats.inertial_link != 0 && stats.inliers < settings_.tracking.min_inliers) {
-      ++frames_tracked_weak_imu_;
-    }
-    if (!record.tracked && stats.inertial_link != 0) ++frames_imu_predicted_;
-    if (stats.relocalised) ++relocalisations_;
-    if (stats.map_extended) ++maps_extended_;
-    if (stats.reacquired) ++reacquisitions_;
-    const bool tracked = record.tracked;
-    const bool carried = record.carried;
-    const map::MapId map_online = record.map_online;
-    {
-      std::lock_guard<std::mutex> lock(records_mutex_);
-      records_.push_back(std::move(record));
-    }
-    if (viewer_) postToViewer(input, frame, state, tracked, carried, map_online);
+  if (const std::optional<RecordedFrame> recorded = recorder_->recordFrame(input.t_s, frame, *tracker_)) {
+    if (viewer_) postToViewer(input, frame, state, recorded->tracked, recorded->carried, recorded->map);
   }
   section.reset();
   if (options_.threaded) {
@@ -355,84 +292,17 @@ void System::shutdown() {
   }
   // Last: its final picture shows the map after the last correction.
   if (viewer_) viewer_->stop();
-  log::info("system shut down: ", frames_, " frames, ", closer_->numLoops(), " loops, ", closer_->numMerges(),
-            " merges, ", atlas_->numMaps(), " map(s)");
-}
-
-std::unordered_map<map::MapId, map::MapId> System::floatingMaps(const std::vector<FrameRecord>& records) const {
-  std::unordered_map<map::MapId, MapFrameSpan> maps;
-  for (const FrameRecord& record : records) {
-    if (!record.reference) continue;
-    const auto [it, inserted] = maps.try_emplace(record.reference->mapId());
-    if (inserted) it->second.first_t_s = record.t_s;
-    it->second.last_t_s = record.t_s;
-  }
-  for (auto& [id, span] : maps) {
-    map::Map* map = atlas_->map(id);
-    const std::optional<map::MapOrigin> origin = map != nullptr ? map->origin() : std::nullopt;
-    if (origin) span.origin_parent = atlas_->resolve(origin->parent);
-  }
-  return floatingMapWorlds(maps, kFloatingMapMaxSpan_s, kFloatingMapMaxDepth);
+  log::info("system shut down: ", recorder_->numFrames(), " frames, ", closer_->numLoops(), " loops, ",
+            closer_->numMerges(), " merges, ", atlas_->numMaps(), " map(s)");
 }
 
 std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
-  std::vector<FrameRecord> records;
-  {
-    std::lock_guard<std::mutex> lock(records_mutex_);
-    records = records_;
-  }
-  // Short maps started at the IMU's prediction and never merged: their coordinates are their
-  // parent's world as the dead reckoning placed them, so their frames belong to the carried
-  // stretch around them, and a frame anchored after it in that world ends it.
-  const std::unordered_map<map::MapId, map::MapId> floating = floatingMaps(records);
-  auto world_of = [&floating](map::MapId id) {
-    const auto it = floating.find(id);
-    return it == floating.end() ? id : it->second;
-  };
-  // Keyframe poses are read outside records_mutex_ (it is a leaf lock).
-  std::vector<FramePose> poses;
-  poses.reserve(records.size());
-  std::vector<CarriedSample> samples;
-  samples.reserve(records.size());
-  for (const FrameRecord& record : records) {
-    FramePose pose;
-    pose.t_s = record.t_s;
-    pose.tracked = record.tracked;
-    CarriedSample sample;
-    if (record.reference) {
-      pose.T_w_c = map::latestPose_T_w_b(*record.reference) * record.T_refb_c;
-      pose.map = record.reference->mapId();
-      // Comparable only while the stretch's keyframe and this frame's lie in one world (one map
-      // after merges, or a floating map of this frame's map).
-      if (record.stretch_reference && floating.count(pose.map) == 0 &&
-          world_of(record.stretch_reference->mapId()) == pose.map) {
-        sample.T_w_c_dead_reckoned =
-            map::latestPose_T_w_b(*record.stretch_reference) * record.T_stretchrefb_c_predicted;
-      } else if (record.stretch_reference) {
-        log::debug("trajectory: the frame at t = ", record.t_s, " s in ", pose.map, " (floating ",
-                   floating.count(pose.map), ") ends a carried stretch hung on ", record.stretch_reference->id(),
-                   " in ", record.stretch_reference->mapId(), ": not comparable");
-      }
-    } else {
-      pose.T_w_c = record.T_w_c;
-    }
-    sample.t_s = pose.t_s;
-    sample.T_w_c = pose.T_w_c;
-    sample.carried = record.carried || (record.reference && floating.count(pose.map) > 0);
-    poses.push_back(pose);
-    samples.push_back(std::move(sample));
-  }
-  if (smooth_carried_frames) {
-    smoothCarriedStretches(samples, settings_.tracking.carried_velocity_sigma_m_s,
-                           settings_.tracking.acc_bias_sigma_m_s2);
-    for (std::size_t i = 0; i < poses.size(); ++i) poses[i].T_w_c = samples[i].T_w_c;
-  }
-  return poses;
+  return recorder_->trajectory(smooth_carried_frames);
 }
 
 void System::postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame, tracking::TrackingState state,
                           bool tracked, bool carried, map::MapId map) {
-  viewer_->postPose(frames_ - 1, input.t_s, frame.T_w_c(), tracked, map.value);
+  viewer_->postPose(recorder_->numFrames() - 1, input.t_s, frame.T_w_c(), tracked, map.value);
   const int events = closer_->numLoops() + closer_->numMerges();
   if (events != viewer_events_seen_) {
     viewer_events_seen_ = events;
@@ -441,7 +311,7 @@ void System::postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame
   if (!viewer_->due(input.t_s)) return;
   ScopedTimer timer(timing_, "tracking.viewer_post");
   viewer::ViewerFrame view;
-  view.index = frames_ - 1;
+  view.index = recorder_->numFrames() - 1;
   view.t_s = input.t_s;
   view.color_bgr = input.color_bgr.clone();
   const PinholeCamera& camera = builder_->calib().camera.camera;
@@ -526,123 +396,17 @@ viewer::ViewerMap System::viewerMap(std::uint64_t map_id) const {
     view.points_w.push_back(point->p_w().cast<float>());
     view.beta.push_back(static_cast<float>(point->beta()));
   }
-  // The frames so far, from their reference keyframes' latest poses (loop corrections move them);
-  // the records are copied under their leaf lock, the keyframes read after it.
-  std::vector<std::pair<std::shared_ptr<const map::KeyFrame>, SE3>> references;
-  {
-    std::lock_guard<std::mutex> lock(records_mutex_);
-    references.reserve(records_.size());
-    for (const FrameRecord& record : records_) {
-      if (record.reference) references.emplace_back(record.reference, record.T_refb_c);
-    }
-  }
-  view.trajectory_w.reserve(references.size());
-  for (const auto& [reference, T_refb_c] : references) {
-    if (reference->mapId() != resolved) continue;
-    view.trajectory_w.push_back((map::latestPose_T_w_b(*reference) * T_refb_c).translation().cast<float>());
-  }
+  view.trajectory_w = recorder_->framePositionsInMap(resolved);
   return view;
 }
 
-std::vector<FramePose> System::onlineTrajectory() const {
-  std::lock_guard<std::mutex> lock(records_mutex_);
-  std::vector<FramePose> poses;
-  poses.reserve(records_.size());
-  for (const FrameRecord& record : records_) {
-    FramePose pose;
-    pose.t_s = record.t_s;
-    pose.T_w_c = record.T_w_c_online;
-    pose.tracked = record.tracked;
-    pose.map = record.map_online;
-    poses.push_back(pose);
-  }
-  return poses;
-}
+std::vector<FramePose> System::onlineTrajectory() const { return recorder_->onlineTrajectory(); }
 
-std::vector<KeyFrameRecord> System::keyFrames() const {
-  std::vector<KeyFrameRecord> keyframes;
-  for (const map::MapId map_id : atlas_->mapIds()) {
-    const map::Map* map = atlas_->map(map_id);
-    if (map == nullptr) continue;
-    for (const std::shared_ptr<map::KeyFrame>& kf : map->keyFrames()) {
-      if (kf->isBad()) continue;
-      KeyFrameRecord record;
-      record.t_s = kf->t_s();
-      record.T_w_c = kf->T_w_c();
-      record.id = kf->id().value;
-      record.map = kf->mapId().value;
-      record.static_area_ratio = kf->staticAreaRatio();
-      keyframes.push_back(record);
-    }
-  }
-  std::sort(keyframes.begin(), keyframes.end(),
-            [](const KeyFrameRecord& a, const KeyFrameRecord& b) { return a.t_s < b.t_s; });
-  return keyframes;
-}
+std::vector<KeyFrameRecord> System::keyFrames() const { return recorder_->keyFrames(); }
 
-std::vector<MapPointRecord> System::mapPoints() const {
-  struct PointSource {
-    MapPointRecord record;
-    std::vector<std::pair<std::uint64_t, int>> observations;  // reference keyframe first
-  };
-  std::vector<PointSource> sources;
-  for (const std::shared_ptr<map::MapPoint>& point : atlas_->activeMap().mapPoints()) {
-    if (point->isBad()) continue;
-    PointSource source;
-    source.record.p_w = point->p_w();
-    source.record.beta = point->beta();
-    const map::KeyFrameId reference = point->referenceKeyFrame();
-    if (const std::optional<int> index = point->indexIn(reference)) {
-      source.observations.emplace_back(reference.value, *index);
-    }
-    for (const auto& [kf, index] : point->observations()) source.observations.emplace_back(kf.value, index);
-    sources.push_back(std::move(source));
-  }
-  std::vector<MapPointRecord> points;
-  points.reserve(sources.size());
-  std::lock_guard<std::mutex> lock(records_mutex_);
-  for (PointSource& source : sources) {
-    for (const auto& [kf, index] : source.observations) {
-      const auto found = colours_.find(kf);
-      if (found == colours_.end() || index < 0 || index >= static_cast<int>(found->second.size())) continue;
-      const cv::Vec3b bgr = found->second[static_cast<std::size_t>(index)];
-      source.record.blue = bgr[0];
-      source.record.green = bgr[1];
-      source.record.red = bgr[2];
-      break;
-    }
-    points.push_back(source.record);
-  }
-  return points;
-}
+std::vector<MapPointRecord> System::mapPoints() const { return recorder_->mapPoints(); }
 
-SystemCounts System::counts() const {
-  SystemCounts counts;
-  counts.frames = frames_;
-  {
-    std::lock_guard<std::mutex> lock(records_mutex_);
-    counts.frames_with_pose = static_cast<int>(records_.size());
-  }
-  counts.frames_tracked = frames_tracked_;
-  const std::vector<map::MapId> map_ids = atlas_->mapIds();
-  counts.maps = static_cast<int>(map_ids.size());
-  counts.maps_created = tracker_->numMapsCreated();
-  counts.frames_tracked_weak_imu = frames_tracked_weak_imu_;
-  counts.frames_imu_predicted = frames_imu_predicted_;
-  counts.relocalisations = relocalisations_;
-  counts.maps_extended = maps_extended_;
-  counts.reacquisitions = reacquisitions_;
-  counts.loops = closer_->numLoops();
-  counts.merges = closer_->numMerges();
-  for (const map::MapId map_id : map_ids) {
-    if (const map::Map* map = atlas_->map(map_id)) {
-      counts.keyframes += static_cast<int>(map->numKeyFrames());
-      counts.map_points += static_cast<int>(map->numMapPoints());
-    }
-  }
-  counts.imu_initialised = tracker_->imuInitialised();
-  return counts;
-}
+SystemCounts System::counts() const { return recorder_->counts(*tracker_, *closer_); }
 
 RunReport System::report(double wall_s) const {
   RunReport report;

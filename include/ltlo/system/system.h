@@ -14,10 +14,12 @@
 /// LocalMapper::imuState() and takes a new estimate when its generation changes.
 ///
 /// Ownership and locks: System owns the Atlas, the Tracker, the LocalMapper, the LoopCloser, the
-/// two std::threads and the per-run records (frame references, keyframe colours) behind
-/// records_mutex_. The map structures follow the lock order of ltlo/map/atlas.h
+/// two std::threads and the RunRecorder (run_recorder.h: the per-run records - frame references,
+/// keyframe colours - behind RunRecorder::mutex_, and the frame counters). The map structures follow
+/// the lock order of ltlo/map/atlas.h
 ///   Atlas::mutex_ -> Map::topology_mutex_ -> Map::mutex_ -> KeyFrame::mutex_ -> MapPoint::mutex_;
-/// records_mutex_ is a leaf: it is never held while calling into the map, a queue or another stage.
+/// RunRecorder::mutex_ is a leaf: it is never held while calling into the map, a queue or another
+/// stage.
 /// world_gate_ (core/change_gate.h) is outermost: the tracking thread holds it from Tracker::track
 /// until the frame's record is stored, the loop closer while it changes a map's world frame (with
 /// local mapping paused first: LocalMapper::pause -> world_gate_). Nothing in the tracking section
@@ -34,11 +36,9 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
-#include <unordered_map>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -75,6 +75,7 @@ class FrameBuilder;
 }
 
 namespace ltlo::system {
+class RunRecorder;
 class SegmentationWriter;
 }
 namespace ltlo::viewer {
@@ -161,33 +162,6 @@ class System {
   bool usesImu() const { return use_imu_; }
 
  private:
-  /// Per-frame record: the reference keyframe and the camera relative to its body frame
-  /// (T_refb_c = T_w_b(ref)^-1 T_w_c at tracking time), or an absolute pose without one.
-  struct FrameRecord {
-    double t_s = 0.0;
-    std::shared_ptr<const map::KeyFrame> reference;
-    SE3 T_refb_c;  ///< with a reference
-    SE3 T_w_c;     ///< without one
-    bool tracked = false;
-    /// posed by the IMU's prediction alone (not tracked; with a reference)
-    bool carried = false;
-    /// The first frame anchored by vision after a carried stretch: the keyframe the stretch hung
-    /// on and this frame's dead-reckoned pose relative to it (system/carried_stretch.h).
-    std::shared_ptr<const map::KeyFrame> stretch_reference;
-    SE3 T_stretchrefb_c_predicted;
-    /// The pose as tracking returned it for this frame (the online stream): never moved by a later
-    /// loop correction, merge or smoothing; in the world of `map_online` at that time.
-    SE3 T_w_c_online;
-    map::MapId map_online;
-  };
-
-  /// The floating maps of the run's records (system/carried_stretch.h, floatingMapWorlds): floating
-  /// map -> the map whose world it stands in. A longer map than kFloatingMapMaxSpan_s has tracked
-  /// long enough for its own error to differ from the dead reckoning's shape.
-  std::unordered_map<map::MapId, map::MapId> floatingMaps(const std::vector<FrameRecord>& records) const;
-  static constexpr double kFloatingMapMaxSpan_s = 5.0;
-  static constexpr int kFloatingMapMaxDepth = 4;
-
   void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
   /// Tracking thread, with a viewer: the frame's pose on the pose stream, a loop flash when loops
   /// or merges grew, and a copy of the frame when the viewer is due (never waits on it).
@@ -227,21 +201,9 @@ class System {
   /// or processed after the frame (synchronous mode).
   std::vector<std::shared_ptr<map::KeyFrame>> pending_keyframes_;
   std::uint64_t imu_generation_ = 0;
-  int frames_ = 0;
-  int frames_tracked_ = 0;
-  // Outcomes of the loss policy (tracking thread): see SystemCounts.
-  int frames_tracked_weak_imu_ = 0;
-  int frames_imu_predicted_ = 0;
-  int relocalisations_ = 0;
-  int maps_extended_ = 0;
-  /// The keyframe the open IMU-carried stretch hangs on (null: no stretch open).
-  std::shared_ptr<const map::KeyFrame> carried_reference_;
-  int reacquisitions_ = 0;
-
-  mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
-  std::vector<FrameRecord> records_;
-  /// BGR colour of every keypoint of each keyframe, sampled when the keyframe was created.
-  std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours_;
+  /// The run's records, counters and results (run_recorder.h); declared last, so destroyed first as
+  /// the records were.
+  std::unique_ptr<RunRecorder> recorder_;
 };
 
 /// A worker thread stopped on an error; the run ends in an orderly shutdown.
