@@ -6,8 +6,6 @@
 #include <stdexcept>
 #include <utility>
 
-#include <opencv2/imgproc.hpp>
-
 #include "bow/vocabulary.h"
 #include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
@@ -23,7 +21,7 @@
 #include "ltlo/tracking/dense_segmenter.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/oracle_mask_segmenter.h"
-#include "ltlo/viewer/viewer.h"
+#include "viewer_feed.h"
 
 namespace ltlo::system {
 namespace {
@@ -131,16 +129,12 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
       if (!finishing_.load()) log::error("local mapping stopped before shutdown (see the error above)");
     });
   }
-  viewer::ViewerOutputs viewer_outputs;
-  viewer_outputs.video_path = options_.viewer_video_path;
-  viewer_outputs.png_dir = options_.viewer_png_dir;
-  viewer_outputs.http_port = options_.viewer_http_port;
-  viewer_outputs.http_bind = options_.viewer_http_bind;
-  viewer_outputs.pose_stream = options_.viewer_pose_stream;
+  const viewer::ViewerOutputs viewer_outputs = ViewerFeed::outputs(options_);
   if (viewer_outputs.any()) {
     try {
-      viewer_ = std::make_unique<viewer::Viewer>(settings_.viewer, viewer_outputs,
-                                                 [this](std::uint64_t map_id) { return viewerMap(map_id); });
+      viewer_ = std::make_unique<ViewerFeed>(settings_.viewer, viewer_outputs,
+                                             [this](std::uint64_t map_id) { return viewerMap(map_id); }, *closer_,
+                                             builder_->calib().camera.camera, *builder_->undistorter(), timing_);
     } catch (...) {
       shutdown();  // the workers started above are joined before the error leaves
       throw;
@@ -252,7 +246,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   }
 
   if (const std::optional<RecordedFrame> recorded = recorder_->recordFrame(input.t_s, frame, *tracker_)) {
-    if (viewer_) postToViewer(input, frame, state, recorded->tracked, recorded->carried, recorded->map);
+    if (viewer_) viewer_->post(recorder_->numFrames() - 1, input, frame, state, *recorded);
   }
   section.reset();
   if (options_.threaded) {
@@ -300,104 +294,8 @@ std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
   return recorder_->trajectory(smooth_carried_frames);
 }
 
-void System::postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame, tracking::TrackingState state,
-                          bool tracked, bool carried, map::MapId map) {
-  viewer_->postPose(recorder_->numFrames() - 1, input.t_s, frame.T_w_c(), tracked, map.value);
-  const int events = closer_->numLoops() + closer_->numMerges();
-  if (events != viewer_events_seen_) {
-    viewer_events_seen_ = events;
-    viewer_->notifyLoop();
-  }
-  if (!viewer_->due(input.t_s)) return;
-  ScopedTimer timer(timing_, "tracking.viewer_post");
-  viewer::ViewerFrame view;
-  view.index = recorder_->numFrames() - 1;
-  view.t_s = input.t_s;
-  view.color_bgr = input.color_bgr.clone();
-  const PinholeCamera& camera = builder_->calib().camera.camera;
-  view.dynamic_mask = frame.segmentation().dynamicMask(frame.staticThreshold(), camera.height() / 4, camera.width() / 4);
-  // The picture shows the raw image: with a distorting lens the mask (ideal grid) and the keypoints
-  // (ideal pixels) are taken back through the lens, as the segmentation writer does for its masks.
-  const Undistorter& undistorter = *builder_->undistorter();
-  if (undistorter.active() && !view.dynamic_mask.empty()) {
-    if (viewer_raw_to_ideal_.size() != view.dynamic_mask.size()) {
-      const int scale = std::max(1, camera.width() / view.dynamic_mask.cols);
-      cv::resize(undistorter.rawToIdealMap(scale), viewer_raw_to_ideal_, view.dynamic_mask.size(), 0.0, 0.0,
-                 cv::INTER_AREA);
-    }
-    cv::Mat raw_mask;
-    cv::remap(view.dynamic_mask, raw_mask, viewer_raw_to_ideal_, cv::noArray(), cv::INTER_NEAREST,
-              cv::BORDER_REPLICATE);
-    view.dynamic_mask = raw_mask;
-  }
-  const std::vector<features::Keypoint>& keypoints = frame.keypoints();
-  view.keypoints.reserve(keypoints.size());
-  for (std::size_t i = 0; i < keypoints.size(); ++i) {
-    viewer::ViewerKeypoint kp;
-    Vec2 u(keypoints[i].x_px, keypoints[i].y_px);
-    if (undistorter.active()) u = undistorter.model().distortPixel(u);
-    kp.u = static_cast<float>(u.x());
-    kp.v = static_cast<float>(u.y());
-    const int index = static_cast<int>(i);
-    if (!frame.isStatic(index)) {
-      kp.kind = viewer::KeypointClass::kDynamic;
-    } else if (i < frame.map_points.size() && frame.map_points[i].valid() &&
-               !(i < frame.outliers.size() && frame.outliers[i])) {
-      kp.kind = viewer::KeypointClass::kTracked;
-    }
-    view.keypoints.push_back(kp);
-  }
-  view.has_pose = true;
-  view.T_w_c = frame.T_w_c();
-  view.map = map.value;
-  view.state = tracking::trackingStateName(state);
-  view.imu_carried = carried;
-  view.tracked = tracked;
-  viewer_->post(std::move(view));
-}
-
 viewer::ViewerMap System::viewerMap(std::uint64_t map_id) const {
-  viewer::ViewerMap view;
-  const map::MapId resolved = atlas_->resolve(map::MapId(map_id));
-  view.map = resolved.value;
-  const std::vector<map::MapId> map_ids = atlas_->mapIds();
-  view.maps = static_cast<int>(map_ids.size());
-  for (const map::MapId id : map_ids) {
-    if (const map::Map* map = atlas_->map(id)) view.keyframes_all_maps += static_cast<int>(map->numKeyFrames());
-  }
-  view.loops = closer_->numLoops();
-  view.merges = closer_->numMerges();
-  map::Map* map = atlas_->map(resolved);
-  if (map == nullptr) return view;
-  std::unordered_map<std::uint64_t, int> index_of;
-  std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
-  for (const std::shared_ptr<map::KeyFrame>& kf : map->keyFrames()) {
-    if (kf->isBad()) continue;
-    index_of[kf->id().value] = static_cast<int>(keyframes.size());
-    keyframes.push_back(kf);
-    view.keyframes_T_w_c.push_back(kf->T_w_c());
-  }
-  for (std::size_t a = 0; a < keyframes.size(); ++a) {
-    for (const map::KeyFrameId other : keyframes[a]->bestCovisibles(4)) {
-      const auto found = index_of.find(other.value);
-      if (found != index_of.end() && found->second != static_cast<int>(a)) {
-        view.covisibility.emplace_back(static_cast<int>(a), found->second);
-      }
-    }
-    for (const map::KeyFrameId other : keyframes[a]->loopEdges()) {
-      const auto found = index_of.find(other.value);
-      if (found != index_of.end() && found->second > static_cast<int>(a)) {
-        view.loop_edges.emplace_back(static_cast<int>(a), found->second);
-      }
-    }
-  }
-  for (const std::shared_ptr<map::MapPoint>& point : map->mapPoints()) {
-    if (point->isBad()) continue;
-    view.points_w.push_back(point->p_w().cast<float>());
-    view.beta.push_back(static_cast<float>(point->beta()));
-  }
-  view.trajectory_w = recorder_->framePositionsInMap(resolved);
-  return view;
+  return viewerMapOf(*atlas_, *closer_, *recorder_, map_id);
 }
 
 std::vector<FramePose> System::onlineTrajectory() const { return recorder_->onlineTrajectory(); }
@@ -424,16 +322,7 @@ RunReport System::report(double wall_s) const {
   report.time_offset_s = settings_.calib.imu.time_offset_s + offset.shift_s;
   report.time_offset_sigma_s = offset.sigma_s;
   report.time_offset_updates = offset.updates;
-  if (viewer_) {
-    const viewer::ViewerCounts viewer = viewer_->counts();
-    report.viewer_on = true;
-    report.viewer_rendered = viewer.rendered;
-    report.viewer_dropped = viewer.dropped;
-    report.viewer_video_frames = viewer.video_frames;
-    report.viewer_png_frames = viewer.png_frames;
-    report.viewer_http_frames = viewer.http_frames;
-    report.viewer_poses = viewer.poses;
-  }
+  if (viewer_) viewer_->addCounts(report);
   return report;
 }
 

@@ -14,9 +14,10 @@
 /// LocalMapper::imuState() and takes a new estimate when its generation changes.
 ///
 /// Ownership and locks: System owns the Atlas, the Tracker, the LocalMapper, the LoopCloser, the
-/// two std::threads and the RunRecorder (run_recorder.h: the per-run records - frame references,
-/// keyframe colours - behind RunRecorder::mutex_, and the frame counters). The map structures follow
-/// the lock order of ltlo/map/atlas.h
+/// two std::threads, the RunRecorder (run_recorder.h: the per-run records - frame references,
+/// keyframe colours - behind RunRecorder::mutex_, and the frame counters) and, with a viewer output,
+/// the ViewerFeed with the viewer thread (system/viewer_feed.h). The map structures follow the lock
+/// order of ltlo/map/atlas.h
 ///   Atlas::mutex_ -> Map::topology_mutex_ -> Map::mutex_ -> KeyFrame::mutex_ -> MapPoint::mutex_;
 /// RunRecorder::mutex_ is a leaf: it is never held while calling into the map, a queue or another
 /// stage.
@@ -41,8 +42,6 @@
 #include <thread>
 #include <vector>
 
-#include <opencv2/core.hpp>
-
 #include "ltlo/core/change_gate.h"
 #include "ltlo/core/eigen_types.h"
 #include "ltlo/core/lie.h"
@@ -61,7 +60,6 @@ class Vocabulary;
 
 namespace ltlo::map {
 class Atlas;
-class Frame;
 class KeyFrame;
 }  // namespace ltlo::map
 namespace ltlo::mapping {
@@ -77,10 +75,7 @@ class FrameBuilder;
 namespace ltlo::system {
 class RunRecorder;
 class SegmentationWriter;
-}
-namespace ltlo::viewer {
-class Viewer;
-struct ViewerOutputs;
+class ViewerFeed;
 }
 
 namespace ltlo::system {
@@ -163,10 +158,6 @@ class System {
 
  private:
   void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
-  /// Tracking thread, with a viewer: the frame's pose on the pose stream, a loop flash when loops
-  /// or merges grew, and a copy of the frame when the viewer is due (never waits on it).
-  void postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame, tracking::TrackingState state,
-                    bool tracked, bool carried, map::MapId map);
   void processPendingKeyFrames();                                 // synchronous mode
   void pollImuState();
   void checkWorkers() const;
@@ -184,9 +175,9 @@ class System {
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;
   std::unique_ptr<SegmentationWriter> segmentation_writer_;  // with SystemOptions::segmentation_dir
-  std::unique_ptr<viewer::Viewer> viewer_;  // with a viewer output; reads the Atlas, stopped last
-  int viewer_events_seen_ = 0;              // tracking thread: loops + merges the viewer was told of
-  cv::Mat viewer_raw_to_ideal_;  // tracking thread: raw -> ideal map at the viewer mask's size (distorting lens)
+  /// With a viewer output: the Viewer and what tracking posts to it (system/viewer_feed.h); reads the
+  /// Atlas, stopped last.
+  std::unique_ptr<ViewerFeed> viewer_;
   ChangeGate world_gate_;  ///< tracking of a frame vs world-frame changes by loop closing
   std::thread mapping_thread_;
   std::thread loop_thread_;
