@@ -1,7 +1,5 @@
 #include "ltlo/system/system.h"
 
-#include <algorithm>
-#include <cmath>
 #include <optional>
 #include <stdexcept>
 #include <utility>
@@ -18,31 +16,11 @@
 #include "ltlo/optim/bundle_adjust.h"
 #include "ltlo/system/run_recorder.h"
 #include "ltlo/system/segmentation_writer.h"
-#include "ltlo/tracking/dense_segmenter.h"
 #include "ltlo/tracking/frame_builder.h"
-#include "ltlo/tracking/oracle_mask_segmenter.h"
+#include "stage_options.h"
 #include "viewer_feed.h"
 
 namespace ltlo::system {
-namespace {
-
-/// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit), or the ground-truth
-/// masks of the --oracle-masks ablation; its stages go to `timing`.
-/// With a distorting lens each takes the images onto the ideal grid through `undistorter`.
-std::unique_ptr<tracking::FrameSegmenter> makeSegmenter(const Settings& settings, bool oracle_masks, TimingStats* timing,
-                                                        const std::shared_ptr<const Undistorter>& undistorter) {
-  const SegmentationOptions& seg = settings.segmentation;
-  if (oracle_masks) return std::make_unique<tracking::OracleMaskSegmenter>(seg.static_threshold, undistorter);
-  if (!seg.enable) return std::make_unique<tracking::AllStaticSegmenter>(seg.static_threshold);
-  if (seg.dense_init) {
-    return std::make_unique<tracking::DenseSegmenter>(seg, settings.dense, settings.local_mapping,
-                                                      settings.calib.camera.camera, timing, undistorter);
-  }
-  return std::make_unique<tracking::ClusterOnlySegmenter>(seg, settings.dense, settings.calib.camera.camera, timing,
-                                                          undistorter);
-}
-
-}  // namespace
 
 System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> vocabulary,
                const SystemOptions& options)
@@ -57,13 +35,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   builder_ = std::make_unique<tracking::FrameBuilder>(settings_.orb, calib);
   const std::vector<float> level_sigma2 = builder_->extractor().levelSigma2();
 
-  tracking::TrackerOptions tracker_options;
-  tracker_options.keyframe = settings_.keyframe;
-  tracker_options.tracking = settings_.tracking;
-  if (use_imu_ && settings_.imu_init.early_keyframes) {
-    tracker_options.imu_init_keyframe_interval_s =
-        settings_.imu_init.min_time_s / std::max(1, settings_.imu_init.min_keyframes - 1);
-  }
+  const tracking::TrackerOptions tracker_options = trackerOptions(settings_, use_imu_);
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
   tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks, &timing_, builder_->undistorter()));
@@ -75,24 +47,9 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   tracker_->setLocalMappingCallback(
       [this](map::Map&, const std::shared_ptr<map::KeyFrame>& kf) { onNewKeyFrame(kf); });
 
-  mapping::LocalMapperOptions mapper_options;
-  mapper_options.local_mapping = settings_.local_mapping;
-  mapper_options.segmentation = settings_.segmentation;
-  mapper_options.vocabulary = vocabulary_;
-  mapper_options.imu_init = settings_.imu_init;
-  mapper_options.use_imu = use_imu_;
-  mapper_options.refine_until_acceleration_sigma_m_s2 = settings_.tracking.acc_bias_sigma_m_s2;
-  // Every RGB-D edge (tracking, local BA, fusion, loop and global BA): bf = fx * virtual baseline.
-  mapper_options.bf_px_m = calib.camera.camera.fx() * settings_.tracking.virtual_baseline_m;
-  mapper_ = std::make_unique<mapping::LocalMapper>(*atlas_, mapper_options, level_sigma2, &timing_);
+  mapper_ = std::make_unique<mapping::LocalMapper>(
+      *atlas_, localMapperOptions(settings_, calib, vocabulary_, use_imu_), level_sigma2, &timing_);
 
-  loop::LoopCloserOptions closer_options;
-  closer_options.loop = settings_.loop;
-  closer_options.rejoin_search = tracking::reacquireSearchOptions(tracker_options);
-  closer_options.virtual_baseline_m = settings_.tracking.virtual_baseline_m;
-  closer_options.min_point_beta = settings_.local_mapping.min_point_beta;
-  closer_options.lambda_imu = settings_.local_mapping.lambda_imu;
-  closer_options.visual_variance_estimation = settings_.local_mapping.visual_variance_estimation;
   loop::MappingControl mapping_control{[this] { mapper_->pause(); }, [this] { mapper_->resume(); },
                                        [this]() -> std::optional<Vec3> {
                                          const mapping::ImuState imu = mapper_->imuState();
@@ -105,7 +62,8 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
     mapping_control.hold_tracking = [this] { world_gate_.beginChange(); };
     mapping_control.release_tracking = [this] { world_gate_.endChange(); };
   }
-  closer_ = std::make_unique<loop::LoopCloser>(*atlas_, closer_options, std::move(mapping_control), &timing_);
+  closer_ = std::make_unique<loop::LoopCloser>(*atlas_, loopCloserOptions(settings_, tracker_options),
+                                               std::move(mapping_control), &timing_);
 
   if (!options_.segmentation_dir.empty()) {
     segmentation_writer_ =
