@@ -14,10 +14,13 @@
 /// LocalMapper::imuState() and takes a new estimate when its generation changes.
 ///
 /// Ownership and locks: System owns the Atlas, the Tracker, the LocalMapper, the LoopCloser, the
-/// two std::threads and the per-run records (frame references, keyframe colours) behind
-/// records_mutex_. The map structures follow the lock order of ltlo/map/atlas.h
+/// two std::threads, the RunRecorder (run_recorder.h: the per-run records - frame references,
+/// keyframe colours - behind RunRecorder::mutex_, and the frame counters) and, with a viewer output,
+/// the ViewerFeed with the viewer thread (system/viewer_feed.h). The map structures follow the lock
+/// order of ltlo/map/atlas.h
 ///   Atlas::mutex_ -> Map::topology_mutex_ -> Map::mutex_ -> KeyFrame::mutex_ -> MapPoint::mutex_;
-/// records_mutex_ is a leaf: it is never held while calling into the map, a queue or another stage.
+/// RunRecorder::mutex_ is a leaf: it is never held while calling into the map, a queue or another
+/// stage.
 /// world_gate_ (core/change_gate.h) is outermost: the tracking thread holds it from Tracker::track
 /// until the frame's record is stored, the loop closer while it changes a map's world frame (with
 /// local mapping paused first: LocalMapper::pause -> world_gate_). Nothing in the tracking section
@@ -34,14 +37,10 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
-#include <unordered_map>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "ltlo/core/change_gate.h"
 #include "ltlo/core/eigen_types.h"
@@ -61,7 +60,6 @@ class Vocabulary;
 
 namespace ltlo::map {
 class Atlas;
-class Frame;
 class KeyFrame;
 }  // namespace ltlo::map
 namespace ltlo::mapping {
@@ -75,11 +73,9 @@ class FrameBuilder;
 }
 
 namespace ltlo::system {
+class RunRecorder;
 class SegmentationWriter;
-}
-namespace ltlo::viewer {
-class Viewer;
-struct ViewerOutputs;
+class ViewerFeed;
 }
 
 namespace ltlo::system {
@@ -161,38 +157,7 @@ class System {
   bool usesImu() const { return use_imu_; }
 
  private:
-  /// Per-frame record: the reference keyframe and the camera relative to its body frame
-  /// (T_refb_c = T_w_b(ref)^-1 T_w_c at tracking time), or an absolute pose without one.
-  struct FrameRecord {
-    double t_s = 0.0;
-    std::shared_ptr<const map::KeyFrame> reference;
-    SE3 T_refb_c;  ///< with a reference
-    SE3 T_w_c;     ///< without one
-    bool tracked = false;
-    /// posed by the IMU's prediction alone (not tracked; with a reference)
-    bool carried = false;
-    /// The first frame anchored by vision after a carried stretch: the keyframe the stretch hung
-    /// on and this frame's dead-reckoned pose relative to it (system/carried_stretch.h).
-    std::shared_ptr<const map::KeyFrame> stretch_reference;
-    SE3 T_stretchrefb_c_predicted;
-    /// The pose as tracking returned it for this frame (the online stream): never moved by a later
-    /// loop correction, merge or smoothing; in the world of `map_online` at that time.
-    SE3 T_w_c_online;
-    map::MapId map_online;
-  };
-
-  /// The floating maps of the run's records (system/carried_stretch.h, floatingMapWorlds): floating
-  /// map -> the map whose world it stands in. A longer map than kFloatingMapMaxSpan_s has tracked
-  /// long enough for its own error to differ from the dead reckoning's shape.
-  std::unordered_map<map::MapId, map::MapId> floatingMaps(const std::vector<FrameRecord>& records) const;
-  static constexpr double kFloatingMapMaxSpan_s = 5.0;
-  static constexpr int kFloatingMapMaxDepth = 4;
-
   void onNewKeyFrame(const std::shared_ptr<map::KeyFrame>& kf);  // tracking thread
-  /// Tracking thread, with a viewer: the frame's pose on the pose stream, a loop flash when loops
-  /// or merges grew, and a copy of the frame when the viewer is due (never waits on it).
-  void postToViewer(const io::RgbdImuFrame& input, const map::Frame& frame, tracking::TrackingState state,
-                    bool tracked, bool carried, map::MapId map);
   void processPendingKeyFrames();                                 // synchronous mode
   void pollImuState();
   void checkWorkers() const;
@@ -210,9 +175,9 @@ class System {
   std::unique_ptr<mapping::LocalMapper> mapper_;
   std::unique_ptr<loop::LoopCloser> closer_;
   std::unique_ptr<SegmentationWriter> segmentation_writer_;  // with SystemOptions::segmentation_dir
-  std::unique_ptr<viewer::Viewer> viewer_;  // with a viewer output; reads the Atlas, stopped last
-  int viewer_events_seen_ = 0;              // tracking thread: loops + merges the viewer was told of
-  cv::Mat viewer_raw_to_ideal_;  // tracking thread: raw -> ideal map at the viewer mask's size (distorting lens)
+  /// With a viewer output: the Viewer and what tracking posts to it (system/viewer_feed.h); reads the
+  /// Atlas, stopped last.
+  std::unique_ptr<ViewerFeed> viewer_;
   ChangeGate world_gate_;  ///< tracking of a frame vs world-frame changes by loop closing
   std::thread mapping_thread_;
   std::thread loop_thread_;
@@ -227,21 +192,9 @@ class System {
   /// or processed after the frame (synchronous mode).
   std::vector<std::shared_ptr<map::KeyFrame>> pending_keyframes_;
   std::uint64_t imu_generation_ = 0;
-  int frames_ = 0;
-  int frames_tracked_ = 0;
-  // Outcomes of the loss policy (tracking thread): see SystemCounts.
-  int frames_tracked_weak_imu_ = 0;
-  int frames_imu_predicted_ = 0;
-  int relocalisations_ = 0;
-  int maps_extended_ = 0;
-  /// The keyframe the open IMU-carried stretch hangs on (null: no stretch open).
-  std::shared_ptr<const map::KeyFrame> carried_reference_;
-  int reacquisitions_ = 0;
-
-  mutable std::mutex records_mutex_;  ///< guards records_ and colours_ (leaf lock)
-  std::vector<FrameRecord> records_;
-  /// BGR colour of every keypoint of each keyframe, sampled when the keyframe was created.
-  std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours_;
+  /// The run's records, counters and results (run_recorder.h); declared last, so destroyed first as
+  /// the records were.
+  std::unique_ptr<RunRecorder> recorder_;
 };
 
 /// A worker thread stopped on an error; the run ends in an orderly shutdown.

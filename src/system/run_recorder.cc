@@ -1,0 +1,296 @@
+#include "ltlo/system/run_recorder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "ltlo/core/log.h"
+#include "ltlo/core/undistorter.h"
+#include "ltlo/loop/loop_closer.h"
+#include "ltlo/map/atlas.h"
+#include "ltlo/map/keyframe.h"
+#include "ltlo/system/carried_stretch.h"
+#include "ltlo/tracking/tracker.h"
+
+namespace ltlo::system {
+namespace {
+
+/// BGR of the raw image pixel nearest to each keypoint (ideal level-0 coordinates, taken back through
+/// the lens when it distorts; clamped to the image).
+std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector<features::Keypoint>& keypoints,
+                                     const Undistorter& undistorter) {
+  std::vector<cv::Vec3b> colours(keypoints.size(), cv::Vec3b(128, 128, 128));
+  if (color_bgr.empty() || color_bgr.type() != CV_8UC3) return colours;
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    Vec2 u(keypoints[i].x_px, keypoints[i].y_px);
+    if (undistorter.active()) u = undistorter.model().distortPixel(u);
+    const int col = std::clamp(static_cast<int>(std::lround(u.x())), 0, color_bgr.cols - 1);
+    const int row = std::clamp(static_cast<int>(std::lround(u.y())), 0, color_bgr.rows - 1);
+    colours[i] = color_bgr.at<cv::Vec3b>(row, col);
+  }
+  return colours;
+}
+
+}  // namespace
+
+RunRecorder::RunRecorder(map::Atlas& atlas, const TrackingOptions& tracking) : atlas_(atlas), tracking_(tracking) {}
+
+void RunRecorder::recordKeyFrameColours(const map::KeyFrame& kf, const cv::Mat& color_bgr,
+                                        const Undistorter& undistorter) {
+  std::vector<cv::Vec3b> colours = sampleColours(color_bgr, kf.keypoints(), undistorter);
+  std::lock_guard<std::mutex> lock(mutex_);
+  colours_[kf.id().value] = std::move(colours);
+}
+
+std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Frame& frame,
+                                                      const tracking::Tracker& tracker) {
+  ++frames_;
+  if (!frame.hasPose()) return std::nullopt;
+  FrameRecord record;
+  record.t_s = t_s;
+  record.tracked = tracker.frameTracked();
+  const SE3 T_w_c = frame.T_w_c();
+  record.T_w_c_online = T_w_c;
+  if (std::shared_ptr<map::KeyFrame> reference = tracker.referenceKeyFramePtr()) {
+    record.map_online = reference->mapId();
+    record.T_refb_c = map::latestPose_T_w_b(*reference).inverse() * T_w_c;
+    record.reference = std::move(reference);
+  } else {
+    record.T_w_c = T_w_c;
+  }
+  if (record.tracked) ++frames_tracked_;
+  trackCarriedStretch(record, frame, tracker.imuPredicted_T_w_b());
+  countLossPolicy(record, tracker);
+  RecordedFrame recorded;
+  recorded.tracked = record.tracked;
+  recorded.carried = record.carried;
+  recorded.map = record.map_online;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    records_.push_back(std::move(record));
+  }
+  return recorded;
+}
+
+void RunRecorder::trackCarriedStretch(FrameRecord& record, const map::Frame& frame,
+                                      const std::optional<SE3>& predicted_T_w_b) {
+  record.carried = !record.tracked && predicted_T_w_b && record.reference;
+  if (record.tracked && carried_reference_ && predicted_T_w_b) {
+    // The first frame anchored after an IMU-carried stretch: where the dead reckoning put it,
+    // relative to the keyframe the stretch hung on (trajectory() spreads the difference).
+    record.stretch_reference = carried_reference_;
+    record.T_stretchrefb_c_predicted =
+        map::latestPose_T_w_b(*carried_reference_).inverse() * (*predicted_T_w_b * frame.T_b_c());
+  }
+  if (record.tracked && carried_reference_ && !predicted_T_w_b) {
+    log::debug("system: the frame at t = ", record.t_s, " s ends a carried stretch without an IMU prediction");
+  }
+  if (record.carried) {
+    if (!carried_reference_) carried_reference_ = record.reference;
+  } else {
+    carried_reference_.reset();
+  }
+}
+
+void RunRecorder::countLossPolicy(const FrameRecord& record, const tracking::Tracker& tracker) {
+  const tracking::TrackingStats& stats = tracker.stats();
+  if (record.tracked && stats.inertial_link != 0 && stats.inliers < tracking_.min_inliers) {
+    ++frames_tracked_weak_imu_;
+  }
+  if (!record.tracked && stats.inertial_link != 0) ++frames_imu_predicted_;
+  if (stats.relocalised) ++relocalisations_;
+  if (stats.map_extended) ++maps_extended_;
+  if (stats.reacquired) ++reacquisitions_;
+}
+
+SystemCounts RunRecorder::counts(const tracking::Tracker& tracker, const loop::LoopCloser& closer) const {
+  SystemCounts counts;
+  counts.frames = frames_;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    counts.frames_with_pose = static_cast<int>(records_.size());
+  }
+  counts.frames_tracked = frames_tracked_;
+  const std::vector<map::MapId> map_ids = atlas_.mapIds();
+  counts.maps = static_cast<int>(map_ids.size());
+  counts.maps_created = tracker.numMapsCreated();
+  counts.frames_tracked_weak_imu = frames_tracked_weak_imu_;
+  counts.frames_imu_predicted = frames_imu_predicted_;
+  counts.relocalisations = relocalisations_;
+  counts.maps_extended = maps_extended_;
+  counts.reacquisitions = reacquisitions_;
+  counts.loops = closer.numLoops();
+  counts.merges = closer.numMerges();
+  for (const map::MapId map_id : map_ids) {
+    if (const map::Map* map = atlas_.map(map_id)) {
+      counts.keyframes += static_cast<int>(map->numKeyFrames());
+      counts.map_points += static_cast<int>(map->numMapPoints());
+    }
+  }
+  counts.imu_initialised = tracker.imuInitialised();
+  return counts;
+}
+
+std::unordered_map<map::MapId, map::MapId> RunRecorder::floatingMaps(const std::vector<FrameRecord>& records) const {
+  std::unordered_map<map::MapId, MapFrameSpan> maps;
+  for (const FrameRecord& record : records) {
+    if (!record.reference) continue;
+    const auto [it, inserted] = maps.try_emplace(record.reference->mapId());
+    if (inserted) it->second.first_t_s = record.t_s;
+    it->second.last_t_s = record.t_s;
+  }
+  for (auto& [id, span] : maps) {
+    map::Map* map = atlas_.map(id);
+    const std::optional<map::MapOrigin> origin = map != nullptr ? map->origin() : std::nullopt;
+    if (origin) span.origin_parent = atlas_.resolve(origin->parent);
+  }
+  return floatingMapWorlds(maps, kFloatingMapMaxSpan_s, kFloatingMapMaxDepth);
+}
+
+std::vector<FramePose> RunRecorder::trajectory(bool smooth_carried_frames) const {
+  std::vector<FrameRecord> records;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    records = records_;
+  }
+  // Short maps started at the IMU's prediction and never merged: their coordinates are their
+  // parent's world as the dead reckoning placed them, so their frames belong to the carried
+  // stretch around them, and a frame anchored after it in that world ends it.
+  const std::unordered_map<map::MapId, map::MapId> floating = floatingMaps(records);
+  auto world_of = [&floating](map::MapId id) {
+    const auto it = floating.find(id);
+    return it == floating.end() ? id : it->second;
+  };
+  // Keyframe poses are read outside mutex_ (it is a leaf lock).
+  std::vector<FramePose> poses;
+  poses.reserve(records.size());
+  std::vector<CarriedSample> samples;
+  samples.reserve(records.size());
+  for (const FrameRecord& record : records) {
+    FramePose pose;
+    pose.t_s = record.t_s;
+    pose.tracked = record.tracked;
+    CarriedSample sample;
+    if (record.reference) {
+      pose.T_w_c = map::latestPose_T_w_b(*record.reference) * record.T_refb_c;
+      pose.map = record.reference->mapId();
+      // Comparable only while the stretch's keyframe and this frame's lie in one world (one map
+      // after merges, or a floating map of this frame's map).
+      if (record.stretch_reference && floating.count(pose.map) == 0 &&
+          world_of(record.stretch_reference->mapId()) == pose.map) {
+        sample.T_w_c_dead_reckoned =
+            map::latestPose_T_w_b(*record.stretch_reference) * record.T_stretchrefb_c_predicted;
+      } else if (record.stretch_reference) {
+        log::debug("trajectory: the frame at t = ", record.t_s, " s in ", pose.map, " (floating ",
+                   floating.count(pose.map), ") ends a carried stretch hung on ", record.stretch_reference->id(),
+                   " in ", record.stretch_reference->mapId(), ": not comparable");
+      }
+    } else {
+      pose.T_w_c = record.T_w_c;
+    }
+    sample.t_s = pose.t_s;
+    sample.T_w_c = pose.T_w_c;
+    sample.carried = record.carried || (record.reference && floating.count(pose.map) > 0);
+    poses.push_back(pose);
+    samples.push_back(std::move(sample));
+  }
+  if (smooth_carried_frames) {
+    smoothCarriedStretches(samples, tracking_.carried_velocity_sigma_m_s, tracking_.acc_bias_sigma_m_s2);
+    for (std::size_t i = 0; i < poses.size(); ++i) poses[i].T_w_c = samples[i].T_w_c;
+  }
+  return poses;
+}
+
+std::vector<FramePose> RunRecorder::onlineTrajectory() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<FramePose> poses;
+  poses.reserve(records_.size());
+  for (const FrameRecord& record : records_) {
+    FramePose pose;
+    pose.t_s = record.t_s;
+    pose.T_w_c = record.T_w_c_online;
+    pose.tracked = record.tracked;
+    pose.map = record.map_online;
+    poses.push_back(pose);
+  }
+  return poses;
+}
+
+std::vector<Eigen::Vector3f> RunRecorder::framePositionsInMap(map::MapId map_id) const {
+  // The frames so far, from their reference keyframes' latest poses (loop corrections move them);
+  // the records are copied under their leaf lock, the keyframes read after it.
+  std::vector<std::pair<std::shared_ptr<const map::KeyFrame>, SE3>> references;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    references.reserve(records_.size());
+    for (const FrameRecord& record : records_) {
+      if (record.reference) references.emplace_back(record.reference, record.T_refb_c);
+    }
+  }
+  std::vector<Eigen::Vector3f> positions_w;
+  positions_w.reserve(references.size());
+  for (const auto& [reference, T_refb_c] : references) {
+    if (reference->mapId() != map_id) continue;
+    positions_w.push_back((map::latestPose_T_w_b(*reference) * T_refb_c).translation().cast<float>());
+  }
+  return positions_w;
+}
+
+std::vector<KeyFrameRecord> RunRecorder::keyFrames() const {
+  std::vector<KeyFrameRecord> keyframes;
+  for (const map::MapId map_id : atlas_.mapIds()) {
+    const map::Map* map = atlas_.map(map_id);
+    if (map == nullptr) continue;
+    for (const std::shared_ptr<map::KeyFrame>& kf : map->keyFrames()) {
+      if (kf->isBad()) continue;
+      KeyFrameRecord record;
+      record.t_s = kf->t_s();
+      record.T_w_c = kf->T_w_c();
+      record.id = kf->id().value;
+      record.map = kf->mapId().value;
+      record.static_area_ratio = kf->staticAreaRatio();
+      keyframes.push_back(record);
+    }
+  }
+  std::sort(keyframes.begin(), keyframes.end(),
+            [](const KeyFrameRecord& a, const KeyFrameRecord& b) { return a.t_s < b.t_s; });
+  return keyframes;
+}
+
+std::vector<MapPointRecord> RunRecorder::mapPoints() const {
+  struct PointSource {
+    MapPointRecord record;
+    std::vector<std::pair<std::uint64_t, int>> observations;  // reference keyframe first
+  };
+  std::vector<PointSource> sources;
+  for (const std::shared_ptr<map::MapPoint>& point : atlas_.activeMap().mapPoints()) {
+    if (point->isBad()) continue;
+    PointSource source;
+    source.record.p_w = point->p_w();
+    source.record.beta = point->beta();
+    const map::KeyFrameId reference = point->referenceKeyFrame();
+    if (const std::optional<int> index = point->indexIn(reference)) {
+      source.observations.emplace_back(reference.value, *index);
+    }
+    for (const auto& [kf, index] : point->observations()) source.observations.emplace_back(kf.value, index);
+    sources.push_back(std::move(source));
+  }
+  std::vector<MapPointRecord> points;
+  points.reserve(sources.size());
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (PointSource& source : sources) {
+    for (const auto& [kf, index] : source.observations) {
+      const auto found = colours_.find(kf);
+      if (found == colours_.end() || index < 0 || index >= static_cast<int>(found->second.size())) continue;
+      const cv::Vec3b bgr = found->second[static_cast<std::size_t>(index)];
+      source.record.blue = bgr[0];
+      source.record.green = bgr[1];
+      source.record.red = bgr[2];
+      break;
+    }
+    points.push_back(source.record);
+  }
+  return points;
+}
+
+}  // namespace ltlo::system
