@@ -109,6 +109,9 @@ System::~System() {
   } catch (const std::exception& e) {
     log::error("system shutdown: ", e.what());
   }
+  // The viewer thread reads the run's records and the map (viewerMap): it ends before any member
+  // goes, also when shutdown() stopped on an error before it reached the viewer.
+  viewer_.reset();
 }
 
 void System::checkWorkers() const {
