@@ -208,6 +208,7 @@ void visitViewer(O& o, V& v) {
   v.real("Viewer.FollowHeight", o.follow_height_m, 0.0, 50.0);
   v.real("Viewer.LoopFlashSeconds", o.loop_flash_s, 0.0, 30.0);
   v.boolean("Viewer.LoopOverview", o.loop_overview);
+  v.integer("Viewer.ThreadNice", o.thread_nice, 0, 19);
 }
 
 std::string rangeText(double min, double max) {

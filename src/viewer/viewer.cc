@@ -12,6 +12,7 @@
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "ltlo/core/thread_priority.h"
 #include "ltlo/http/mjpeg_server.h"
 #include "ltlo/viewer/viewer_renderer.h"
 
@@ -130,6 +131,11 @@ int Viewer::httpPort() const { return server_ ? server_->port() : -1; }
 
 void Viewer::run() {
   log::setThreadName("viewer");
+  // Below the SLAM threads (Viewer.ThreadNice): rendering and encoding take the time they leave.
+  if (options_.thread_nice > 0) {
+    const int nice = lowerCurrentThreadPriority(options_.thread_nice);
+    log::debug("viewer: thread nice ", nice);
+  }
   std::optional<ViewerRenderer> renderer;
   try {
     renderer.emplace(options_);  // the OSMesa context belongs to this thread

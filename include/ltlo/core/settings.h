@@ -504,6 +504,13 @@ struct ViewerOptions {
   /// so the new edge is in view however far back in the map it reaches (Viewer.LoopOverview; off:
   /// the following camera stays)
   bool loop_overview = true;
+  /// The viewer thread's nice value above the SLAM threads' (Viewer.ThreadNice, [0, 19]; 0: the
+  /// same priority): it renders in the time they leave and drops pictures it has no time for
+  /// (counted). Measured on 2 cores, 45 s ltlo_s1 as fast as it runs (CPU-bound, about 75 FPS), video
+  /// + HTTP + pose stream against no viewer, three alternating pairs, tracking median / wall time:
+  /// nice 0 +0.5..+1.9 ms / +7..+16 %, 450 of 450 pictures; nice 10 +0.2..+0.9 ms / +3..+10 %,
+  /// 405-430; nice 19 -0.4..+0.9 ms / -3..+6 %, 397-407. A 30 Hz live run leaves the viewer time.
+  int thread_nice = 19;
 
   static ViewerOptions load(const SettingsFile& file);  ///< reads and validates; throws ConfigError
 };
