@@ -53,10 +53,11 @@ void ViewerFeed::post(int index, const io::RgbdImuFrame& input, const map::Frame
 
 viewer::ViewerFrame ViewerFeed::pictureOf(int frame_index, const io::RgbdImuFrame& input, const map::Frame& frame,
                                           tracking::TrackingState state, const RecordedFrame& recorded) {
-  viewer::ViewerFrame view;
+  // A frame the viewer is done with: copying into its buffers allocates nothing.
+  viewer::ViewerFrame view = viewer_->recycledFrame();
   view.index = frame_index;
   view.t_s = input.t_s;
-  view.color_bgr = input.color_bgr.clone();
+  input.color_bgr.copyTo(view.color_bgr);
   view.dynamic_mask =
       frame.segmentation().dynamicMask(frame.staticThreshold(), camera_.height() / 4, camera_.width() / 4);
   // The picture shows the raw image: with a distorting lens the mask (ideal grid) and the keypoints
@@ -73,6 +74,7 @@ viewer::ViewerFrame ViewerFeed::pictureOf(int frame_index, const io::RgbdImuFram
     view.dynamic_mask = raw_mask;
   }
   const std::vector<features::Keypoint>& keypoints = frame.keypoints();
+  view.keypoints.clear();
   view.keypoints.reserve(keypoints.size());
   for (std::size_t i = 0; i < keypoints.size(); ++i) {
     viewer::ViewerKeypoint kp;

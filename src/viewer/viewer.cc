@@ -83,10 +83,21 @@ void Viewer::post(ViewerFrame frame) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counts_.posted;
-    if (pending_) ++counts_.dropped;
+    if (pending_) {
+      ++counts_.dropped;
+      if (!spare_) spare_ = std::move(pending_);
+    }
     pending_ = std::move(frame);
   }
   wake_.notify_one();
+}
+
+ViewerFrame Viewer::recycledFrame() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!spare_) return ViewerFrame();
+  ViewerFrame frame = std::move(*spare_);
+  spare_.reset();
+  return frame;
 }
 
 void Viewer::postPose(int index, double t_s, const SE3& T_w_c, bool tracked, std::uint64_t map) {
@@ -181,6 +192,9 @@ void Viewer::run() {
     } catch (const std::exception& e) {
       log::error("viewer: ", e.what(), "; picture of frame ", state.frame.index, " lost");
     }
+    // Its buffers go back to the tracking thread for the next post (recycledFrame).
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!spare_) spare_ = std::move(state.frame);
   }
 }
 

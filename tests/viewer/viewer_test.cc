@@ -272,6 +272,28 @@ TEST_F(ViewerThread, PacesRendersWritesAndJoins) {
   for (const std::string& name : runningNamedThreads()) EXPECT_EQ(name.find("viewer"), std::string::npos) << name;
 }
 
+// A frame the viewer is done with comes back for the next post with its buffers: the colour
+// image it rendered (and one replaced before it was taken) keeps its allocation.
+TEST_F(ViewerThread, RendersAndReplacedFramesComeBackWithTheirBuffers) {
+  ViewerOptions options;
+  options.panel_width = 160;
+  options.panel_height = 120;
+  Viewer viewer(options, ViewerOutputs(), [](std::uint64_t) { return knownState().map; });
+  EXPECT_TRUE(viewer.recycledFrame().color_bgr.empty());  // nothing has come back yet
+  ViewerFrame frame = knownState().frame;
+  const std::uint8_t* const pixels = frame.color_bgr.data;
+  viewer.post(std::move(frame));
+  viewer.stop();  // renders the waiting frame, then joins
+  ASSERT_EQ(viewer.counts().rendered, 1u);
+  ViewerFrame recycled = viewer.recycledFrame();
+  EXPECT_EQ(recycled.color_bgr.data, pixels);
+  const cv::Mat next(240, 320, CV_8UC3, cv::Scalar(1, 2, 3));
+  next.copyTo(recycled.color_bgr);  // what ViewerFeed does: same size, no new allocation
+  EXPECT_EQ(recycled.color_bgr.data, pixels);
+  EXPECT_EQ(recycled.color_bgr.at<cv::Vec3b>(10, 10), cv::Vec3b(1, 2, 3));
+  EXPECT_TRUE(viewer.recycledFrame().color_bgr.empty());  // handed out once
+}
+
 TEST_F(ViewerThread, UnopenableOutputsAreBadInputNamingTheFile) {
   ViewerOptions options;
   ViewerOutputs outputs;

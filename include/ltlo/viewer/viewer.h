@@ -81,6 +81,11 @@ class Viewer {
   bool due(double t_s) const;
   /// Tracking thread: hands over a frame (never waits on the viewer).
   void post(ViewerFrame frame);
+  /// Tracking thread: a frame to fill for the next post(), holding the buffers of one the viewer
+  /// is done with (rendered, or replaced before it was taken): its colour image, mask and keypoint
+  /// vector keep their allocation, so a running viewer's post costs a copy and no allocation. Its
+  /// other fields are stale; empty before the first frame comes back.
+  ViewerFrame recycledFrame();
   /// Tracking thread: one pose on /poses (with ViewerOutputs::pose_stream).
   void postPose(int index, double t_s, const SE3& T_w_c, bool tracked, std::uint64_t map);
   /// Any thread: a loop or merge landed; the next picture flashes the loop edges.
@@ -110,6 +115,7 @@ class Viewer {
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::optional<ViewerFrame> pending_;
+  std::optional<ViewerFrame> spare_;  ///< a frame done with, for recycledFrame()
   bool stopping_ = false;
   ViewerCounts counts_;
   std::atomic<bool> loop_flash_{false};
