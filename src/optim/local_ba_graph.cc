@@ -27,6 +27,18 @@ struct KeyFrameVertices {
   VertexAccBias* acc_bias = nullptr;
 };
 
+/// An inertial edge's vertices 0-5: pose, velocity, gyro and accelerometer bias of keyframe i,
+/// pose and velocity of keyframe j (EdgeInertial and EdgeInertialGravity alike).
+template <typename InertialEdge>
+void connectKeyFrameStates(InertialEdge& edge, const KeyFrameVertices& vi, const KeyFrameVertices& vj) {
+  edge.setVertex(0, vi.pose);
+  edge.setVertex(1, vi.velocity);
+  edge.setVertex(2, vi.gyro_bias);
+  edge.setVertex(3, vi.acc_bias);
+  edge.setVertex(4, vj.pose);
+  edge.setVertex(5, vj.velocity);
+}
+
 }  // namespace
 
 struct LocalBaGraph::Impl {
@@ -141,23 +153,13 @@ void LocalBaGraph::Impl::addInertialEdge(const BaInertialLink& link, const KeyFr
                                          const KeyFrameVertices& vj) {
   if (gravity != nullptr) {
     auto inertial = std::make_unique<EdgeInertialGravity>(link.pim, gravity_m_s2);
-    inertial->setVertex(0, vi.pose);
-    inertial->setVertex(1, vi.velocity);
-    inertial->setVertex(2, vi.gyro_bias);
-    inertial->setVertex(3, vi.acc_bias);
-    inertial->setVertex(4, vj.pose);
-    inertial->setVertex(5, vj.velocity);
+    connectKeyFrameStates(*inertial, vi, vj);
     inertial->setVertex(6, gravity);
     inertial->setInformation(problem.inertial_information_scale * inertial->information());
     graph.addEdge(std::move(inertial));
   } else {
     auto inertial = std::make_unique<EdgeInertial>(link.pim, problem.g_w);
-    inertial->setVertex(0, vi.pose);
-    inertial->setVertex(1, vi.velocity);
-    inertial->setVertex(2, vi.gyro_bias);
-    inertial->setVertex(3, vi.acc_bias);
-    inertial->setVertex(4, vj.pose);
-    inertial->setVertex(5, vj.velocity);
+    connectKeyFrameStates(*inertial, vi, vj);
     inertial->setInformation(problem.inertial_information_scale * inertial->information());
     graph.addEdge(std::move(inertial));
   }

@@ -10,11 +10,14 @@
 #include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "ltlo/render/look_at.h"
 #include "ltlo/render/offscreen_renderer.h"
 #include "picture_drawing.h"
 
 namespace ltlo::recon {
 namespace {
+
+using render::lookAt;
 
 constexpr double kBirdEyeFovDeg = 40.0;  // narrow: close to a map's orthographic look
 constexpr double kOrbitElevationDeg = 35.0;
@@ -320,19 +323,6 @@ Vec3 estimateUpDirection(const io::Trajectory& trajectory) {
 PinholeCamera viewCamera(int width, int height, double fov_deg) {
   const double f = 0.5 * width / std::tan(0.5 * fov_deg * M_PI / 180.0);
   return PinholeCamera(f, f, 0.5 * (width - 1), 0.5 * (height - 1), width, height);
-}
-
-SE3 lookAt(const Vec3& eye_w, const Vec3& target_w, const Vec3& up_w) {
-  const Vec3 z = (target_w - eye_w).normalized();
-  Vec3 y = -(up_w - z * z.dot(up_w));  // image down
-  if (y.norm() < 1e-9) y = z.unitOrthogonal();
-  y.normalize();
-  const Vec3 x = y.cross(z);
-  Mat3 R_w_c;
-  R_w_c.col(0) = x;
-  R_w_c.col(1) = y;
-  R_w_c.col(2) = z;
-  return SE3(R_w_c, eye_w).inverse();
 }
 
 std::vector<std::string> writeSnapshots(const SnapshotScene& scene, const SnapshotOptions& options,

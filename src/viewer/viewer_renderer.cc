@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ltlo/core/camera.h"
+#include "ltlo/render/look_at.h"
 #include "ltlo/render/offscreen_renderer.h"
 
 namespace ltlo::viewer {
@@ -77,34 +78,12 @@ std::pair<std::string, std::string> statusLines(const ViewerState& state) {
 
 }  // namespace
 
-namespace {
-
-/// A view camera (x right, y down, z forward) at `eye` looking at `target` with `up_w` up in the
-/// picture; the current camera's own axes stand in where the geometry degenerates.
-SE3 lookAt_T_v_w(const Vec3& eye, const Vec3& target, const Vec3& up_w, const Mat3& R_w_c) {
-  Vec3 forward = target - eye;
-  if (forward.norm() < 1e-9) forward = R_w_c.col(2);
-  forward.normalize();
-  // Camera axes x right, y down, z forward: x = y x z with y = -up.
-  Vec3 right = (-up_w).cross(forward);
-  if (right.norm() < 1e-9) right = R_w_c.col(0);
-  right.normalize();
-  const Vec3 down = forward.cross(right);
-  Mat3 R_w_v;
-  R_w_v.col(0) = right;
-  R_w_v.col(1) = down;
-  R_w_v.col(2) = forward;
-  return SE3(R_w_v, eye).inverse();
-}
-
-}  // namespace
-
 SE3 followView_T_v_w(const SE3& T_w_c, double distance_m, double height_m) {
   const Mat3 R_w_c = T_w_c.rotationMatrix();
   const Vec3 centre = T_w_c.translation();
   const Vec3 up_w = -R_w_c.col(1);  // image up
   const Vec3 eye = centre - distance_m * R_w_c.col(2) + height_m * up_w;
-  return lookAt_T_v_w(eye, centre + R_w_c.col(2), up_w, R_w_c);
+  return render::lookAt(eye, centre + R_w_c.col(2), up_w);
 }
 
 OverviewView overviewView(const SE3& T_w_c, const std::vector<SE3>& keyframes_T_w_c, double distance_m,
@@ -128,7 +107,7 @@ OverviewView overviewView(const SE3& T_w_c, const std::vector<SE3>& keyframes_T_
   const double eye_distance_m =
       std::max(std::hypot(distance_m, height_m), radius_m / std::sin(std::clamp(half_fov_rad, 0.05, 1.5)));
   OverviewView view;
-  view.T_v_w = lookAt_T_v_w(centre + eye_distance_m * back, centre, up_w, R_w_c);
+  view.T_v_w = render::lookAt(centre + eye_distance_m * back, centre, up_w);
   view.far_m = eye_distance_m + radius_m + 1.0;
   return view;
 }

@@ -33,7 +33,7 @@ def main():
                 base = name.rsplit("/", 1)[-1]
                 if base in RUN_OUTPUTS or name.startswith(("out/", "build/", "/", "RUN/", "OUT/", "DIR/", "SEQ/")):
                     continue
-                if "<" in name or not exists(doc, name):
+                if not exists(doc, name):
                     findings.append(f"{rel}:{number}: names `{name}`, which does not exist")
             for target in LINK.findall(line):
                 if re.match(r"[a-z]+://", target):

@@ -64,9 +64,8 @@ std::vector<std::string> writeSnapshots(const SnapshotScene& scene, const Snapsh
 /// fewer than 3 poses.
 Vec3 estimateUpDirection(const io::Trajectory& trajectory);
 
-/// A pinhole camera of `fov_deg` horizontal field of view for a width x height image, and the
-/// pose T_c_w looking from eye to target with `up_w` up in the image.
+/// A pinhole camera of `fov_deg` horizontal field of view for a width x height image (its pose:
+/// render::lookAt).
 PinholeCamera viewCamera(int width, int height, double fov_deg);
-SE3 lookAt(const Vec3& eye_w, const Vec3& target_w, const Vec3& up_w);
 
 }  // namespace ltlo::recon
