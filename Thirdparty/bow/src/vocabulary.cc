@@ -508,4 +508,25 @@ bool Vocabulary::operator==(const Vocabulary& other) const {
   return true;
 }
 
+std::uint64_t Vocabulary::checksum() const {
+  std::uint64_t hash = 14695981039346656037ULL;  // FNV-1a 64 offset basis
+  auto mix = [&hash](std::uint64_t value, int bytes) {
+    for (int k = 0; k < bytes; ++k) {  // little-endian byte order, whatever the host
+      hash ^= (value >> (8 * k)) & 0xFFu;
+      hash *= 1099511628211ULL;
+    }
+  };
+  mix(static_cast<std::uint32_t>(branching_), 4);
+  mix(static_cast<std::uint32_t>(depth_), 4);
+  mix(nodes_.size(), 8);
+  for (const Node& node : nodes_) {
+    mix(node.num_children, 2);
+    std::uint32_t weight_bits = 0;
+    std::memcpy(&weight_bits, &node.weight, sizeof(weight_bits));
+    mix(weight_bits, 4);
+    for (const std::uint64_t word : node.centre) mix(word, 8);
+  }
+  return hash;
+}
+
 }  // namespace bow

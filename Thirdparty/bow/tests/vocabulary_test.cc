@@ -116,6 +116,18 @@ TEST_F(VocabularyTest, BinaryRoundTripGivesIdenticalTransforms) {
   std::remove(path.c_str());
 }
 
+TEST_F(VocabularyTest, ChecksumFollowsEqualityAndSurvivesTheFile) {
+  const std::string path = ::testing::TempDir() + "/bow_checksum.bin";
+  vocabulary_.save(path);
+  EXPECT_EQ(Vocabulary::load(path).checksum(), vocabulary_.checksum());
+  EXPECT_EQ(Vocabulary::train(images_, smallOptions(1)).checksum(), vocabulary_.checksum());
+  TrainOptions other = smallOptions(2);
+  other.seed = 43;
+  EXPECT_NE(Vocabulary::train(images_, other).checksum(), vocabulary_.checksum());
+  EXPECT_NE(Vocabulary().checksum(), vocabulary_.checksum());
+  std::remove(path.c_str());
+}
+
 TEST_F(VocabularyTest, TextExportHasOneLinePerNode) {
   const std::string path = ::testing::TempDir() + "bow_export.txt";
   vocabulary_.saveText(path);

@@ -66,6 +66,11 @@ class Vocabulary {
   std::size_t numWords() const { return word_nodes_.size(); }
   float wordWeight(WordId word) const { return nodes_[word_nodes_[word]].weight; }
 
+  /// FNV-1a 64 over k, L, the node count and every node's child count, weight bits and centre, in
+  /// file order: equal for equal vocabularies (operator==), deterministic across runs and hosts.
+  /// Identifies the vocabulary a saved map was built with; O(nodes), no allocation.
+  std::uint64_t checksum() const;
+
   /// Exact equality of structure, centres and weights (round-trip tests).
   bool operator==(const Vocabulary& other) const;
 
