@@ -45,6 +45,14 @@ class SE3 {
   SE3(const Mat3& R, const Vec3& t) : q_(Quat(normalizeRotation(R))), t_(t) {}
 
   static SE3 identity() { return SE3(); }
+  /// From a quaternion that is already unit, kept bit for bit (no re-normalisation, which may
+  /// move the last bit): for readers of stored poses (the atlas file) that must round-trip exactly.
+  static SE3 fromUnitQuaternion(const Quat& q_unit, const Vec3& t) {
+    SE3 T;
+    T.q_ = q_unit;
+    T.t_ = t;
+    return T;
+  }
   /// From a homogeneous 4x4 matrix; the rotation block is re-orthonormalised.
   static SE3 fromMatrix(const Mat4& T);
   /// Exponential of a twist xi = [phi; rho].

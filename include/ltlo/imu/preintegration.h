@@ -98,13 +98,18 @@ class Preintegrated {
   Vec3 correctedDeltaV(const ImuBias& new_bias) const;
   Vec3 correctedDeltaP(const ImuBias& new_bias) const;
 
- private:
   /// One integration step as received (raw averaged readings, before bias removal).
   struct Step {
     Vec3 gyro_mean_rad_s;
     Vec3 acc_mean_m_s2;
     double dt_s;
   };
+  /// The raw steps held, in time order: a preintegration at the same bias and noise that
+  /// integrateStep()s them in this order and takes the same shifts equals this one bit for bit
+  /// (the state is a sequential function of them; the atlas file stores them so).
+  const std::vector<Step>& steps() const { return steps_; }
+
+ private:
   void reset();
   void propagate(const Step& step);
 

@@ -47,8 +47,23 @@ class IdSource {
   KeyFrameId nextKeyFrameId() { return KeyFrameId(next_keyframe_.fetch_add(1)); }
   MapPointId nextMapPointId() { return MapPointId(next_point_.fetch_add(1)); }
   MapId nextMapId() { return MapId(next_map_.fetch_add(1)); }
+  /// Makes every later id larger than the given ones (invalid ids are ignored): a loaded atlas
+  /// continues above the ids of its file, so new objects never collide with loaded ones.
+  void reserveAbove(KeyFrameId kf, MapPointId point, MapId map) {
+    raiseTo(next_keyframe_, kf);
+    raiseTo(next_point_, point);
+    raiseTo(next_map_, map);
+  }
 
  private:
+  template <typename Id>
+  static void raiseTo(std::atomic<std::uint64_t>& next, Id id) {
+    if (!id.valid()) return;
+    std::uint64_t current = next.load();
+    while (current <= id.value && !next.compare_exchange_weak(current, id.value + 1)) {
+    }
+  }
+
   std::atomic<std::uint64_t> next_keyframe_{0};
   std::atomic<std::uint64_t> next_point_{0};
   std::atomic<std::uint64_t> next_map_{0};
