@@ -22,6 +22,9 @@
 
 namespace ltlo::map {
 
+/// Restore-side entry points of the atlas file reader (src/map/atlas_file_access.h).
+struct AtlasFileAccess;
+
 /// Thread-safe; mutex_ guards the map table and the active id. Maps are never destroyed before
 /// the Atlas (a merged map stays, empty), so a Map& obtained here stays valid for its lifetime.
 class Atlas {
@@ -56,6 +59,7 @@ class Atlas {
   const KeyFrameDatabase& keyFrameDatabase() const { return database_; }
 
  private:
+  friend struct AtlasFileAccess;
   Map& createNewMapLocked();
 
   const std::shared_ptr<IdSource> ids_;

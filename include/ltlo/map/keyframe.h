@@ -13,6 +13,9 @@
 
 namespace ltlo::map {
 
+/// Restore-side entry points of the atlas file reader (src/map/atlas_file_access.h).
+struct AtlasFileAccess;
+
 /// Covisibility edges weaker than this are dropped when connections are rebuilt (the strongest
 /// one is kept even if weaker, so a keyframe with shared points is never disconnected).
 inline constexpr int kMinCovisibilityWeight = 15;
@@ -125,6 +128,7 @@ class KeyFrame {
 
  private:
   friend class Map;
+  friend struct AtlasFileAccess;
   void setCulledParent(std::shared_ptr<KeyFrame> parent, const SE3& T_parent_this);
   /// Map-side writers (Map keeps both ends of each link consistent).
   bool setMapPoint(int i, MapPointId point);    ///< false on a bad keyframe

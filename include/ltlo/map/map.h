@@ -17,6 +17,9 @@
 
 namespace ltlo::map {
 
+/// Restore-side entry points of the atlas file reader (src/map/atlas_file_access.h).
+struct AtlasFileAccess;
+
 /// Where a map started after tracking was lost with the IMU initialised: at the IMU-predicted pose
 /// in the world of `parent`, so both share the gravity-aligned world frame up to the dead
 /// reckoning's error at the start (the loop closer's rejoin searches within it, Loop.Rejoin).
@@ -117,6 +120,7 @@ class Map {
 
  private:
   friend class Atlas;
+  friend struct AtlasFileAccess;
   /// Everything a merge moves from one map into another.
   struct Content {
     std::unordered_map<KeyFrameId, std::shared_ptr<KeyFrame>> keyframes;

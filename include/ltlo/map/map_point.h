@@ -12,6 +12,9 @@
 
 namespace ltlo::map {
 
+/// Restore-side entry points of the atlas file reader (src/map/atlas_file_access.h).
+struct AtlasFileAccess;
+
 /// Where a map point is expected to be found again (ORB-SLAM's visibility test, used by tracking's
 /// local-map search, local mapping's fusion and window, and loop closing's seam fusion): from within
 /// [kMinDistanceFactor, kMaxDistanceFactor] x its distance range (the scale invariance of its
@@ -76,6 +79,7 @@ class MapPoint {
 
  private:
   friend class Map;
+  friend struct AtlasFileAccess;
   bool addObservation(KeyFrameId kf, int keypoint_index);  ///< false on a bad point
   /// Returns the number of remaining observations; moves the reference keyframe if it was `kf`.
   int eraseObservation(KeyFrameId kf);
