@@ -418,11 +418,12 @@ LoadedAtlas loadAtlas(const std::string& path, const AtlasBuildInfo& expected, c
   return loadAtlasFromBytes(readWholeFile(path), path, expected, vocabulary);
 }
 
-AtlasFileSummary readAtlasSummary(const std::string& path) {
-  const std::string bytes = readWholeFile(path);
-  const ParsedFile parsed = parseAtlas(bytes, path, 0, nullptr, nullptr);
+AtlasFileSummary readAtlasSummaryFromBytes(const std::string& bytes, const std::string& name) {
+  const ParsedFile parsed = parseAtlas(bytes, name, 0, nullptr, nullptr);
   return summarise(parsed, bytes.size());
 }
+
+AtlasFileSummary readAtlasSummary(const std::string& path) { return readAtlasSummaryFromBytes(readWholeFile(path), path); }
 
 std::vector<AtlasPoint> readAtlasPoints(const std::string& path, double min_beta) {
   const std::string bytes = readWholeFile(path);

@@ -132,6 +132,21 @@ void readMapLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set<MapI
   map.setReferenceMapPoints(std::move(references));
 }
 
+/// Walks from every keyframe up its parents: a cycle would make the live system's tree walks
+/// (loop correction, culling) loop for ever. Each keyframe is walked once (O(keyframes)).
+void checkTreeIsAcyclic(const ByteReader& in, const AtlasRestore& restore, std::uint64_t offset) {
+  std::unordered_set<KeyFrameId> rooted;  // keyframes whose parent chain ends at a root
+  for (const auto& [start, kf] : restore.keyframes) {
+    std::unordered_set<KeyFrameId> path;
+    KeyFrameId id = start;
+    while (id.valid() && rooted.count(id) == 0) {
+      if (!path.insert(id).second) in.failAt(offset, "the spanning tree has a cycle through keyframe", std::to_string(id.value));
+      id = restore.keyframes.at(id)->parent();
+    }
+    rooted.insert(path.begin(), path.end());
+  }
+}
+
 }  // namespace
 
 AtlasSnapshot snapshotAtlas(Atlas& atlas) {
@@ -245,6 +260,7 @@ void readGraphSection(ByteReader& in, AtlasRestore& restore) {
   std::unordered_set<MapId> seen_maps;
   for (std::size_t k = 0; k < num_maps; ++k) readMapLinks(in, restore, seen_maps);
   in.expectEnd();
+  checkTreeIsAcyclic(in, restore, offset);
 }
 
 }  // namespace ltlo::map

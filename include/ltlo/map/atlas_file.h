@@ -145,6 +145,8 @@ LoadedAtlas loadAtlasFromBytes(const std::string& bytes, const std::string& name
 /// Header and sections validated (CRCs, every record parsed), the counts and extents; needs no
 /// vocabulary. Throws AtlasFileError as loadAtlas.
 AtlasFileSummary readAtlasSummary(const std::string& path);
+/// The same from bytes in memory; `name` stands for the file in messages.
+AtlasFileSummary readAtlasSummaryFromBytes(const std::string& bytes, const std::string& name);
 
 /// The map points of a file with beta >= min_beta (world frames of their maps), for a static-map
 /// export; validated as readAtlasSummary.
