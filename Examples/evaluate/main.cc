@@ -2,10 +2,16 @@
 // IoU of predicted masks. Prints one "name value" line per metric and writes the same keys to
 // JSON. Bad input exits 2 with a message naming the file, line and value; any other error exits 1.
 // Quaternions that are not unit are normalised with one warning per file.
+// --world-from GT0 EST0: the estimate is in the world frame of an earlier run (a run started in
+// that run's saved atlas, rgbd_inertial --load-atlas), whose trajectory EST0 and ground truth GT0
+// are given: the alignment of EST0 to GT0 is applied to --est instead of --est's own best one, so
+// "ate_fixed_rmse_m" also counts how well the run placed itself in the earlier world; the usual
+// aligned figures are printed beside it.
 #include <CLI/CLI.hpp>
 #include <exception>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
@@ -43,6 +49,7 @@ int main(int argc, char** argv) {
   std::string json_path;
   bool with_scale = false;
   double max_dt_s = 0.02;
+  std::vector<std::string> world_from;
   app.add_option("--gt", gt_path, "ground-truth trajectory (TUM text, or EuRoC *.csv)")->required();
   app.add_option("--est", est_path, "estimated trajectory (TUM text, or EuRoC *.csv)")->required();
   app.add_option("--gt-masks", gt_masks_dir, "ground-truth masks/ folder (255 = dynamic)");
@@ -51,6 +58,9 @@ int main(int argc, char** argv) {
   app.add_flag("--sim3", with_scale, "align with a similarity (scale) instead of SE3");
   app.add_option("--max-dt", max_dt_s, "timestamp association tolerance (s)")
       ->check(CLI::PositiveNumber);
+  app.add_option("--world-from", world_from,
+                 "GT0 EST0: --est is in the world of this earlier run (loaded atlas): also ATE with its alignment")
+      ->expected(2);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -82,6 +92,18 @@ int main(int argc, char** argv) {
     const ltlo::eval::RpeResult rpe = ltlo::eval::computeRpe(matched, ate.S_gt_est);
 
     ltlo::io::Metrics metrics;
+    if (!world_from.empty()) {
+      const ltlo::eval::MatchedTrajectories earlier =
+          ltlo::eval::associateTrajectories(readTrajectory(world_from[0]), readTrajectory(world_from[1]), max_dt_s);
+      if (earlier.gt.size() < 3) {
+        throw ltlo::InputError(world_from[1], 0, "fewer than 3 poses matched to " + world_from[0] + " (--world-from)");
+      }
+      const ltlo::eval::AteResult earlier_ate = ltlo::eval::computeAte(earlier, with_scale);
+      const ltlo::eval::AteResult fixed = ltlo::eval::computeAteFixed(matched, earlier_ate.S_gt_est);
+      metrics.set("ate_fixed_rmse_m", fixed.error_m.rmse);
+      metrics.set("ate_fixed_max_m", fixed.error_m.max);
+      metrics.set("world_from_ate_rmse_m", earlier_ate.error_m.rmse);
+    }
     metrics.set("ate_rmse_m", ate.error_m.rmse);
     metrics.set("rpe_trans_rmse_m_s", rpe.trans_m_s.rmse);
     metrics.set("rpe_rot_rmse_deg_s", rpe.rot_deg_s.rmse);

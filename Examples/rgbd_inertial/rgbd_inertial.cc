@@ -1,9 +1,10 @@
 // rgbd_inertial / rgbd: SLAM on one RGB-D(-inertial) sequence; writes the run outputs.
 //
 //   rgbd_inertial --settings YAML --sequence DIR --out DIR [--vocabulary FILE] [--no-imu]
-//                 [--single-thread] [--max-frames N] [--progress-every N] [--oracle-masks]
+//                 [--single-thread] [--first-frame N] [--max-frames N] [--progress-every N] [--oracle-masks]
 //                 [--set Key=Value]... [--viewer-video FILE] [--viewer-dir DIR]
 //                 [--viewer-http PORT [--viewer-bind ADDRESS] [--pose-stream]]
+//                 [--save-atlas FILE] [--load-atlas FILE [--localisation-only]]
 //   rgbd_inertial --settings YAML --bag FILE [--bag-preset tum|realsense|realsense-unite|openloris]
 //                 [--rgb-topic T] [--depth-topic T] [--imu-topic T | --accel-topic T --gyro-topic T]
 //                 [--camera-info-topic T] [--calib FILE] [--groundtruth FILE] --out DIR [options as above]
@@ -33,6 +34,11 @@
 // vocabulary; for rgbd_inertial a sequence without IMU samples or IMU calibration), 1 any other
 // error, 3 the run completed and its outputs are written but the evaluation failed (a malformed
 // groundtruth.txt or masks/; a 2 or 1 of the run itself takes precedence).
+// --save-atlas FILE writes the maps at the end (also after Ctrl-C or an error part-way: what was
+// mapped until then); --load-atlas FILE starts the run lost in a saved atlas, relocalises in it and
+// tracks in its world frame (trajectory.txt then needs no alignment to the earlier run's), extending
+// it; --localisation-only adds nothing to it (Tracking.LocalisationOnly). A bad atlas file (truncated,
+// corrupt, another vocabulary or camera) is bad input: exit 2 naming the file, section and byte.
 #include <unistd.h>
 
 #include <atomic>
@@ -100,6 +106,7 @@ struct Arguments {
   bool single_thread = false;
   bool oracle_masks = false;
   long max_frames = 0;
+  long first_frame = 0;  ///< --first-frame N: start at frame N (e.g. the second half of a sequence)
   long progress_every = 100;
   std::vector<std::string> overrides;  ///< --set Key=Value, in order
   std::string viewer_video;            ///< --viewer-video FILE
@@ -107,6 +114,9 @@ struct Arguments {
   int viewer_http = -1;                ///< --viewer-http PORT
   std::string viewer_bind = "127.0.0.1";
   bool pose_stream = false;
+  std::string save_atlas;  ///< --save-atlas FILE
+  std::string load_atlas;  ///< --load-atlas FILE
+  bool localisation_only = false;
 };
 
 /// The shipped vocabulary: $LTLO_SOURCE_DIR, then next to the executable's build tree
@@ -170,6 +180,7 @@ RunSetup loadSetup(const Arguments& args) {
     log::info(kProgram, ": ", calib_path.string(), " not found; calibration (Camera.*, DepthMapFactor",
               setup.settings.calib.has_imu ? ", IMU.*" : "", ") from the settings file ", args.settings_path);
   }
+  if (args.localisation_only) setup.settings.tracking.localisation_only = true;
   setup.reader_options.read_masks = args.oracle_masks;
   setup.reader_options.read_ground_truth = false;  // evaluation only: read after the run
   return setup;
@@ -228,12 +239,15 @@ int run(const Arguments& args) {
   options.viewer_http_port = args.viewer_http;
   options.viewer_http_bind = args.viewer_bind;
   options.viewer_pose_stream = args.pose_stream;
+  options.load_atlas_path = args.load_atlas;
   if (options.use_imu) requireImu(reader, setup.settings);
   system::System slam(setup.settings, vocabulary, options);
 
   log::setThreadName("tracking");
 
-  const long total = args.max_frames > 0 ? std::min<long>(args.max_frames, reader.frameCount()) : reader.frameCount();
+  reader.seek(static_cast<int>(std::min<long>(args.first_frame, reader.frameCount() + 1L)));
+  const long remaining = reader.frameCount() - args.first_frame;
+  const long total = args.max_frames > 0 ? std::min<long>(args.max_frames, remaining) : remaining;
   ProgressReporter progress({"frames", total, ProgressReporter::Style::kSilent});
   int exit_code = 0;
   std::string failure;
@@ -255,13 +269,13 @@ int run(const Arguments& args) {
       }
     }
   } catch (const InputError& e) {
-    failure = "bad input at " + frameName(reader, frames) + ": " + e.what();
+    failure = "bad input at " + frameName(reader, static_cast<int>(args.first_frame) + frames) + ": " + e.what();
     exit_code = 2;
   } catch (const ConfigError& e) {
-    failure = "bad settings at " + frameName(reader, frames) + ": " + e.what();
+    failure = "bad settings at " + frameName(reader, static_cast<int>(args.first_frame) + frames) + ": " + e.what();
     exit_code = 2;
   } catch (const std::exception& e) {
-    failure = "error at " + frameName(reader, frames) + ": " + e.what();
+    failure = "error at " + frameName(reader, static_cast<int>(args.first_frame) + frames) + ": " + e.what();
     exit_code = 1;
   }
   prefetcher.stop();  // the reader is the prefetch thread's until joined
@@ -270,6 +284,14 @@ int run(const Arguments& args) {
   progress.finish();
 
   slam.shutdown();
+  if (!args.save_atlas.empty()) {
+    try {
+      slam.saveAtlas(args.save_atlas);
+    } catch (const std::exception& e) {
+      log::error(kProgram, ": atlas not saved: ", e.what());
+      if (exit_code == 0) exit_code = dynamic_cast<const InputError*>(&e) != nullptr ? 2 : 1;
+    }
+  }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system::RunReport report = slam.report(wall_s);
   report.interrupted = interrupted;
@@ -357,6 +379,8 @@ int main(int argc, char** argv) {
   app.add_flag("--oracle-masks", args.oracle_masks,
                "diagnostic ablation: the sequence's ground-truth masks (masks/) replace the segmentation");
   app.add_option("--max-frames", args.max_frames, "stop after N frames (0: all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--first-frame", args.first_frame, "start at frame N of the sequence (0: the first)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--progress-every", args.progress_every, "progress line every N frames (0: none)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--set", args.overrides,
@@ -373,6 +397,13 @@ int main(int argc, char** argv) {
   app.add_option("--viewer-bind", args.viewer_bind, "address of the viewer's HTTP server (default 127.0.0.1; 0.0.0.0: every interface)");
   app.add_flag("--pose-stream", args.pose_stream,
                "publish every frame's pose as a JSON line on the viewer's HTTP server (/poses, server-sent events)");
+  app.add_option("--save-atlas", args.save_atlas,
+                 "write the maps to this atlas file at the end (also when stopped early), for --load-atlas");
+  CLI::Option* load_atlas_option = app.add_option(
+      "--load-atlas", args.load_atlas, "start in this saved atlas: relocalise in it, track in its world frame, extend it");
+  app.add_flag("--localisation-only", args.localisation_only,
+               "with --load-atlas: track in the loaded maps only, add no keyframe, point or map")
+      ->needs(load_atlas_option);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

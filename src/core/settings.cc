@@ -90,6 +90,8 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.ReacquireMaxRadius", o.reacquire_max_radius_px, 5.0, 2000.0);
   v.integer("Tracking.ReacquireMinInliers", o.reacquire_min_inliers, 6, 10000);
   v.real("RGBD.VirtualBaseline", o.virtual_baseline_m, 0.001, 100.0);
+  v.real("Tracking.LoadedAtlasNewMapAfter", o.loaded_atlas_new_map_after_s, -1.0, 1000.0);
+  v.boolean("Tracking.LocalisationOnly", o.localisation_only);
 }
 
 template <typename O, typename V>
@@ -129,6 +131,7 @@ void visitLoop(O& o, V& v) {
   v.real("Loop.ProximityMinAge", o.proximity_min_age_s, 0.0, 3600.0);
   v.real("Loop.ProximityMaxDistance", o.proximity_max_distance_m, 0.1, 100.0);
   v.real("Loop.RejoinMaxSigma", o.rejoin_max_sigma_m, 0.01, 100.0);
+  v.boolean("Loop.HoldLoadedMap", o.hold_loaded_map);
 }
 
 template <typename O, typename V>

@@ -105,6 +105,18 @@ AteResult computeAte(const MatchedTrajectories& matched, bool with_scale) {
   return result;
 }
 
+AteResult computeAteFixed(const MatchedTrajectories& matched, const Sim3& S_gt_est) {
+  LTLO_ASSERT(matched.gt.size() == matched.est.size(), "matched trajectories differ in length");
+  AteResult result;
+  result.S_gt_est = S_gt_est;
+  std::vector<double> errors_m;
+  for (size_t k = 0; k < matched.gt.size(); ++k) {
+    errors_m.push_back((matched.gt[k].T_w_x.translation() - S_gt_est * matched.est[k].T_w_x.translation()).norm());
+  }
+  result.error_m = computeErrorStats(errors_m);
+  return result;
+}
+
 RpeResult computeRpe(const MatchedTrajectories& matched, const Sim3& S_gt_est) {
   LTLO_ASSERT(matched.gt.size() == matched.est.size(), "matched trajectories differ in length");
   std::vector<double> trans_m;

@@ -301,6 +301,14 @@ SequenceReader SequenceReader::open(const std::string& sequence_dir,
   return reader;
 }
 
+void SequenceReader::seek(int index) {
+  if (index < 0 || index > frameCount()) {
+    throw InputError(dir_, 0, "first frame " + std::to_string(index) + " is outside the sequence's " +
+                                  std::to_string(frameCount()) + " frames");
+  }
+  next_index_ = index;
+}
+
 std::optional<RgbdImuFrame> SequenceReader::next() {
   if (next_index_ >= frameCount()) return std::nullopt;
   return load(next_index_++);

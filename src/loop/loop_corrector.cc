@@ -133,7 +133,10 @@ MovedWindow moveWindowRigidly(map::Map& map, const LoopClosure& loop, const map:
   window.keyframes.push_back(current);
   for (const auto& [id, weight] : current->covisibles()) {
     if (id == loop_kf.id()) continue;
-    if (std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id); kf && !kf->isBad()) window.keyframes.push_back(kf);
+    // A loaded atlas's keyframe is the reference the window is corrected towards: it stays.
+    if (std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id); kf && !kf->isBad() && !kf->isAnchor()) {
+      window.keyframes.push_back(kf);
+    }
   }
   for (const std::shared_ptr<map::KeyFrame>& kf : window.keyframes) {
     for (const map::MapPointId point_id : kf->mapPoints()) {
@@ -183,7 +186,7 @@ EssentialPoseGraph essentialPoseGraph(const map::Map& map, const std::vector<std
     optim::PoseGraphNode node;
     node.id = static_cast<int>(graph.nodes.size());
     node.T_w_b = kf->T_w_b();
-    node.fixed = kf->id() == loop_kf;
+    node.fixed = kf->id() == loop_kf || kf->isAnchor();
     graph.node_of[kf->id()] = node.id;
     graph.T_w_b_input[kf->id()] = node.T_w_b;
     graph.nodes.push_back(node);

@@ -34,6 +34,7 @@ MapBaProblem buildMapBa(const map::Map& map, const MapBaSelection& selection, co
   std::unordered_map<map::KeyFrameId, std::size_t> index_of;
   auto add = [&](const std::shared_ptr<map::KeyFrame>& kf, Role role) {
     if (!usable(kf)) return;
+    if (role == Role::kOptimised && kf->isAnchor()) role = Role::kGauge;  // a loaded atlas's pose is held
     const auto [it, inserted] = index_of.emplace(kf->id(), entries.size());
     if (inserted) {
       entries.push_back({kf, role, kf->gamma()});

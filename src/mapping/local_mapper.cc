@@ -416,6 +416,22 @@ void LocalMapper::setGravityFromFullBa(const Vec3& g_w) {
             " deg from the map's -z, generation ", generation);
 }
 
+void LocalMapper::seedImuState(const imu::ImuBias& bias, const Vec3& g_w, const Mat3& acceleration_covariance_w) {
+  std::uint64_t generation = 0;
+  {
+    std::lock_guard<std::mutex> lock(impl_->state_mutex);
+    impl_->imu_state.initialised = true;
+    impl_->imu_state.bias = bias;
+    impl_->imu_state.g_w = g_w;
+    impl_->imu_state.acceleration_covariance_w = acceleration_covariance_w;
+    generation = ++impl_->imu_state.generation;
+  }
+  log::info("IMU seeded from the loaded atlas: g_w = (", g_w.x(), ", ", g_w.y(), ", ", g_w.z(), ") m/s^2, ",
+            angleDeg(g_w, Vec3(0.0, 0.0, -1.0)), " deg from the map's -z, b_g = (", bias.b_g.transpose(),
+            ") rad/s, b_a = (", bias.b_a.transpose(), ") m/s^2, generation ", generation,
+            "; refined on this run's keyframes");
+}
+
 void LocalMapper::processKeyFrame(const std::shared_ptr<map::KeyFrame>& kf) { impl_->process(kf, false); }
 
 void LocalMapper::run() {

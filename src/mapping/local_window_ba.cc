@@ -127,7 +127,7 @@ void addOptimisedKeyFrames(map::Map& map, const std::shared_ptr<map::KeyFrame>& 
   }
   const map::KeyFrameId gauge = map.gaugeKeyFrame();
   for (WindowKeyFrame& entry : keyframes) {
-    if (entry.kf->id() == gauge) entry.fixed = true;
+    if (entry.kf->id() == gauge || entry.kf->isAnchor()) entry.fixed = true;
   }
 }
 

@@ -272,6 +272,19 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("merges", c.merges);
   metrics.set("keyframes", c.keyframes);
   metrics.set("map_points", c.map_points);
+  if (c.atlas_loaded) {
+    // A run in a loaded atlas: what it found there and what it added.
+    metrics.set("atlas_loaded", 1);
+    metrics.set("keyframes_loaded", c.keyframes_loaded);
+    metrics.set("keyframes_added", c.keyframes - c.keyframes_loaded);
+    metrics.set("map_points_loaded", c.map_points_loaded);
+    metrics.set("localised_share", c.frames > 0 ? static_cast<double>(c.frames_tracked) / c.frames : 0.0);
+    if (c.frames_localised_in_map > 0) {
+      // Localisation only: by the map's points (the rest carried by the odometry or the IMU).
+      metrics.set("map_localised_share", c.frames > 0 ? static_cast<double>(c.frames_localised_in_map) / c.frames : 0.0);
+    }
+    if (std::isfinite(c.first_pose_t_s)) metrics.set("first_pose_t_s", c.first_pose_t_s);
+  }
   metrics.set("wall_s", report.wall_s);
   metrics.set("fps", report.wall_s > 0.0 ? c.frames / report.wall_s : 0.0);
   metrics.set("peak_memory_mb", report.peak_memory_mb);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "ltlo/core/log.h"
@@ -103,6 +104,11 @@ void RunRecorder::countLossPolicy(const FrameRecord& record, const tracking::Tra
   if (stats.reacquired) ++reacquisitions_;
 }
 
+double RunRecorder::firstPoseTime() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return records_.empty() ? std::numeric_limits<double>::quiet_NaN() : records_.front().t_s;
+}
+
 SystemCounts RunRecorder::counts(const tracking::Tracker& tracker, const loop::LoopCloser& closer) const {
   SystemCounts counts;
   counts.frames = frames_;
@@ -128,6 +134,7 @@ SystemCounts RunRecorder::counts(const tracking::Tracker& tracker, const loop::L
     }
   }
   counts.imu_initialised = tracker.imuInitialised();
+  counts.frames_localised_in_map = tracker.numFramesLocalisedInMap();
   return counts;
 }
 

@@ -13,6 +13,10 @@ tracking::TrackerOptions trackerOptions(const Settings& settings, bool use_imu) 
   tracking::TrackerOptions tracker_options;
   tracker_options.keyframe = settings.keyframe;
   tracker_options.tracking = settings.tracking;
+  tracker_options.imu_init = settings.imu_init;
+  // Localisation only: a lost frame waits for the loaded map (relocalised, re-acquired, or carried by
+  // the IMU); it never extends the map or starts a new one.
+  if (settings.tracking.localisation_only) tracker_options.tracking.new_map_after_s = -1.0;
   if (use_imu && settings.imu_init.early_keyframes) {
     tracker_options.imu_init_keyframe_interval_s =
         settings.imu_init.min_time_s / std::max(1, settings.imu_init.min_keyframes - 1);

@@ -1,5 +1,6 @@
 #include "ltlo/system/system.h"
 
+#include <chrono>
 #include <optional>
 #include <stdexcept>
 #include <utility>
@@ -11,6 +12,7 @@
 #include "ltlo/core/undistorter.h"
 #include "ltlo/loop/loop_closer.h"
 #include "ltlo/map/atlas.h"
+#include "ltlo/map/atlas_file.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/mapping/local_mapper.h"
 #include "ltlo/optim/bundle_adjust.h"
@@ -30,12 +32,21 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   SensorCalib calib = settings_.calib;
   if (!use_imu_) calib.has_imu = false;  // frames are then built without preintegration
 
-  atlas_ = std::make_unique<map::Atlas>(vocabulary_->numWords());
-  recorder_ = std::make_unique<RunRecorder>(*atlas_, settings_.tracking);
   builder_ = std::make_unique<tracking::FrameBuilder>(settings_.orb, calib);
+  std::optional<map::AtlasImuState> loaded_imu;
+  if (options_.load_atlas_path.empty()) {
+    if (settings_.tracking.localisation_only) {
+      throw ConfigError(settings_.config_path + ": Tracking.LocalisationOnly = 1 needs an atlas to localise in (--load-atlas FILE)");
+    }
+    atlas_ = std::make_unique<map::Atlas>(vocabulary_->numWords());
+  } else {
+    loaded_imu = loadAtlas();
+  }
+  recorder_ = std::make_unique<RunRecorder>(*atlas_, settings_.tracking);
   const std::vector<float> level_sigma2 = builder_->extractor().levelSigma2();
 
-  const tracking::TrackerOptions tracker_options = trackerOptions(settings_, use_imu_);
+  tracking::TrackerOptions tracker_options = trackerOptions(settings_, use_imu_);
+  tracker_options.start_in_loaded_atlas = loaded_imu.has_value();
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
   tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks, &timing_, builder_->undistorter()));
@@ -49,6 +60,10 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
   mapper_ = std::make_unique<mapping::LocalMapper>(
       *atlas_, localMapperOptions(settings_, calib, vocabulary_, use_imu_), level_sigma2, &timing_);
+  if (use_imu_ && loaded_imu && loaded_imu->initialised) {
+    // Gravity is the loaded world's, the biases those of the same sensor: this run refines them.
+    mapper_->seedImuState(loaded_imu->bias, loaded_imu->g_w, loaded_imu->acceleration_covariance_w);
+  }
 
   loop::MappingControl mapping_control{[this] { mapper_->pause(); }, [this] { mapper_->resume(); },
                                        [this]() -> std::optional<Vec3> {
@@ -265,7 +280,60 @@ std::vector<KeyFrameRecord> System::keyFrames() const { return recorder_->keyFra
 
 std::vector<MapPointRecord> System::mapPoints() const { return recorder_->mapPoints(); }
 
-SystemCounts System::counts() const { return recorder_->counts(*tracker_, *closer_); }
+SystemCounts System::counts() const {
+  SystemCounts counts = recorder_->counts(*tracker_, *closer_);
+  counts.atlas_loaded = loaded_.atlas_loaded;
+  counts.keyframes_loaded = loaded_.keyframes_loaded;
+  counts.map_points_loaded = loaded_.map_points_loaded;
+  counts.first_pose_t_s = recorder_->firstPoseTime();
+  return counts;
+}
+
+map::AtlasBuildInfo System::atlasBuildInfo() const {
+  return map::makeAtlasBuildInfo(*vocabulary_,
+                                 map::mapSettingsSummary(builder_->calib(), settings_.orb.num_levels,
+                                                         settings_.orb.scale_factor),
+                                 "LTLO-SLAM, settings " + settings_.config_path);
+}
+
+map::AtlasImuState System::loadAtlas() {
+  const std::string& path = options_.load_atlas_path;
+  const auto start = std::chrono::steady_clock::now();
+  map::LoadedAtlas loaded = map::loadAtlas(path, atlasBuildInfo(), *vocabulary_);
+  const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  atlas_ = std::move(loaded.atlas);
+  loaded_.atlas_loaded = true;
+  if (settings_.loop.hold_loaded_map) {
+    // Before any other thread sees them (Loop.HoldLoadedMap).
+    for (const map::MapId id : atlas_->mapIds()) {
+      for (const std::shared_ptr<map::KeyFrame>& kf : atlas_->map(id)->keyFrames()) kf->markAnchor();
+    }
+  }
+  for (const map::AtlasFileSummary::MapSummary& m : loaded.summary.maps) {
+    loaded_.keyframes_loaded += static_cast<int>(m.keyframes);
+    loaded_.map_points_loaded += static_cast<int>(m.map_points);
+  }
+  log::info("system: atlas ", path, " loaded: ", loaded.summary.maps.size(), " map(s), ", loaded_.keyframes_loaded,
+            " keyframes, ", loaded_.map_points_loaded, " map points in ", load_s, " s (built with ", loaded.build.built_with, "); IMU ",
+            loaded.imu.initialised ? "initialised" : "not initialised", settings_.tracking.localisation_only
+            ? "; localisation only" : "");
+  return loaded.imu;
+}
+
+void System::saveAtlas(const std::string& path) const {
+  if (!shut_down_) throw std::logic_error("System::saveAtlas before shutdown()");
+  const mapping::ImuState imu = mapper_->imuState();
+  map::AtlasImuState state;
+  state.initialised = use_imu_ && imu.initialised;
+  state.bias = imu.bias;
+  state.g_w = imu.g_w;
+  state.acceleration_covariance_w = imu.acceleration_covariance_w;
+  state.time_offset_s = settings_.calib.imu.time_offset_s + mapper_->timeOffset().shift_s;
+  map::saveAtlas(*atlas_, state, atlasBuildInfo(), path);
+  const SystemCounts c = counts();
+  log::info("system: atlas saved to ", path, ": ", c.maps, " map(s), ", c.keyframes, " keyframes, ", c.map_points,
+            " map points");
+}
 
 RunReport System::report(double wall_s) const {
   RunReport report;

@@ -23,8 +23,15 @@ const char* trackingStateName(TrackingState state) {
 }
 
 Tracker::Tracker(map::Atlas& atlas, const TrackerOptions& options, std::vector<float> level_sigma2)
-    : atlas_(atlas), options_(options), level_sigma2_(std::move(level_sigma2)), loss_(options) {
+    : atlas_(atlas),
+      options_(options),
+      level_sigma2_(std::move(level_sigma2)),
+      loss_(options),
+      loaded_start_pending_(options.start_in_loaded_atlas),
+      velocity_unknown_(options.start_in_loaded_atlas) {
   LTLO_ASSERT(!level_sigma2_.empty(), "the tracker needs the per-level keypoint variances");
+  LTLO_ASSERT(!options_.tracking.localisation_only || options_.start_in_loaded_atlas,
+              "localisation only needs a loaded atlas to localise in");
 }
 
 void Tracker::forceLost() {
@@ -32,13 +39,20 @@ void Tracker::forceLost() {
 }
 
 TrackingState Tracker::track(map::Frame& frame) {
+  const TrackingState state = trackFrame(frame);
+  if (options_.tracking.localisation_only) updateLocalisationImu(frame, frame_map_localised_);
+  return state;
+}
+
+TrackingState Tracker::trackFrame(map::Frame& frame) {
+  frame_map_localised_ = false;
   stats_ = TrackingStats();
   frame_tracked_ = false;
   frame_information_ = StateInformation();
   imu_prediction_ = ImuPrediction();
   if (state_ == TrackingState::kNotInitialised) {
     segment(frame, MotionPrior());
-    state_ = initialise(frame);
+    state_ = loaded_start_pending_ ? startInLoadedAtlas(frame) : initialise(frame);
     frame_tracked_ = state_ == TrackingState::kOk;
     return state_;
   }
@@ -59,6 +73,7 @@ TrackingState Tracker::track(map::Frame& frame) {
       loss_.recover(frame, matched, lossContext(was_lost), *this, T_w_b_pred, v_w_b_pred);
   if (!decision.tracked()) return state_;
   recordTrackedFrame(frame, decision.inliers, was_lost);
+  if (velocity_unknown_) estimateStartVelocity(frame, was_lost || stats_.relocalised);
   if (needNewKeyFrame()) {
     createKeyFrame();
     frame.map_points = last_frame_->map_points;
@@ -66,6 +81,7 @@ TrackingState Tracker::track(map::Frame& frame) {
     frame.reference_keyframe = reference_kf_;
   }
   recordFramePose(frame);
+  if (options_.tracking.localisation_only) keepOdometryPoints(frame);
   log::debug("frame t = ", frame.t_s(), ": tracked, ", decision.inliers, " inliers, link ", stats_.inertial_link,
              ", sigma ", stats_.predicted_position_sigma_m, " m, p = ", frame.T_w_b().translation().transpose(),
              ", ref ", reference_kf_);

@@ -40,6 +40,11 @@ std::optional<Mat15> Tracker::stateInformation() const {
 }
 
 void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2) {
+  if (velocity_unknown_) {
+    // A run in a loaded atlas: applied once the velocity is (tracker_loaded_start.cc).
+    deferred_imu_ = DeferredImu{bias, g_w, acceleration_sigma_m_s2};
+    return;
+  }
   imu_initialised_ = true;
   init_acceleration_sigma_m_s2_ = acceleration_sigma_m_s2;
   bias_ = bias;
@@ -235,6 +240,10 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
     problem.observations.push_back(obs);
     index.push_back(i);
   }
+  // Localisation only: the matches to the last frame's temporary points (trackWithOdometry).
+  const std::size_t num_map_observations = problem.observations.size();
+  problem.observations.insert(problem.observations.end(), odometry_observations_.begin(),
+                              odometry_observations_.end());
   if (problem.observations.empty() && link == nullptr) return 0;
   if (link != nullptr) problem.inertial = *link;
   const optim::PoseOnlyResult result = optim::optimizePose(problem);
@@ -274,6 +283,11 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
     } else {
       frame.outliers[i] = true;
     }
+  }
+  odometry_inlier_.assign(odometry_observations_.size(), false);
+  for (std::size_t k = 0; k < odometry_observations_.size(); ++k) {
+    odometry_inlier_[k] = result.inliers[num_map_observations + k];
+    if (odometry_inlier_[k]) ++inliers;
   }
   return inliers;
 }

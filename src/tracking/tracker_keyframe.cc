@@ -14,6 +14,7 @@ namespace ltlo::tracking {
 using detail::clearMatches;
 
 bool Tracker::needNewKeyFrame() const {
+  if (options_.tracking.localisation_only) return false;  // the loaded map is not changed
   if (state_ != TrackingState::kOk || !last_frame_) return false;
   if (frames_since_keyframe_ < options_.min_frames_between_keyframes) return false;
   const KeyFrameOptions& kf = options_.keyframe;

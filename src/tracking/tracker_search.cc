@@ -42,6 +42,7 @@ int Tracker::trackWithMotionModel(map::Frame& frame, const SE3& T_w_b_pred) {
   if (stats_.local_map_matches >= min_matches) {
     inliers = optimisePose(frame, frame.T_w_b(), false, link);
   }
+  if (options_.tracking.localisation_only) inliers = trackWithOdometry(frame, inliers);
   return inliers;
 }
 

@@ -210,6 +210,16 @@ struct TrackingOptions {
   /// surface slanted by theta adds b_slope = 1 / tan(theta), 1/b^2 = 1/b_sensor^2 + 1/b_slope^2
   /// (RGBD.VirtualBaseline, [0.001, 100]; 0.5 for a Kinect-class sensor: config_yaml/*.yaml)
   double virtual_baseline_m = 0.5;
+  /// A run in a loaded atlas (--load-atlas) starts lost in it: each frame is relocalised in the
+  /// loaded maps (BoW + guided search) until one is; not relocalised this long after the first
+  /// frame, a new map starts there, which the loop closer merges into the loaded one when it
+  /// recognises it (Tracking.LoadedAtlasNewMapAfter, s, [-1, 1000]; -1: never, keep trying; 0: a new
+  /// map at once, joined to the loaded ones by the loop closer only)
+  double loaded_atlas_new_map_after_s = 10.0;
+  /// Localisation only (--localisation-only, with a loaded atlas): no keyframes, no map points, no
+  /// new map; every frame is tracked against the loaded maps, relocalised or re-acquired there
+  /// when lost, the IMU carrying the pose in between (Tracking.LocalisationOnly, 0/1)
+  bool localisation_only = false;
 
   static TrackingOptions load(const SettingsFile& file);
 };
@@ -323,7 +333,13 @@ struct LoopOptions {
   /// runs once more, with that evidence (Loop.RefineKeyFrames; 0: off)
   int refine_keyframes = 10;
 
-  static LoopOptions load(const SettingsFile& file);
+    /// A loaded atlas's keyframes are the world's reference: every optimisation holds their poses
+  /// (local and full BAs, loop corrections, seam welding), so a run in a loaded atlas stays in its
+  /// world frame and the map it loaded stays as it was estimated (Loop.HoldLoadedMap, 0/1; 0: they
+  /// are optimised with the new keyframes, and the world may move by centimetres)
+  bool hold_loaded_map = true;
+
+static LoopOptions load(const SettingsFile& file);
 };
 
 /// Dense coarse-to-fine alignment of the initial segmentation and state (thesis Eq. 59-64).

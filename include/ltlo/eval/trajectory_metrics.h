@@ -44,6 +44,10 @@ struct AteResult {
   ErrorStats error_m;  ///< per-pose translation errors (m)
 };
 AteResult computeAte(const MatchedTrajectories& matched, bool with_scale);
+/// The same with a given alignment instead of the best one: a run in another run's world frame
+/// (a loaded atlas) is measured with the alignment of that earlier run to the ground truth, so
+/// whatever it got wrong in placing itself in that world counts.
+AteResult computeAteFixed(const MatchedTrajectories& matched, const Sim3& S_gt_est);
 
 /// Relative pose error over consecutive matched poses i, i+1:
 ///   E_i = (Q_i^-1 Q_{i+1})^-1 (P_i^-1 P_{i+1}),  Q ground truth, P aligned estimate,

@@ -128,6 +128,10 @@ class SequenceReader {
   bool isBag() const { return bag_ != nullptr; }
   /// Back to the first frame.
   void rewind() { next_index_ = 0; }
+  /// next() continues at frame `index` (in [0, frameCount()]; frameCount(): at the end). The first
+  /// frame read then carries the IMU samples since frame index - 1, as it would in order. Throws
+  /// InputError naming the sequence for an index out of range.
+  void seek(int index);
 
   int frameCount() const { return static_cast<int>(entries_.size()); }
   double frameTime(int index) const { return entries_.at(index).t_s; }

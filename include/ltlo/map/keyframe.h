@@ -118,6 +118,12 @@ class KeyFrame {
   void addLoopEdge(KeyFrameId other);
 
   bool isBad() const;
+  /// An anchor keyframe (a loaded atlas's, Loop.HoldLoadedMap): the world's reference, its pose held
+  /// by every optimisation (local and full BAs, the loop correction's essential graph and window,
+  /// the seam welding), so a run in a loaded atlas stays in that atlas's world frame. Set once,
+  /// before the keyframe is shared with another thread (System, after loading), then read only.
+  bool isAnchor() const { return anchor_; }
+  void markAnchor() { anchor_ = true; }
 
   // ---- culling ----
   /// Set by Map::eraseKeyFrame: the spanning-tree parent at culling time (nullptr when it had none)
@@ -153,6 +159,7 @@ class KeyFrame {
   const ClusterSegmentation segmentation_layout_;
   const std::vector<int> keypoint_cluster_;
   const double static_threshold_;
+  bool anchor_ = false;  ///< see isAnchor(); written before the keyframe is shared, no lock
 
   mutable std::mutex mutex_;  ///< guards every member below
   MapId map_;

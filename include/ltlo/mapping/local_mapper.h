@@ -125,6 +125,10 @@ class LocalMapper {
   /// with local mapping paused). The biases stay: the BA wrote each keyframe's, and the newest
   /// keyframe's can be the one a long dead-reckoned gap bent. Ignored before the IMU is initialised.
   void setGravityFromFullBa(const Vec3& g_w);
+  /// Before the run: the IMU state of a loaded atlas (gravity in its world, biases, the estimate's
+  /// acceleration covariance) is published as initialised; the run's own keyframes then refine it
+  /// (ImuInit refinements) instead of initialising from nothing. Call before the first keyframe.
+  void seedImuState(const imu::ImuBias& bias, const Vec3& g_w, const Mat3& acceleration_covariance_w);
 
   // ---- synchronous use (tests, single-threaded runs) ----
   /// The whole processing of one keyframe, in the calling thread.

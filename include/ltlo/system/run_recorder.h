@@ -75,6 +75,8 @@ class RunRecorder {
 
   /// Tracking thread: frames given to recordFrame.
   int numFrames() const { return frames_; }
+  /// Time of the first frame with a pose (NaN: none yet). Takes mutex_.
+  double firstPoseTime() const;
   /// Tracking thread (it owns `tracker`): the run's counts, from the frame counters here, the Atlas,
   /// the tracker (maps created, IMU initialised) and the loop closer (loops, merges). Takes mutex_.
   SystemCounts counts(const tracking::Tracker& tracker, const loop::LoopCloser& closer) const;

@@ -1,6 +1,7 @@
 #pragma once
 /// Plain records of a run's results (System produces them, run_outputs.h writes them).
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "ltlo/core/eigen_types.h"
@@ -53,6 +54,15 @@ struct SystemCounts {
   int keyframes = 0;          ///< keyframes of all maps
   int map_points = 0;         ///< map points of all maps
   bool imu_initialised = false;
+  /// A run in a loaded atlas (SystemOptions::load_atlas_path): its keyframes and points at load,
+  /// and the time of the run's first pose (relocalised in it, or a new map; NaN: none).
+  bool atlas_loaded = false;
+  int keyframes_loaded = 0;
+  int map_points_loaded = 0;
+  /// Frames the loaded map's points localised (Tracking.LocalisationOnly; not carried by the visual
+  /// odometry on temporary points or by the IMU alone).
+  int frames_localised_in_map = 0;
+  double first_pose_t_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Everything a run produced, gathered once after System::shutdown().

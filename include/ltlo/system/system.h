@@ -48,6 +48,7 @@
 #include "ltlo/core/settings.h"
 #include "ltlo/core/timing.h"
 #include "ltlo/io/sequence_reader.h"
+#include "ltlo/map/atlas_file.h"
 #include "ltlo/map/ids.h"
 #include "ltlo/system/run_records.h"
 #include "ltlo/tracking/frame_builder.h"
@@ -101,6 +102,11 @@ struct SystemOptions {
   int viewer_http_port = -1;
   std::string viewer_http_bind = "127.0.0.1";
   bool viewer_pose_stream = false;
+  /// An atlas file saved by an earlier run (map/atlas_file.h): its maps become this run's atlas,
+  /// the run starts lost in them and relocalises (Tracking.LoadedAtlasNewMapAfter), and its poses
+  /// are in the loaded world frame. Its IMU state seeds this run's. Empty: a new atlas.
+  /// Tracking.LocalisationOnly needs one.
+  std::string load_atlas_path;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
@@ -150,6 +156,11 @@ class System {
   RunReport report(double wall_s) const;
   tracking::TrackingState state() const;
 
+  /// Writes the atlas (every map, keyframe and point, and the IMU state) to `path` (atomic:
+  /// written as path.part, then renamed), for a later run's load_atlas_path. Call after shutdown().
+  /// Throws InputError naming the file when it cannot be written.
+  void saveAtlas(const std::string& path) const;
+
   /// Stage durations of all threads ("tracking.*", "mapping.*", "loop.*").
   TimingStats& timing() { return timing_; }
   const TimingStats& timing() const { return timing_; }
@@ -161,6 +172,10 @@ class System {
   void processPendingKeyFrames();                                 // synchronous mode
   void pollImuState();
   void checkWorkers() const;
+  /// Replaces atlas_ by the file's (options_.load_atlas_path); returns its IMU state.
+  map::AtlasImuState loadAtlas();
+  /// The vocabulary and the map-relevant settings an atlas file is checked against.
+  map::AtlasBuildInfo atlasBuildInfo() const;
 
   const Settings settings_;
   const SystemOptions options_;
@@ -169,6 +184,8 @@ class System {
 
   TimingStats timing_;
   std::unique_ptr<map::Atlas> atlas_;  // first member built, last destroyed (after the workers)
+  /// What the loaded atlas held (SystemOptions::load_atlas_path; atlas_loaded false without one).
+  SystemCounts loaded_;
   std::unique_ptr<tracking::FrameBuilder> builder_;
   tracking::ImuShiftRamp imu_shift_;  // tracking thread: each frame's IMU interval against its stamps
   std::unique_ptr<tracking::Tracker> tracker_;

@@ -76,6 +76,9 @@ struct TrackingStats {
   double predicted_position_sigma_m = 0.0;
   double predicted_rotation_sigma_rad = 0.0;
   bool map_refreshed = false;  ///< the last frame's pose was re-derived (map version / active map)
+  /// Localisation only: pose inliers among the last frame's temporary points (visual odometry,
+  /// tracker_visual_odometry.cc), counted in `inliers` too; 0 when the map alone tracked it.
+  int odometry_inliers = 0;
 };
 
 /// Not thread-safe (the tracking thread owns it). Reads and writes the Atlas' active map through
@@ -93,6 +96,9 @@ class Tracker : private RecoverySteps {
   TrackingState state() const { return state_; }
   /// Whether the last frame was tracked / relocalised / started a map (false: predicted pose).
   bool frameTracked() const { return frame_tracked_; }
+  /// Frames tracked by the map's points alone (with Tracking.LocalisationOnly: not carried by the
+  /// visual odometry or the IMU), over the run.
+  int numFramesLocalisedInMap() const { return frames_localised_in_map_; }
   /// The IMU's prediction of the last frame's body pose, from the previous frame's state, before
   /// vision refined it (absent when the IMU did not predict: no IMU, not initialised, no samples).
   std::optional<SE3> imuPredicted_T_w_b() const {
@@ -207,6 +213,39 @@ class Tracker : private RecoverySteps {
   void extendMapAtPrediction(map::Frame& frame) override;
   void initialiseNewMap(map::Frame& frame) override;
   void recordFramePose(const map::Frame& frame) override;
+  /// track() but for localisation only's IMU window: predict -> segment -> match -> recover ->
+  /// keyframe.
+  TrackingState trackFrame(map::Frame& frame);
+  /// A frame before the first pose of a run in a loaded atlas: relocalised in the loaded maps, or
+  /// after tracking.loaded_atlas_new_map_after_s a new map started (tracker_loaded_start.cc).
+  TrackingState startInLoadedAtlas(map::Frame& frame);
+  /// Relocalisation in each map of the atlas with content, the active one first; the map it
+  /// succeeds in becomes active. Pose inliers (0: not relocalised).
+  int relocaliseInAnyMap(map::Frame& frame);
+  /// The tracker's state from a relocalised first frame (no keyframe made): initialise()'s
+  /// bookkeeping in the map the frame was relocalised in.
+  void startAtRelocalisedFrame(map::Frame& frame, int inliers);
+  /// After each tracked frame while the velocity is unknown: the anchor frame's velocity v0 from
+  /// p_i = p_0 + v0 dt_i + g dt_i^2 / 2 + R_0 dp_0i (least squares over the frames since the anchor,
+  /// the IMU preintegrated at the deferred bias), this frame's as v0 + g dt + R_0 dv_0i; after
+  /// kStartVelocityBaselineS the deferred IMU state is applied with it.
+  void estimateStartVelocity(map::Frame& frame, bool re_anchor);
+  // ---- localisation only: visual odometry on temporary points (tracker_visual_odometry.cc) ----
+  /// When the map alone gives fewer than minInliers() (`map_inliers`): the frame matched by
+  /// projection to the last tracked frame's temporary points and the pose re-optimised with both;
+  /// returns the inliers of that optimisation (0: not run). First tries to re-acquire the map
+  /// around the pose within the odometry's drift.
+  int trackWithOdometry(map::Frame& frame, int map_inliers);
+  /// After a tracked frame: its static keypoints with depth that match no map point become the
+  /// next frame's temporary points (in the world, at the frame's pose; never in the map).
+  void keepOdometryPoints(const map::Frame& frame);
+  /// Localisation only, after every frame: the frames the map localised become nodes (one per
+  /// kBiasNodeIntervalS) of a window linked by their preintegrations, and every second the biases
+  /// and gravity are re-estimated over it by the inertial-only optimisation with the nodes' poses
+  /// held (optim::initializeImu), as local mapping's IMU refinements do on keyframes
+  /// (tracker_localisation_imu.cc). The loaded map's biases are another power-up's: a difference of
+  /// 0.1 m/s^2 integrates to metres over seconds of occlusion.
+  void updateLocalisationImu(const map::Frame& frame, bool map_localised);
   /// After a relocalisation or re-acquisition: the frame's state re-optimised with the IMU link to
   /// the previous (predicted) frame, whose prior keeps velocity and biases only. Returns the
   /// inliers of that optimisation (0 when there is no link).
@@ -273,6 +312,55 @@ class Tracker : private RecoverySteps {
   int num_keyframes_ = 0;
   std::vector<map::KeyFrameId> local_keyframes_;
   std::vector<map::MapPointId> local_points_;
+
+  /// A run in a loaded atlas that has no pose yet (TrackerOptions::start_in_loaded_atlas), and the
+  /// time of its first frame.
+  bool loaded_start_pending_ = false;
+  std::optional<double> loaded_start_t_s_;
+  /// Such a run's velocity is unknown when its first frame is relocalised: an IMU state handed over
+  /// before it is known (the loaded atlas's, setImuInitialised) waits in deferred_imu_ until
+  /// estimateStartVelocity() has fitted the velocity to kStartVelocityBaselineS of tracked frames.
+  struct DeferredImu {
+    imu::ImuBias bias;
+    Vec3 g_w = Vec3::Zero();
+    double acceleration_sigma_m_s2 = 0.0;
+  };
+  bool velocity_unknown_ = false;
+  std::optional<DeferredImu> deferred_imu_;
+  struct StartVelocityFit {
+    SE3 T_w_b0;              ///< the anchor frame's body pose
+    double t0_s = 0.0;
+    std::optional<imu::Preintegrated> imu_since_anchor;
+    Vec3 weighted_v0 = Vec3::Zero();  ///< sum of dt^2 * v0 samples
+    double weight = 0.0;
+  };
+  std::optional<StartVelocityFit> start_velocity_;
+
+  /// Localisation only: the last tracked frame's temporary points (never in the map) and the
+  /// current frame's matches to them, which optimisePose adds to its observations.
+  struct OdometryPoint {
+    Vec3 p_w = Vec3::Zero();
+    features::Descriptor descriptor{};
+    int octave = 0;
+  };
+  std::vector<OdometryPoint> odometry_points_;
+  std::vector<optim::PoseObservation> odometry_observations_;
+  std::vector<bool> odometry_inlier_;  ///< per odometry observation, set by optimisePose
+  /// The last frame the map alone localised (s), and frames so localised in the run.
+  double last_map_localised_t_s_ = 0.0;
+  int frames_localised_in_map_ = 0;
+  /// The map localised the current frame (set by trackWithOdometry / the start's relocalisation).
+  bool frame_map_localised_ = false;
+  /// The window of updateLocalisationImu: node poses and times, pims[k] from node k to k + 1, the
+  /// IMU since the newest node.
+  struct LocalisationImuWindow {
+    std::vector<SE3> T_w_b;
+    std::vector<double> t_s;
+    std::vector<std::shared_ptr<const imu::Preintegrated>> pims;
+    std::optional<imu::Preintegrated> since_newest;
+    double last_estimate_t_s = -1.0;
+  };
+  LocalisationImuWindow localisation_imu_;
 
   bool imu_initialised_ = false;
   /// The last (re)initialisation's acceleration sigma (m/s^2, setImuInitialised).

@@ -52,6 +52,16 @@ struct TrackerOptions {
   /// Relocalisation is accepted with at least this many pose inliers after the local-map search.
   int min_relocalisation_inliers = 50;
   RelocalisationOptions relocalisation;
+
+  // ---- a run in a loaded atlas ----
+  /// The atlas holds the maps of an earlier run (System's --load-atlas): the first frames are
+  /// relocalised in them instead of starting a map, for up to tracking.loaded_atlas_new_map_after_s
+  /// (tracker_loaded_start.cc). With tracking.localisation_only nothing is ever added to the atlas.
+  bool start_in_loaded_atlas = false;
+  /// The IMU (re)initialisation's settings (core settings, ImuInit.*): with
+  /// tracking.localisation_only no keyframes are made for local mapping to estimate the biases on,
+  /// so the tracker estimates them itself over the frames the map localised (iterations, bias priors).
+  ImuInitOptions imu_init;
 };
 
 /// The guided search of the re-acquisition (Tracking.Reacquire*, the local-map window floor and
