@@ -35,6 +35,12 @@ std::string hex64(std::uint64_t v) {
   return text;
 }
 
+std::string hex32(std::uint32_t v) {
+  char text[16];
+  std::snprintf(text, sizeof(text), "0x%08" PRIx32, v);
+  return text;
+}
+
 std::string exact(double v) {
   std::ostringstream os;
   os.precision(17);
@@ -157,7 +163,7 @@ std::vector<SectionEntry> readHeader(const std::string& bytes, const std::string
   const std::uint64_t crc_offset = in.fileOffset();
   const std::uint32_t header_crc = in.u32("header CRC");
   const std::uint32_t computed = crc32(bytes.data(), static_cast<std::size_t>(crc_offset));
-  if (header_crc != computed) in.failAt(crc_offset, "header CRC mismatch, computed " + hex64(computed), hex64(header_crc));
+  if (header_crc != computed) in.failAt(crc_offset, "header CRC mismatch, computed " + hex32(computed), hex32(header_crc));
   std::uint64_t expected_offset = in.fileOffset();
   for (const SectionEntry& section : sections) {
     ByteReader at(bytes.data(), 0, name, section.name, section.offset);
@@ -168,7 +174,7 @@ std::vector<SectionEntry> readHeader(const std::string& bytes, const std::string
               std::to_string(bytes.size() - section.offset) + " bytes left");
     }
     const std::uint32_t crc = crc32(bytes.data() + section.offset, static_cast<std::size_t>(section.bytes));
-    if (crc != section.crc) at.fail("CRC mismatch, computed " + hex64(crc), hex64(section.crc));
+    if (crc != section.crc) at.fail("CRC mismatch, computed " + hex32(crc), hex32(section.crc));
     expected_offset = section.offset + section.bytes;
   }
   if (expected_offset != bytes.size()) {
