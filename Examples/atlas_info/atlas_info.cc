@@ -7,12 +7,11 @@
 // run's static_map.ply) of every map in the file, in the static_map.ply layout. The file is
 // validated as a load would (CRCs, every record, every id), without a vocabulary. Exit 0, 2 with
 // the reader's message (file, section, byte offset) on a bad file.
+#include <CLI/CLI.hpp>
 #include <cinttypes>
 #include <cstdio>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"

@@ -99,7 +99,8 @@ MapOrigin readMapOrigin(ByteReader& in) {
   origin.t_s = in.finiteF64("origin time");
   origin.parent_keyframe = KeyFrameId(in.u64("origin parent keyframe"));
   origin.first_keyframe = KeyFrameId(in.u64("origin first keyframe"));
-  if (in.boolean("origin has imu_across")) origin.imu_across = std::make_shared<imu::Preintegrated>(readPreintegration(in));
+  if (in.boolean("origin has imu_across"))
+    origin.imu_across = std::make_shared<imu::Preintegrated>(readPreintegration(in));
   origin.T_w_b_parent_keyframe = in.se3("origin T_w_b_parent_keyframe");
   return origin;
 }
@@ -128,7 +129,8 @@ void readMapLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set<MapI
   const std::size_t num_references = in.count("reference map points", 8);
   std::vector<MapPointId> references;
   references.reserve(num_references);
-  for (std::size_t k = 0; k < num_references; ++k) references.push_back(readKnownMapPoint(in, restore, "reference map point"));
+  for (std::size_t k = 0; k < num_references; ++k)
+    references.push_back(readKnownMapPoint(in, restore, "reference map point"));
   map.setReferenceMapPoints(std::move(references));
 }
 
@@ -140,7 +142,8 @@ void checkTreeIsAcyclic(const ByteReader& in, const AtlasRestore& restore, std::
     std::unordered_set<KeyFrameId> path;
     KeyFrameId id = start;
     while (id.valid() && rooted.count(id) == 0) {
-      if (!path.insert(id).second) in.failAt(offset, "the spanning tree has a cycle through keyframe", std::to_string(id.value));
+      if (!path.insert(id).second)
+        in.failAt(offset, "the spanning tree has a cycle through keyframe", std::to_string(id.value));
       id = restore.keyframes.at(id)->parent();
     }
     rooted.insert(path.begin(), path.end());
@@ -181,7 +184,8 @@ Map& readKnownMap(ByteReader& in, const AtlasRestore& restore, const char* what)
   const std::uint64_t offset = in.fileOffset();
   const MapId id(in.u64(what));
   const auto it = restore.maps.find(id);
-  if (it == restore.maps.end()) in.failAt(offset, std::string(what) + " is not a map of the file", std::to_string(id.value));
+  if (it == restore.maps.end())
+    in.failAt(offset, std::string(what) + " is not a map of the file", std::to_string(id.value));
   return *it->second;
 }
 

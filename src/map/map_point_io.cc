@@ -39,7 +39,8 @@ void readMapPoint(ByteReader& in, AtlasRestore& restore) {
   Map& map = readKnownMap(in, restore, "map point map");
   const std::uint64_t id_offset = in.fileOffset();
   const MapPointId id(in.u64("map point id"));
-  if (!id.valid() || restore.points.count(id) > 0) in.failAt(id_offset, "map point id invalid or repeated", std::to_string(id.value));
+  if (!id.valid() || restore.points.count(id) > 0)
+    in.failAt(id_offset, "map point id invalid or repeated", std::to_string(id.value));
   const Vec3 p_w = in.vec3("map point position");
   const KeyFrameId reference = readKnownKeyFrame(in, restore, "reference keyframe", true);
   auto point = std::make_shared<MapPoint>(id, p_w, reference);
