@@ -13,6 +13,9 @@ namespace {
 // Sizes that no real camera or segmentation reaches; larger values are a damaged file (and would
 // drive the grid's and the images' allocations).
 constexpr std::int32_t kMaxImageSide = 1 << 15;
+// The camera's image size sets the keypoint grid's cell count (16 px cells) before any keypoint
+// is read: at 8192 px a side that is 6 MB per keyframe, so a small file cannot ask for much.
+constexpr std::int32_t kMaxCameraSide = 1 << 13;
 constexpr std::int32_t kMaxScale = 1 << 10;
 constexpr std::size_t kMaxPyramidLevels = 64;
 constexpr std::size_t kMaxClusters = 256;                   // 8-bit labels
@@ -32,8 +35,8 @@ PinholeCamera readCamera(ByteReader& in) {
   const double fy = in.f64InRange("camera fy", 1e-6, 1e9);
   const double cx = in.finiteF64("camera cx");
   const double cy = in.finiteF64("camera cy");
-  const int width = in.i32InRange("camera width", 1, kMaxImageSide);
-  const int height = in.i32InRange("camera height", 1, kMaxImageSide);
+  const int width = in.i32InRange("camera width", 1, kMaxCameraSide);
+  const int height = in.i32InRange("camera height", 1, kMaxCameraSide);
   return PinholeCamera(fx, fy, cx, cy, width, height);
 }
 
@@ -176,12 +179,25 @@ void writeKeyFrame(const KeyFrame& kf, ByteWriter& out) {
   if (imu_from_previous) writePreintegration(*imu_from_previous, out);
 }
 
+/// A keypoint coordinate (px): undistorted keypoints may lie a little outside the image, but not
+/// beyond kMaxCoordinate, where the grid's and the label lookup's integer conversions would overflow
+/// (found by fuzz_atlas: a keypoint at x = 1.5e10).
+float readCoordinate(ByteReader& in, const char* what) {
+  constexpr float kMaxCoordinate = 1 << 20;
+  const std::uint64_t offset = in.fileOffset();
+  const float v = in.finiteF32(what);
+  if (v < -kMaxCoordinate || v > kMaxCoordinate) {
+    in.failAt(offset, std::string(what) + " out of [-1048576, 1048576]", std::to_string(v));
+  }
+  return v;
+}
+
 features::OrbFeatures readFeatures(ByteReader& in, std::size_t n) {
   features::OrbFeatures features;
   features.keypoints.resize(n);
   for (features::Keypoint& kp : features.keypoints) {
-    kp.x_px = in.finiteF32("keypoint x");
-    kp.y_px = in.finiteF32("keypoint y");
+    kp.x_px = readCoordinate(in, "keypoint x");
+    kp.y_px = readCoordinate(in, "keypoint y");
     kp.angle_deg = in.finiteF32("keypoint angle");
     kp.response = in.finiteF32("keypoint response");
     kp.octave = in.i32InRange("keypoint octave", 0, static_cast<std::int32_t>(kMaxPyramidLevels) - 1);

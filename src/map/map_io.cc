@@ -1,7 +1,6 @@
 // The maps and graph sections of the atlas file (atlas_file.h), the snapshot saveAtlas writes and
 // the id checks shared by the section readers.
 #include <algorithm>
-#include <limits>
 #include <string>
 #include <unordered_set>
 
@@ -52,6 +51,10 @@ void writeKeyFrameLinks(const KeyFrame& kf, const AtlasSnapshot& snapshot, ByteW
   writeIds(savedOnly(snapshot, kf.loopEdges()), out);
 }
 
+/// A weight is a count of shared points (at most a keyframe's keypoints); far below INT_MAX so sums
+/// of weights cannot overflow.
+constexpr std::int32_t kMaxWeight = 1 << 24;
+
 void readKeyFrameLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set<KeyFrameId>& seen) {
   const std::uint64_t offset = in.fileOffset();
   const KeyFrameId id = readKnownKeyFrame(in, restore, "graph keyframe", false);
@@ -68,7 +71,7 @@ void readKeyFrameLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set
   for (std::size_t k = 0; k < num_edges; ++k) {
     const std::uint64_t edge_offset = in.fileOffset();
     const KeyFrameId other = readKnownKeyFrame(in, restore, "covisible keyframe", false);
-    const int weight = in.i32InRange("covisibility weight", 1, std::numeric_limits<std::int32_t>::max());
+    const int weight = in.i32InRange("covisibility weight", 1, kMaxWeight);
     if (other == id || !weights.emplace(other, weight).second) {
       in.failAt(edge_offset, "covisibility edge to itself or repeated", std::to_string(other.value));
     }
