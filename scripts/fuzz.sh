@@ -3,7 +3,7 @@
 # ASan + UBSan + coverage, only the readers' libraries are compiled), writes a seed corpus from a
 # generated sequence, runs each target for SECONDS_EACH seconds and fails on any crash, leak,
 # sanitizer report, timeout or out-of-memory. Not part of scripts/test.sh (docs/testing.md).
-#   scripts/fuzz.sh [SECONDS_EACH]           default 60 s per target (7 targets)
+#   scripts/fuzz.sh [SECONDS_EACH]           default 60 s per target (8 targets)
 #   TARGETS="fuzz_ply fuzz_imu" scripts/fuzz.sh 10
 # Findings (crashing inputs) land in build-fuzz/findings/<target>/ (once fixed, keep them in
 # tests/fuzz/regressions/<target>/: they are replayed on every run); the corpus grows in
@@ -13,7 +13,7 @@ cd "$(dirname "$0")/.."
 SECONDS_EACH=${1:-60}
 JOBS=${JOBS:-2}
 DIR=build-fuzz
-TARGETS=${TARGETS:-"fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_surfels fuzz_vocabulary"}
+TARGETS=${TARGETS:-"fuzz_settings fuzz_image_lists fuzz_imu fuzz_trajectory fuzz_ply fuzz_surfels fuzz_vocabulary fuzz_atlas"}
 export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
 
 # ---- Setup: clang and its libFuzzer runtime (Debian: clang-14, libclang-rt-14-dev) -------------
@@ -145,7 +145,8 @@ status=0
 for t in $TARGETS; do
   corpus=$DIR/corpus/$t
   findings=$DIR/findings/$t
-  mkdir -p "$corpus" "$findings"
+  # fuzz_atlas has no generated seeds: its regressions (small atlases, good and bad) seed it.
+  mkdir -p "$corpus" "$findings" "$SEEDS/$t"
   log=$DIR/$t.log
   # Inputs that crashed a reader once (tests/fuzz/regressions/<target>/) are replayed first.
   regressions=""

@@ -35,6 +35,12 @@ std::string hex64(std::uint64_t v) {
   return text;
 }
 
+std::string hex32(std::uint32_t v) {
+  char text[16];
+  std::snprintf(text, sizeof(text), "0x%08" PRIx32, v);
+  return text;
+}
+
 std::string exact(double v) {
   std::ostringstream os;
   os.precision(17);
@@ -157,18 +163,21 @@ std::vector<SectionEntry> readHeader(const std::string& bytes, const std::string
   const std::uint64_t crc_offset = in.fileOffset();
   const std::uint32_t header_crc = in.u32("header CRC");
   const std::uint32_t computed = crc32(bytes.data(), static_cast<std::size_t>(crc_offset));
-  if (header_crc != computed) in.failAt(crc_offset, "header CRC mismatch, computed " + hex64(computed), hex64(header_crc));
+  if (header_crc != computed)
+    in.failAt(crc_offset, "header CRC mismatch, computed " + hex32(computed), hex32(header_crc));
   std::uint64_t expected_offset = in.fileOffset();
   for (const SectionEntry& section : sections) {
     ByteReader at(bytes.data(), 0, name, section.name, section.offset);
-    if (section.offset != expected_offset) at.fail("section does not follow the previous one at byte " + std::to_string(expected_offset), std::to_string(section.offset));
+    if (section.offset != expected_offset)
+      at.fail("section does not follow the previous one at byte " + std::to_string(expected_offset),
+              std::to_string(section.offset));
     if (section.bytes > bytes.size() - section.offset) {
       at.fail("truncated: the section's " + std::to_string(section.bytes) + " bytes end past the file's " +
                   std::to_string(bytes.size()),
               std::to_string(bytes.size() - section.offset) + " bytes left");
     }
     const std::uint32_t crc = crc32(bytes.data() + section.offset, static_cast<std::size_t>(section.bytes));
-    if (crc != section.crc) at.fail("CRC mismatch, computed " + hex64(crc), hex64(section.crc));
+    if (crc != section.crc) at.fail("CRC mismatch, computed " + hex32(crc), hex32(section.crc));
     expected_offset = section.offset + section.bytes;
   }
   if (expected_offset != bytes.size()) {
@@ -214,13 +223,16 @@ void checkBuild(const AtlasBuildInfo& file, const AtlasBuildInfo& expected, cons
   const std::vector<std::string> run_lines = lines(expected.settings_summary);
   std::string file_only, run_only;
   for (const std::string& line : file_lines) {
-    if (std::find(run_lines.begin(), run_lines.end(), line) == run_lines.end()) file_only += (file_only.empty() ? "" : "; ") + line;
+    if (std::find(run_lines.begin(), run_lines.end(), line) == run_lines.end())
+      file_only += (file_only.empty() ? "" : "; ") + line;
   }
   for (const std::string& line : run_lines) {
-    if (std::find(file_lines.begin(), file_lines.end(), line) == file_lines.end()) run_only += (run_only.empty() ? "" : "; ") + line;
+    if (std::find(file_lines.begin(), file_lines.end(), line) == file_lines.end())
+      run_only += (run_only.empty() ? "" : "; ") + line;
   }
-  throw AtlasFileError(name, "build", build_section.offset + 20,
-                       "built with other map settings: the file has \"" + file_only + "\", this run has \"" + run_only + "\"");
+  throw AtlasFileError(
+      name, "build", build_section.offset + 20,
+      "built with other map settings: the file has \"" + file_only + "\", this run has \"" + run_only + "\"");
 }
 
 // ---- reading the atlas ----
@@ -271,7 +283,8 @@ AtlasFileSummary::MapSummary summariseMap(const Map& map) {
     summary.t_first_s = summary.keyframes == 0 ? kf->t_s() : std::min(summary.t_first_s, kf->t_s());
     summary.t_last_s = summary.keyframes == 0 ? kf->t_s() : std::max(summary.t_last_s, kf->t_s());
     ++summary.keyframes;
-    for (const KeyFrameId other : kf->loopEdges()) loop_pairs.emplace(std::min(kf->id(), other), std::max(kf->id(), other));
+    for (const KeyFrameId other : kf->loopEdges())
+      loop_pairs.emplace(std::min(kf->id(), other), std::max(kf->id(), other));
   }
   for (const std::shared_ptr<MapPoint>& point : map.mapPoints()) {
     extend(point->p_w());
@@ -290,7 +303,8 @@ AtlasFileSummary summarise(const ParsedFile& parsed, std::uint64_t file_bytes) {
   for (const auto& [id, map] : parsed.restore.maps) summary.maps.push_back(summariseMap(*map));
   summary.file_bytes = file_bytes;
   summary.sections.push_back({"header", 0, parsed.sections.front().offset});
-  for (const SectionEntry& section : parsed.sections) summary.sections.push_back({section.name, section.offset, section.bytes});
+  for (const SectionEntry& section : parsed.sections)
+    summary.sections.push_back({section.name, section.offset, section.bytes});
   return summary;
 }
 
@@ -423,7 +437,9 @@ AtlasFileSummary readAtlasSummaryFromBytes(const std::string& bytes, const std::
   return summarise(parsed, bytes.size());
 }
 
-AtlasFileSummary readAtlasSummary(const std::string& path) { return readAtlasSummaryFromBytes(readWholeFile(path), path); }
+AtlasFileSummary readAtlasSummary(const std::string& path) {
+  return readAtlasSummaryFromBytes(readWholeFile(path), path);
+}
 
 std::vector<AtlasPoint> readAtlasPoints(const std::string& path, double min_beta) {
   const std::string bytes = readWholeFile(path);

@@ -75,9 +75,7 @@ ByteReader::ByteReader(const char* data, std::size_t size, std::string file, std
                        std::uint64_t file_offset)
     : data_(data), size_(size), file_(std::move(file)), section_(std::move(section)), file_offset_(file_offset) {}
 
-void ByteReader::fail(const std::string& what, const std::string& value) const {
-  failAt(fileOffset(), what, value);
-}
+void ByteReader::fail(const std::string& what, const std::string& value) const { failAt(fileOffset(), what, value); }
 
 void ByteReader::failAt(std::uint64_t offset, const std::string& what, const std::string& value) const {
   throw AtlasFileError(file_, section_, offset, what, value);
@@ -141,8 +139,7 @@ double ByteReader::f64InRange(const char* what, double min, double max) {
   const std::uint64_t offset = fileOffset();
   const double v = finiteF64(what);
   if (v < min || v > max) {
-    failAt(offset, std::string(what) + " out of [" + formatValue(min) + ", " + formatValue(max) + "]",
-           formatValue(v));
+    failAt(offset, std::string(what) + " out of [" + formatValue(min) + ", " + formatValue(max) + "]", formatValue(v));
   }
   return v;
 }

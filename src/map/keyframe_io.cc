@@ -13,9 +13,12 @@ namespace {
 // Sizes that no real camera or segmentation reaches; larger values are a damaged file (and would
 // drive the grid's and the images' allocations).
 constexpr std::int32_t kMaxImageSide = 1 << 15;
+// The camera's image size sets the keypoint grid's cell count (16 px cells) before any keypoint
+// is read: at 8192 px a side that is 6 MB per keyframe, so a small file cannot ask for much.
+constexpr std::int32_t kMaxCameraSide = 1 << 13;
 constexpr std::int32_t kMaxScale = 1 << 10;
 constexpr std::size_t kMaxPyramidLevels = 64;
-constexpr std::size_t kMaxClusters = 256;  // 8-bit labels
+constexpr std::size_t kMaxClusters = 256;                   // 8-bit labels
 constexpr std::size_t kKeypointBytes = 4 * 4 + 4 + 32 + 4;  // keypoint, descriptor, depth
 
 void writeCamera(const PinholeCamera& camera, ByteWriter& out) {
@@ -32,8 +35,8 @@ PinholeCamera readCamera(ByteReader& in) {
   const double fy = in.f64InRange("camera fy", 1e-6, 1e9);
   const double cx = in.finiteF64("camera cx");
   const double cy = in.finiteF64("camera cy");
-  const int width = in.i32InRange("camera width", 1, kMaxImageSide);
-  const int height = in.i32InRange("camera height", 1, kMaxImageSide);
+  const int width = in.i32InRange("camera width", 1, kMaxCameraSide);
+  const int height = in.i32InRange("camera height", 1, kMaxCameraSide);
   return PinholeCamera(fx, fy, cx, cy, width, height);
 }
 
@@ -55,10 +58,12 @@ void writeImage(const cv::Mat& image, int element_bytes, ByteWriter& out) {
 cv::Mat readImage(ByteReader& in, int element_bytes, const char* what) {
   const int rows = in.i32InRange(what, 0, kMaxImageSide);
   const int cols = in.i32InRange(what, 0, kMaxImageSide);
-  if ((rows == 0) != (cols == 0)) in.fail(std::string(what) + ": one side is zero", std::to_string(rows) + "x" + std::to_string(cols));
+  if ((rows == 0) != (cols == 0))
+    in.fail(std::string(what) + ": one side is zero", std::to_string(rows) + "x" + std::to_string(cols));
   if (rows == 0) return cv::Mat();
   const std::size_t bytes = static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols) * element_bytes;
-  if (bytes > in.remaining()) in.fail(std::string(what) + " exceeds the bytes left", std::to_string(rows) + "x" + std::to_string(cols));
+  if (bytes > in.remaining())
+    in.fail(std::string(what) + " exceeds the bytes left", std::to_string(rows) + "x" + std::to_string(cols));
   cv::Mat image(rows, cols, element_bytes == 1 ? CV_8U : CV_16U);
   for (int r = 0; r < rows; ++r) {
     if (element_bytes == 1) {
@@ -74,7 +79,8 @@ cv::Mat readImage(ByteReader& in, int element_bytes, const char* what) {
 std::vector<double> readScores(ByteReader& in, const char* what) {
   const std::uint64_t offset = in.fileOffset();
   const std::size_t n = in.count(what, 8);
-  if (n < 1 || n > kMaxClusters) in.failAt(offset, std::string(what) + ": cluster count out of [1, 256]", std::to_string(n));
+  if (n < 1 || n > kMaxClusters)
+    in.failAt(offset, std::string(what) + ": cluster count out of [1, 256]", std::to_string(n));
   std::vector<double> scores(n);
   for (double& g : scores) g = in.f64InRange(what, 0.0, 1.0);
   return scores;
@@ -115,10 +121,12 @@ ClusterSegmentation readSegmentation(ByteReader& in) {
   const std::uint64_t counts_offset = in.fileOffset();
   const std::size_t num_counts = in.count("segmentation pixel counts", 4);
   if (num_counts != 0 && num_counts != segmentation.gamma.size()) {
-    in.failAt(counts_offset, "pixel counts for " + std::to_string(num_clusters) + " clusters", std::to_string(num_counts));
+    in.failAt(counts_offset, "pixel counts for " + std::to_string(num_clusters) + " clusters",
+              std::to_string(num_counts));
   }
   segmentation.pixel_counts.resize(num_counts);
-  for (int& count : segmentation.pixel_counts) count = in.i32InRange("segmentation pixel count", 0, std::numeric_limits<std::int32_t>::max());
+  for (int& count : segmentation.pixel_counts)
+    count = in.i32InRange("segmentation pixel count", 0, std::numeric_limits<std::int32_t>::max());
   const std::size_t num_neighbours = in.count("segmentation neighbours", 8);
   segmentation.neighbours.reserve(num_neighbours);
   for (std::size_t k = 0; k < num_neighbours; ++k) {
@@ -171,12 +179,25 @@ void writeKeyFrame(const KeyFrame& kf, ByteWriter& out) {
   if (imu_from_previous) writePreintegration(*imu_from_previous, out);
 }
 
+/// A keypoint coordinate (px): undistorted keypoints may lie a little outside the image, but not
+/// beyond kMaxCoordinate, where the grid's and the label lookup's integer conversions would overflow
+/// (found by fuzz_atlas: a keypoint at x = 1.5e10).
+float readCoordinate(ByteReader& in, const char* what) {
+  constexpr float kMaxCoordinate = 1 << 20;
+  const std::uint64_t offset = in.fileOffset();
+  const float v = in.finiteF32(what);
+  if (v < -kMaxCoordinate || v > kMaxCoordinate) {
+    in.failAt(offset, std::string(what) + " out of [-1048576, 1048576]", std::to_string(v));
+  }
+  return v;
+}
+
 features::OrbFeatures readFeatures(ByteReader& in, std::size_t n) {
   features::OrbFeatures features;
   features.keypoints.resize(n);
   for (features::Keypoint& kp : features.keypoints) {
-    kp.x_px = in.finiteF32("keypoint x");
-    kp.y_px = in.finiteF32("keypoint y");
+    kp.x_px = readCoordinate(in, "keypoint x");
+    kp.y_px = readCoordinate(in, "keypoint y");
     kp.angle_deg = in.finiteF32("keypoint angle");
     kp.response = in.finiteF32("keypoint response");
     kp.octave = in.i32InRange("keypoint octave", 0, static_cast<std::int32_t>(kMaxPyramidLevels) - 1);
@@ -191,7 +212,8 @@ features::OrbFeatures readFeatures(ByteReader& in, std::size_t n) {
 std::vector<float> readScaleFactors(ByteReader& in, const features::OrbFeatures& features) {
   const std::uint64_t offset = in.fileOffset();
   const std::size_t levels = in.count("scale factors", 4);
-  if (levels < 1 || levels > kMaxPyramidLevels) in.failAt(offset, "scale factor count out of [1, 64]", std::to_string(levels));
+  if (levels < 1 || levels > kMaxPyramidLevels)
+    in.failAt(offset, "scale factor count out of [1, 64]", std::to_string(levels));
   std::vector<float> scale_factors(levels);
   for (float& s : scale_factors) {
     const std::uint64_t at = in.fileOffset();
@@ -199,7 +221,8 @@ std::vector<float> readScaleFactors(ByteReader& in, const features::OrbFeatures&
     if (!(s > 0.0f)) in.failAt(at, "scale factor is not positive", std::to_string(s));
   }
   for (const features::Keypoint& kp : features.keypoints) {
-    if (kp.octave >= static_cast<int>(levels)) in.fail("keypoint octave beyond the pyramid levels", std::to_string(kp.octave));
+    if (kp.octave >= static_cast<int>(levels))
+      in.fail("keypoint octave beyond the pyramid levels", std::to_string(kp.octave));
   }
   return scale_factors;
 }
@@ -208,7 +231,8 @@ std::shared_ptr<KeyFrame> readKeyFrame(ByteReader& in, const AtlasRestore& resto
   Map& map = readKnownMap(in, restore, "keyframe map");
   const std::uint64_t id_offset = in.fileOffset();
   const KeyFrameId id(in.u64("keyframe id"));
-  if (!id.valid() || restore.keyframes.count(id) > 0) in.failAt(id_offset, "keyframe id invalid or repeated", std::to_string(id.value));
+  if (!id.valid() || restore.keyframes.count(id) > 0)
+    in.failAt(id_offset, "keyframe id invalid or repeated", std::to_string(id.value));
   const double t_s = in.finiteF64("keyframe time");
   const PinholeCamera camera = readCamera(in);
   const SE3 T_b_c = in.se3("T_b_c");
@@ -226,7 +250,8 @@ std::shared_ptr<KeyFrame> readKeyFrame(ByteReader& in, const AtlasRestore& resto
   const std::uint64_t gamma_offset = in.fileOffset();
   std::vector<double> gamma = readScores(in, "gamma");
   if (gamma.size() != layout.gamma.size()) {
-    in.failAt(gamma_offset, "gamma for " + std::to_string(layout.gamma.size()) + " clusters", std::to_string(gamma.size()));
+    in.failAt(gamma_offset, "gamma for " + std::to_string(layout.gamma.size()) + " clusters",
+              std::to_string(gamma.size()));
   }
   Frame frame(t_s, camera, T_b_c, std::move(features), std::move(depths), std::move(scale_factors));
   frame.setSegmentation(std::move(layout), static_threshold);

@@ -1,7 +1,6 @@
 // The maps and graph sections of the atlas file (atlas_file.h), the snapshot saveAtlas writes and
 // the id checks shared by the section readers.
 #include <algorithm>
-#include <limits>
 #include <string>
 #include <unordered_set>
 
@@ -52,6 +51,10 @@ void writeKeyFrameLinks(const KeyFrame& kf, const AtlasSnapshot& snapshot, ByteW
   writeIds(savedOnly(snapshot, kf.loopEdges()), out);
 }
 
+/// A weight is a count of shared points (at most a keyframe's keypoints); far below INT_MAX so sums
+/// of weights cannot overflow.
+constexpr std::int32_t kMaxWeight = 1 << 24;
+
 void readKeyFrameLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set<KeyFrameId>& seen) {
   const std::uint64_t offset = in.fileOffset();
   const KeyFrameId id = readKnownKeyFrame(in, restore, "graph keyframe", false);
@@ -68,7 +71,7 @@ void readKeyFrameLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set
   for (std::size_t k = 0; k < num_edges; ++k) {
     const std::uint64_t edge_offset = in.fileOffset();
     const KeyFrameId other = readKnownKeyFrame(in, restore, "covisible keyframe", false);
-    const int weight = in.i32InRange("covisibility weight", 1, std::numeric_limits<std::int32_t>::max());
+    const int weight = in.i32InRange("covisibility weight", 1, kMaxWeight);
     if (other == id || !weights.emplace(other, weight).second) {
       in.failAt(edge_offset, "covisibility edge to itself or repeated", std::to_string(other.value));
     }
@@ -99,7 +102,8 @@ MapOrigin readMapOrigin(ByteReader& in) {
   origin.t_s = in.finiteF64("origin time");
   origin.parent_keyframe = KeyFrameId(in.u64("origin parent keyframe"));
   origin.first_keyframe = KeyFrameId(in.u64("origin first keyframe"));
-  if (in.boolean("origin has imu_across")) origin.imu_across = std::make_shared<imu::Preintegrated>(readPreintegration(in));
+  if (in.boolean("origin has imu_across"))
+    origin.imu_across = std::make_shared<imu::Preintegrated>(readPreintegration(in));
   origin.T_w_b_parent_keyframe = in.se3("origin T_w_b_parent_keyframe");
   return origin;
 }
@@ -128,7 +132,8 @@ void readMapLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set<MapI
   const std::size_t num_references = in.count("reference map points", 8);
   std::vector<MapPointId> references;
   references.reserve(num_references);
-  for (std::size_t k = 0; k < num_references; ++k) references.push_back(readKnownMapPoint(in, restore, "reference map point"));
+  for (std::size_t k = 0; k < num_references; ++k)
+    references.push_back(readKnownMapPoint(in, restore, "reference map point"));
   map.setReferenceMapPoints(std::move(references));
 }
 
@@ -140,7 +145,8 @@ void checkTreeIsAcyclic(const ByteReader& in, const AtlasRestore& restore, std::
     std::unordered_set<KeyFrameId> path;
     KeyFrameId id = start;
     while (id.valid() && rooted.count(id) == 0) {
-      if (!path.insert(id).second) in.failAt(offset, "the spanning tree has a cycle through keyframe", std::to_string(id.value));
+      if (!path.insert(id).second)
+        in.failAt(offset, "the spanning tree has a cycle through keyframe", std::to_string(id.value));
       id = restore.keyframes.at(id)->parent();
     }
     rooted.insert(path.begin(), path.end());
@@ -181,7 +187,8 @@ Map& readKnownMap(ByteReader& in, const AtlasRestore& restore, const char* what)
   const std::uint64_t offset = in.fileOffset();
   const MapId id(in.u64(what));
   const auto it = restore.maps.find(id);
-  if (it == restore.maps.end()) in.failAt(offset, std::string(what) + " is not a map of the file", std::to_string(id.value));
+  if (it == restore.maps.end())
+    in.failAt(offset, std::string(what) + " is not a map of the file", std::to_string(id.value));
   return *it->second;
 }
 

@@ -1,5 +1,4 @@
 // The points section of the atlas file (atlas_file.h): every map point with its observations.
-#include <limits>
 #include <string>
 
 #include "atlas_file_access.h"
@@ -39,7 +38,8 @@ void readMapPoint(ByteReader& in, AtlasRestore& restore) {
   Map& map = readKnownMap(in, restore, "map point map");
   const std::uint64_t id_offset = in.fileOffset();
   const MapPointId id(in.u64("map point id"));
-  if (!id.valid() || restore.points.count(id) > 0) in.failAt(id_offset, "map point id invalid or repeated", std::to_string(id.value));
+  if (!id.valid() || restore.points.count(id) > 0)
+    in.failAt(id_offset, "map point id invalid or repeated", std::to_string(id.value));
   const Vec3 p_w = in.vec3("map point position");
   const KeyFrameId reference = readKnownKeyFrame(in, restore, "reference keyframe", true);
   auto point = std::make_shared<MapPoint>(id, p_w, reference);
@@ -47,11 +47,14 @@ void readMapPoint(ByteReader& in, AtlasRestore& restore) {
   for (std::uint64_t& word : descriptor) word = in.u64("map point descriptor");
   point->setDescriptor(descriptor);
   const Vec3 normal_w = in.vec3("map point normal");
-  const double min_distance_m = in.finiteF64("map point min distance");
-  const double max_distance_m = in.finiteF64("map point max distance");
+  // Non-negative: predictScale takes the log of max_distance_m over a distance.
+  const double min_distance_m = in.f64InRange("map point min distance", 0.0, 1e12);
+  const double max_distance_m = in.f64InRange("map point max distance", 0.0, 1e12);
   point->setNormalAndDistances(normal_w, min_distance_m, max_distance_m);
-  const int num_visible = in.i32InRange("visible count", 0, std::numeric_limits<std::int32_t>::max());
-  const int num_found = in.i32InRange("found count", 0, std::numeric_limits<std::int32_t>::max());
+  // Far below INT_MAX: tracking keeps adding to them (and a fusion adds one point's to another's).
+  constexpr std::int32_t kMaxCount = 1 << 30;
+  const int num_visible = in.i32InRange("visible count", 0, kMaxCount);
+  const int num_found = in.i32InRange("found count", 0, kMaxCount);
   AtlasFileAccess::setCounts(*point, num_visible, num_found);
   point->setBeta(in.f64InRange("beta", 0.0, 1.0));
   const std::size_t num_observations = in.count("observations", kObservationBytes);

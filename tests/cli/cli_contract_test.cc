@@ -152,6 +152,30 @@ TEST_F(CliContract, ReconstructionToolsExitTwoNamingTheBrokenFile) {
       << result.err;
 }
 
+// atlas_info on the atlas files of the fuzz regressions: a valid one is summarised and its static
+// points exported; a truncated one exits 2 naming the file, the section and the byte offset.
+TEST_F(CliContract, AtlasInfoSummarisesAFileAndNamesTheSectionOfABadOne) {
+  const fs::path seeds = fs::path(sourceDir()) / "tests/fuzz/regressions/fuzz_atlas";
+  const fs::path ply = work_ / "atlas_static.ply";
+  ProgramResult result =
+      runProgram({programPath("atlas_info"), (seeds / "valid_two_maps.atlas").string(), "--ply", ply.string()});
+  EXPECT_EQ(result.exit_code, 0) << result.describe();
+  EXPECT_NE(result.out.find("format_version 1\n"), std::string::npos) << result.out;
+  EXPECT_NE(result.out.find("maps 2\n"), std::string::npos) << result.out;
+  EXPECT_NE(result.out.find("map 0 keyframes 3 map_points 8 loop_edges 1 t_first_s 0.000000 t_last_s 2.000000\n"),
+            std::string::npos)
+      << result.out;
+  EXPECT_NE(result.out.find("section keyframes offset "), std::string::npos) << result.out;
+  EXPECT_NE(result.out.find("ply_points 8\n"), std::string::npos) << result.out;  // 4 of 8 per map at beta 0.9
+  EXPECT_TRUE(fs::exists(ply));
+
+  const std::string truncated = (seeds / "truncated_in_keyframes.atlas").string();
+  result = runProgram({programPath("atlas_info"), truncated});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("atlas_info: " + truncated + ": section keyframes at byte "), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find(": truncated: "), std::string::npos) << result.err;
+}
+
 TEST_F(CliContract, AMalformedDistortionKeyExitsTwoNamingTheKey) {
   const fs::path lens = sequenceVariant(work_ / "lens", {"calib.yaml"});
   const std::string calib = readFile(sharedSequence() / "calib.yaml");

@@ -12,7 +12,8 @@ inline void expectSameSe3(const SE3& a, const SE3& b, const std::string& what) {
   EXPECT_EQ(a.translation(), b.translation()) << what;
 }
 
-inline void expectSamePreintegration(const imu::Preintegrated& a, const imu::Preintegrated& b, const std::string& what) {
+inline void expectSamePreintegration(const imu::Preintegrated& a, const imu::Preintegrated& b,
+                                     const std::string& what) {
   EXPECT_EQ(a.bias().b_g, b.bias().b_g) << what;
   EXPECT_EQ(a.bias().b_a, b.bias().b_a) << what;
   EXPECT_EQ(a.noise().gyro_density, b.noise().gyro_density) << what;
@@ -51,7 +52,8 @@ inline bool sameMat(const cv::Mat& a, const cv::Mat& b) {
   return a.type() == b.type() && a.size() == b.size() && cv::norm(a, b, cv::NORM_INF) == 0.0;
 }
 
-inline void expectSameSegmentation(const ClusterSegmentation& a, const ClusterSegmentation& b, const std::string& what) {
+inline void expectSameSegmentation(const ClusterSegmentation& a, const ClusterSegmentation& b,
+                                   const std::string& what) {
   EXPECT_TRUE(sameMat(a.labels, b.labels)) << what;
   EXPECT_EQ(a.scale, b.scale) << what;
   EXPECT_EQ(a.gamma, b.gamma) << what;
@@ -91,7 +93,8 @@ inline void expectSameImageData(const KeyFrame& a, const KeyFrame& b, const std:
   expectSameSegmentation(a.segmentationLayout(), b.segmentationLayout(), what + " layout");
   // The grid: the same keypoints in windows over the image.
   for (float x = 0.0f; x < 640.0f; x += 97.0f) {
-    for (float y = 0.0f; y < 480.0f; y += 83.0f) EXPECT_EQ(a.featuresInArea(x, y, 40.0f), b.featuresInArea(x, y, 40.0f)) << what;
+    for (float y = 0.0f; y < 480.0f; y += 83.0f)
+      EXPECT_EQ(a.featuresInArea(x, y, 40.0f), b.featuresInArea(x, y, 40.0f)) << what;
   }
 }
 

@@ -3,14 +3,14 @@
 // refused with its message (file, section, byte offset).
 #include "ltlo/map/atlas_file.h"
 
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <random>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "atlas_compare.h"
 #include "binary_io.h"
@@ -211,7 +211,8 @@ class AtlasFileTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     vocabulary_ = new bow::Vocabulary(trainVocabulary(5));
-    build_ = new AtlasBuildInfo(makeAtlasBuildInfo(*vocabulary_, mapSettingsSummary(testCalib(525.0), 8, 1.2), "atlas_file_test"));
+    build_ = new AtlasBuildInfo(
+        makeAtlasBuildInfo(*vocabulary_, mapSettingsSummary(testCalib(525.0), 8, 1.2), "atlas_file_test"));
   }
   static void TearDownTestSuite() {
     delete vocabulary_;
@@ -314,13 +315,17 @@ TEST_F(AtlasFileTest, LoadedBowEqualsAFreshOneAndTheDatabaseAnswersAlike) {
   const std::shared_ptr<KeyFrame> kf = test_.atlas->map(test_.map_a)->keyFrames()[2];
   features::OrbFeatures features{kf->keypoints(), kf->descriptors()};
   std::uniform_int_distribution<std::uint64_t> bits;
-  for (std::size_t i = 0; i < features.descriptors.size(); i += 3) features.descriptors[i] = {bits(rng), bits(rng), bits(rng), bits(rng)};
-  Frame query(100.0, kf->camera(), kf->T_b_c(), features, std::vector<float>(features.keypoints.size(), 2.0f), kf->scaleFactors());
+  for (std::size_t i = 0; i < features.descriptors.size(); i += 3)
+    features.descriptors[i] = {bits(rng), bits(rng), bits(rng), bits(rng)};
+  Frame query(100.0, kf->camera(), kf->T_b_c(), features, std::vector<float>(features.keypoints.size(), 2.0f),
+              kf->scaleFactors());
   query.computeBow(*vocabulary_);
   for (const MapId map : {test_.map_a, test_.map_b}) {
     const PlaceQueryOptions options;
-    const std::vector<PlaceCandidate> expected = test_.atlas->keyFrameDatabase().detectRelocalisationCandidates(query, map, options);
-    const std::vector<PlaceCandidate> found = loaded.atlas->keyFrameDatabase().detectRelocalisationCandidates(query, map, options);
+    const std::vector<PlaceCandidate> expected =
+        test_.atlas->keyFrameDatabase().detectRelocalisationCandidates(query, map, options);
+    const std::vector<PlaceCandidate> found =
+        loaded.atlas->keyFrameDatabase().detectRelocalisationCandidates(query, map, options);
     ASSERT_EQ(found.size(), expected.size());
     ASSERT_FALSE(found.empty());
     for (std::size_t k = 0; k < found.size(); ++k) {
@@ -343,8 +348,10 @@ TEST_F(AtlasFileTest, NewIdsContinueAboveTheFileAndInvariantsHold) {
   KeyFrameId max_kf;
   MapPointId max_point;
   for (const MapId id : test_.atlas->mapIds()) {
-    for (const auto& kf : test_.atlas->map(id)->keyFrames()) max_kf = max_kf.valid() ? std::max(max_kf, kf->id()) : kf->id();
-    for (const auto& p : test_.atlas->map(id)->mapPoints()) max_point = max_point.valid() ? std::max(max_point, p->id()) : p->id();
+    for (const auto& kf : test_.atlas->map(id)->keyFrames())
+      max_kf = max_kf.valid() ? std::max(max_kf, kf->id()) : kf->id();
+    for (const auto& p : test_.atlas->map(id)->mapPoints())
+      max_point = max_point.valid() ? std::max(max_point, p->id()) : p->id();
   }
   Map& active = loaded.atlas->activeMap();
   EXPECT_EQ(active.id(), test_.map_a);
@@ -358,7 +365,8 @@ TEST_F(AtlasFileTest, NewIdsContinueAboveTheFileAndInvariantsHold) {
   for (const MapId id : {test_.map_a, test_.map_b}) {
     const Map& map = *loaded.atlas->map(id);
     for (const std::shared_ptr<MapPoint>& point : map.mapPoints()) {
-      for (const auto& [kf_id, index] : point->observations()) EXPECT_EQ(map.keyFrame(kf_id)->mapPoint(index), point->id());
+      for (const auto& [kf_id, index] : point->observations())
+        EXPECT_EQ(map.keyFrame(kf_id)->mapPoint(index), point->id());
     }
   }
 }
@@ -411,7 +419,8 @@ TEST_F(AtlasFileTest, TruncatedFilesNameTheSectionAndOffset) {
       << last_byte;
   EXPECT_NE(loadError(bytes.substr(0, points)).find("section points at byte " + std::to_string(points) + ": truncated"),
             std::string::npos);
-  EXPECT_NE(loadError(bytes + "x").find("section graph at byte " + std::to_string(bytes.size()) + ": bytes after the last section (1)"),
+  EXPECT_NE(loadError(bytes + "x")
+                .find("section graph at byte " + std::to_string(bytes.size()) + ": bytes after the last section (1)"),
             std::string::npos);
 }
 
@@ -423,7 +432,8 @@ TEST_F(AtlasFileTest, WrongMagicAndVersionAreNamed) {
   EXPECT_EQ(loadError(magic), bad + ": section header at byte 0: not an atlas file (magic is not LTLOATL1) (LTLOATL9)");
   std::string version = bytes;
   version[8] = 2;
-  EXPECT_EQ(loadError(version), bad + ": section header at byte 8: unsupported format version, this build reads version 1 (2)");
+  EXPECT_EQ(loadError(version),
+            bad + ": section header at byte 8: unsupported format version, this build reads version 1 (2)");
 }
 
 TEST_F(AtlasFileTest, CrcMismatchNamesTheSection) {
@@ -431,8 +441,9 @@ TEST_F(AtlasFileTest, CrcMismatchNamesTheSection) {
   const std::uint64_t points = sectionOffset("points");
   bytes[points + 100] ^= 0x10;
   const std::string message = loadError(bytes);
-  EXPECT_NE(message.find(path_ + ".bad: section points at byte " + std::to_string(points) + ": CRC mismatch, computed 0x"),
-            std::string::npos)
+  EXPECT_NE(
+      message.find(path_ + ".bad: section points at byte " + std::to_string(points) + ": CRC mismatch, computed 0x"),
+      std::string::npos)
       << message;
   std::string header = readBytes(path_);
   header[16 + 36 + 17] ^= 0x01;  // the imu entry's offset
@@ -454,8 +465,9 @@ TEST_F(AtlasFileTest, AnotherVocabularyIsRefusedByName) {
 TEST_F(AtlasFileTest, OtherSettingsAreRefusedShowingBothLines) {
   AtlasBuildInfo expected = makeAtlasBuildInfo(*vocabulary_, mapSettingsSummary(testCalib(520.0), 8, 1.2), "test");
   const std::string message = loadError(readBytes(path_), nullptr, &expected);
-  EXPECT_NE(message.find("section build at byte 256: built with other map settings: the file has \"camera fx=525 fy=525"),
-            std::string::npos)
+  EXPECT_NE(
+      message.find("section build at byte 256: built with other map settings: the file has \"camera fx=525 fy=525"),
+      std::string::npos)
       << message;
   EXPECT_NE(message.find("this run has \"camera fx=520 fy=525"), std::string::npos) << message;
   EXPECT_EQ(message.find("orb levels"), std::string::npos) << message;  // only the lines that differ
@@ -500,7 +512,8 @@ TEST_F(AtlasFileTest, SaveIsAtomicAndReplacesAnExistingFileWhole) {
     saveAtlas(small, AtlasImuState{}, *build_, nowhere);
     ADD_FAILURE() << "saved into a missing folder";
   } catch (const InputError& error) {
-    EXPECT_NE(std::string(error.what()).find(nowhere + ".part: cannot open the atlas file for writing"), std::string::npos);
+    EXPECT_NE(std::string(error.what()).find(nowhere + ".part: cannot open the atlas file for writing"),
+              std::string::npos);
   }
 }
 
@@ -509,7 +522,8 @@ TEST(AtlasSettingsSummary, ShowsEveryMapRelevantSettingExactly) {
   calib.camera.lens.model = LensModel::kRadTan;
   calib.camera.lens.k1 = -0.05;
   const std::string summary = mapSettingsSummary(calib, 8, 1.2);
-  EXPECT_NE(summary.find("camera fx=525 fy=525 cx=319.5 cy=239.5 width=640 height=480\n"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("camera fx=525 fy=525 cx=319.5 cy=239.5 width=640 height=480\n"), std::string::npos)
+      << summary;
   EXPECT_NE(summary.find("lens radtan k1=-0.050000000000000003 k2=0"), std::string::npos) << summary;
   EXPECT_NE(summary.find("T_b_c q="), std::string::npos);
   EXPECT_NE(summary.find("orb levels=8 scale_factor=1.2\n"), std::string::npos) << summary;

@@ -97,6 +97,8 @@ struct AtlasFileSummary {
     std::string name;
     std::uint64_t offset = 0, bytes = 0;
   };
+  /// "header" (magic, version, table, header CRC) first, then the file's sections in file order;
+  /// together they cover the file without gaps.
   std::vector<Section> sections;
 };
 
