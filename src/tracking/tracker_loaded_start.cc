@@ -93,8 +93,8 @@ void Tracker::startAtRelocalisedFrame(map::Frame& frame, int inliers) {
   last_T_w_c_ = frame.T_w_c();
   last_tracked_t_s_ = frame.t_s();
   last_map_localised_t_s_ = frame.t_s();
-  ++frames_localised_in_map_;
   frame_map_localised_ = true;
+  if (options_.tracking.localisation_only) ++frames_localised_in_map_;
   recordFramePose(frame);
   if (options_.tracking.localisation_only) keepOdometryPoints(frame);
   loaded_start_pending_ = false;
