@@ -1,7 +1,10 @@
 #!/usr/bin/env python3
 """Checks every loop closure / map merge of a run against ground truth (no false loops).
 
-usage: check_loops.py RUN_DIR SEQUENCE_DIR LOG_FILE
+usage: check_loops.py RUN_DIR SEQUENCE_DIR LOG_FILE [SEQUENCE0_DIR RUN0_DIR]
+A run in a loaded atlas (rgbd_inertial --load-atlas) also gives the earlier run's sequence and run folder:
+its keyframes (the ids in RUN0_DIR/keyframes.txt) are looked up in SEQUENCE0_DIR's ground truth (both
+ground truths in one frame, as the simulator's room frame is).
 For each "loop closed[ (proximity)]: kfA ~ kfB" / "maps merged|rejoined: ... kfA ~ kfB" line of the run log, compares the
 estimated relative pose of the two keyframes (keyframes.txt, final) with the ground-truth one and
 prints the error; a loop whose error exceeds 0.10 m or 3 deg is reported FALSE (exit 1)."""
@@ -24,15 +27,17 @@ def load(f,idcol=None):
     return out
 run,seq,log=sys.argv[1],sys.argv[2],sys.argv[3]
 kfs={int(v[8]):(float(v[0]),([float(x) for x in v[1:4]],[float(x) for x in v[4:8]])) for v in load(run+'/keyframes.txt')}
-gt=[(float(v[0]),([float(x) for x in v[1:4]],[float(x) for x in v[4:8]])) for v in load(seq+'/groundtruth.txt')]
-def gtat(t): return min(gt,key=lambda r:abs(r[0]-t))[1]
+def loadgt(d): return [(float(v[0]),([float(x) for x in v[1:4]],[float(x) for x in v[4:8]])) for v in load(d+'/groundtruth.txt')]
+gt=loadgt(seq)
+gt0,loaded=(loadgt(sys.argv[4]),{int(v[8]) for v in load(sys.argv[5]+'/keyframes.txt')}) if len(sys.argv)>5 else ([],set())
+def gtat(t,kf=None): return min(gt0 if kf in loaded else gt,key=lambda r:abs(r[0]-t))[1]
 bad = 0
 for l in open(log):
     m=re.search(r'(loop closed|loop closed \(proximity\)|maps merged|maps rejoined): .*?kf(\d+) ~ kf(\d+)',l)
     if not m: continue
     a,b=int(m.group(2)),int(m.group(3))
     if a not in kfs or b not in kfs: print(m.group(1),a,b,'keyframe culled'); continue
-    E=rel(kfs[b][1],kfs[a][1]); G=rel(gtat(kfs[b][0]),gtat(kfs[a][0]))
+    E=rel(kfs[b][1],kfs[a][1]); G=rel(gtat(kfs[b][0],b),gtat(kfs[a][0],a))
     dt=sqrt(sum((E[0][i]-G[0][i])**2 for i in range(3)))
     dq=qmul(qinv(G[1]),E[1]); ang=degrees(2*acos(min(1,abs(dq[3]))))
     gd=sqrt(sum(x*x for x in G[0]))
