@@ -49,6 +49,7 @@
 #include "ltlo/core/timing.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/ids.h"
+#include "ltlo/mapping/local_mapper.h"
 #include "ltlo/system/run_records.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/tracker.h"
@@ -149,6 +150,9 @@ class System {
   /// the caller's measurement of the run.
   RunReport report(double wall_s) const;
   tracking::TrackingState state() const;
+  /// Local mapping's IMU estimate (gravity in the map frame, biases; not initialised without the
+  /// IMU). Any thread.
+  mapping::ImuState imuState() const;
 
   /// Stage durations of all threads ("tracking.*", "mapping.*", "loop.*").
   TimingStats& timing() { return timing_; }
