@@ -23,6 +23,7 @@ ZeroVelocityDetector::ZeroVelocityDetector(const ZeroVelocityOptions& options) :
 
 void ZeroVelocityDetector::reset() {
   window_.clear();
+  tested_ = false;
   statistics_ = ZeroVelocityStatistics();
 }
 
@@ -46,12 +47,17 @@ bool ZeroVelocityDetector::update(const ImuSamples& samples, const Vec3& b_g) {
     window_.push_back(s);
     ++added;
   }
-  while (window_.size() > 1 && window_.back().t_s - window_[1].t_s >= options_.window_s) window_.pop_front();
+  // Samples leave the window only once a full window has been tested, so the first test covers
+  // every sample since the start (or the reset): rest then reaches back to the first sample.
+  if (tested_) {
+    while (window_.size() > 1 && window_.back().t_s - window_[1].t_s >= options_.window_s) window_.pop_front();
+  }
   statistics_ = ZeroVelocityStatistics();
   statistics_.samples = static_cast<int>(window_.size());
   // The window is full once its samples span window_s (less one sample period of slack).
   const double span_s = window_.empty() ? 0.0 : window_.back().t_s - window_.front().t_s;
   if (added == 0 || span_s < options_.window_s - 1.5 / options_.rate_hz) return false;
+  tested_ = true;
   const double var_gyro = options_.noise_gyro * options_.noise_gyro * options_.rate_hz;
   const double var_acc = options_.noise_acc * options_.noise_acc * options_.rate_hz;
   const Vec3 mean_acc = meanAcc();

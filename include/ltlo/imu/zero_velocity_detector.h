@@ -55,12 +55,14 @@ class ZeroVelocityDetector {
   /// Mean accelerometer and gyro reading over the window (m/s^2, rad/s; zero when empty).
   Vec3 meanAcc() const;
   Vec3 meanGyro() const;
-  /// Stamp of the oldest sample in the window (0 when empty).
+  /// Stamp of the oldest sample in the window (0 when empty); the first full window holds every
+  /// sample since the start or reset().
   double windowStart_s() const { return window_.empty() ? 0.0 : window_.front().t_s; }
 
  private:
   ZeroVelocityOptions options_;
   std::deque<ImuSample> window_;
+  bool tested_ = false;  ///< a full window has been tested (from then on old samples leave)
   ZeroVelocityStatistics statistics_;
 };
 
