@@ -4,6 +4,7 @@
 //            [--black START,DURATION]... [--no-depth START,DURATION]... [--imu-gap START,DURATION]...
 //            [--sensor ideal|realsense|kinect|FILE.yaml] [--sensor-set KEY=VALUE]...
 //            [--time-offset S] [--lens none|radtan|radtan-strong|rational|kb]
+//            [--still START,DURATION]... [--occlusion-at T]...
 // Exit status: 0 written, 2 bad input (options, config file, output folder), 1 any other error.
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -122,6 +123,13 @@ int main(int argc, char** argv) {
   app.add_option("--time-offset", time_offset_s,
                  "camera-IMU time offset (s, t_imu = t_cam + offset) in [-0.2, 0.2]; turns the fault on");
   app.add_option("--lens", lens_text, "lens of the raw images: none|radtan|radtan-strong|rational|kb");
+  std::vector<std::string> stills;
+  app.add_option("--still", stills,
+                 "START,DURATION (s): the robot stands still (pose held; --still 0,3 = still start); repeatable");
+  std::vector<double> occlusion_at;
+  app.add_option("--occlusion-at", occlusion_at,
+                 "T (s): a box crosses the view from T (in from one side, held 2-4 s, out to the other); repeatable")
+      ->check(CLI::Range(0.0, 1e6));
   app.add_option("--progress-every", progress_every, "progress line every N frames")
       ->check(CLI::Range(1, 1000000));
   try {
@@ -175,6 +183,11 @@ int main(int argc, char** argv) {
       options.outages.push_back(parseOutage("--no-depth", text, Outage::Kind::kNoDepth));
     for (const std::string& text : imu_gaps)
       options.outages.push_back(parseOutage("--imu-gap", text, Outage::Kind::kImuGap));
+    for (const std::string& text : stills) {
+      const Outage parsed = parseOutage("--still", text, Outage::Kind::kBlack);
+      options.stills.push_back({parsed.start_s, parsed.duration_s});
+    }
+    options.occlusion_at_s = occlusion_at;
     ltlo::sim::writeSequence(options, out_dir, progress_every);
   } catch (const ltlo::ConfigError& e) {
     std::cerr << "simulate: " << e.what() << "\n";

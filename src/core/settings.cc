@@ -92,6 +92,12 @@ void visitTracking(O& o, V& v) {
   v.real("RGBD.VirtualBaseline", o.virtual_baseline_m, 0.001, 100.0);
   v.real("Tracking.LoadedAtlasNewMapAfter", o.loaded_atlas_new_map_after_s, -1.0, 1000.0);
   v.boolean("Tracking.LocalisationOnly", o.localisation_only);
+  v.boolean("Tracking.Zupt", o.zupt);
+  v.boolean("Tracking.ZuptNoKeyFrames", o.zupt_no_keyframes);
+  v.real("Tracking.ZuptWindow", o.zupt_window_s, 0.1, 5.0);
+  v.real("Tracking.ZuptThreshold", o.zupt_threshold, 1.0, 100.0);
+  v.boolean("Tracking.ZuptVisualCheck", o.zupt_visual_check);
+  v.real("Tracking.ZuptMaxDisplacement", o.zupt_max_displacement_px, 0.1, 100.0);
 }
 
 template <typename O, typename V>
@@ -170,6 +176,8 @@ void visitImuInit(O& o, V& v) {
   v.real("ImuInit.MinTime", o.min_time_s, 0.1, 100.0);
   v.integer("ImuInit.MinKeyFrames", o.min_keyframes, 3, 1000);
   v.boolean("ImuInit.EarlyKeyFrames", o.early_keyframes);
+  v.boolean("ImuInit.FromRest", o.from_rest);
+  v.real("ImuInit.RestTime", o.rest_time_s, 0.2, 60.0);
   v.integer("ImuInit.Iterations", o.iterations, 1, 1000);
   v.real("ImuInit.BiasPriorSamples", o.bias_prior_samples, 0.0, 1e6);
   v.boolean("ImuInit.VisualInertialRefinement", o.visual_inertial_refinement);

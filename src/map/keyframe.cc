@@ -34,6 +34,7 @@ KeyFrame::KeyFrame(KeyFrameId id, MapId map, const Frame& frame)
       v_w_b_(frame.v_w_b()),
       bias_(frame.bias()),
       imu_from_previous_(frame.imu_from_last_keyframe),
+      at_rest_(frame.at_rest),
       map_points_(static_cast<std::size_t>(frame.numKeypoints())) {
   LTLO_ASSERT(id.valid(), "a keyframe needs a valid id");
   static_area_ratio_ = segmentation_layout_.staticAreaRatio(static_threshold_);

@@ -90,6 +90,43 @@ std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const
   return estimate;
 }
 
+std::optional<ImuInitEstimate> initialiseImuAtRest(const ImuChain& chain, double min_rest_s,
+                                                   double acc_bias_sigma_m_s2) {
+  if (chain.keyframes.size() < 2) return std::nullopt;
+  map::KeyFrame& rest = *chain.keyframes.back();
+  map::KeyFrame& previous = *chain.keyframes[chain.keyframes.size() - 2];
+  std::optional<imu::Preintegrated> link = rest.imuFromPrevious();
+  if (!link || link->dt_s() < min_rest_s || link->dt_s() <= 0.0) return std::nullopt;
+  const double dt_s = link->dt_s();
+  imu::ImuBias bias = link->bias();
+  // Two passes: the second reintegrates at the first's gyro bias (the residual rotation is then
+  // second order).
+  for (int pass = 0; pass < 2; ++pass) {
+    bias.b_g += so3Log(link->deltaR()) / dt_s;
+    link->reintegrate(bias);
+  }
+  constexpr double kMaxRestRate_rad_s = 0.01;
+  const Vec3 residual_rate = so3Log(link->deltaR()) / dt_s;
+  if (!bias.b_g.allFinite() || residual_rate.norm() > kMaxRestRate_rad_s) return std::nullopt;
+  const Vec3 f_b = link->deltaV() / dt_s;  // mean specific force, bias-corrected, in previous's body frame
+  if (!f_b.allFinite() || f_b.norm() < 0.5 * imu::kGravity_m_s2) return std::nullopt;
+  ImuInitEstimate estimate;
+  estimate.g_w = -imu::kGravity_m_s2 * (previous.T_w_b().rotationMatrix() * f_b).normalized();
+  estimate.bias = bias;
+  estimate.keyframes = 2;
+  estimate.span_s = dt_s;
+  const imu::ImuNoise& noise = link->noise();
+  const double mean_noise_var = noise.acc_density * noise.acc_density / dt_s;
+  estimate.acceleration_covariance_w = (acc_bias_sigma_m_s2 * acc_bias_sigma_m_s2 + mean_noise_var) * Mat3::Identity();
+  for (const std::shared_ptr<map::KeyFrame>& kf : chain.keyframes) {
+    if (!kf->isBad()) kf->setBias(bias);
+  }
+  previous.setVelocity(Vec3::Zero());
+  rest.setVelocity(Vec3::Zero());
+  rest.setImuFromPrevious(std::move(link));  // linearised at the estimate
+  return estimate;
+}
+
 namespace {
 
 /// optim::inertialAccelerationCovariance over the newest `max_keyframes` of `chain` at the chain's

@@ -57,6 +57,19 @@ double medianInertialChi2PerDof(const ImuChain& chain, const Vec3& g_w);
 std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const ImuInitOptions& options,
                                                     const imu::ImuBias& bias_init);
 
+/// IMU initialisation from rest (ImuInit.FromRest, issue 32). The chain's newest keyframe is one
+/// tracking made at rest (KeyFrame::atRest): its IMU link from the keyframe before is a standstill.
+/// At rest the link's rotation is the gyro bias alone and its velocity delta the specific force of
+/// gravity, so b_g = b_g0 + Log(delta_R) / dt (the link reintegrated at it once more), g_w = -R_w_b
+/// delta_v / dt scaled to 9.81 m/s^2, b_a kept (rest cannot tell it from a tilt of gravity; the later
+/// refinements in motion estimate it). The two keyframes of the link get v = 0, every keyframe of
+/// the chain the biases (the refinement BA holds the oldest ones with theirs). The acceleration
+/// covariance is that of the unknown b_a (`acc_bias_sigma_m_s2`, Tracking.AccBiasSigma) plus the
+/// mean reading's noise. nullopt when the link is missing, too short (< `min_rest_s`) or rotates
+/// more than rest allows (0.01 rad/s beyond the bias).
+std::optional<ImuInitEstimate> initialiseImuAtRest(const ImuChain& chain, double min_rest_s,
+                                                   double acc_bias_sigma_m_s2);
+
 /// What the refinement BA needs besides ImuInitOptions.
 struct RefinementContext {
   double bf_px_m = 40.0;         ///< RGB-D edges (as local BA)

@@ -101,6 +101,8 @@ struct LocalMapper::Impl {
   RecentPointCuller recent_points;
   int sequence = 0;
   double first_imu_init_t_s = 0.0;
+  /// Keyframe time of an initialisation from rest the full one has not followed yet (-1: none).
+  double rest_init_t_s = -1.0;
   double last_imu_estimate_t_s = 0.0;  ///< keyframe time of the last (re)estimate
   double last_imu_chain_end_t_s = -1.0;  ///< newest keyframe the last applied estimate used
   std::size_t imu_refinements = 0;  ///< refinements done (index into imu_refinement_delays_s)
@@ -277,9 +279,30 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
     std::lock_guard<std::mutex> lock(state_mutex);
     return imu_state;
   }();
+  if (!state.initialised && options.imu_init.from_rest && kf->atRest()) {
+    // A still start (issue 32): gravity and the gyro bias from the standstill link.
+    const std::optional<ImuInitEstimate> estimate =
+        initialiseImuAtRest(imuChainEndingAt(map, kf), 0.9 * options.imu_init.rest_time_s,
+                            options.refine_until_acceleration_sigma_m_s2);
+    if (estimate) {
+      rest_init_t_s = kf->t_s();
+      first_imu_init_t_s = kf->t_s();
+      last_imu_estimate_t_s = kf->t_s();
+      last_imu_chain_end_t_s = kf->t_s();
+      publishImu(*estimate, "initialised from rest");
+      return true;
+    }
+    log::info("IMU initialisation from rest at kf ", kf->id(), ": the link is no standstill; waiting for motion");
+  }
+  // After an initialisation from rest the full one follows (inertial-only, which also finds the
+  // accelerometer bias rest cannot tell from gravity, then the visual-inertial BA), once
+  // ImuInit.MinTime of keyframes after the rest keyframe is covered; the refinement schedule counts
+  // from it. Until then the rest estimate serves tracking.
+  const bool after_rest = state.initialised && rest_init_t_s >= 0.0;
+  const bool initialised = state.initialised && !after_rest;
   const char* what = nullptr;
-  if (!state.initialised) {
-    what = "initialised";
+  if (!initialised) {
+    what = after_rest ? "initialised (in motion, after rest)" : "initialised";
   } else if (imu_refinements < options.imu_refinement_delays_s.size() &&
              kf->t_s() - first_imu_init_t_s >= options.imu_refinement_delays_s[imu_refinements]) {
     what = "refined";
@@ -299,25 +322,26 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
   // 0.40-0.50 deg off, which then integrated over the occlusion's dead reckoning).
   const ImuChain chain = endAtStaticView(imuChainEndingAt(map, kf), options.imu_init.min_static_ratio);
   if (static_cast<int>(chain.keyframes.size()) < std::max(3, options.imu_init.min_keyframes) ||
-      chain.span_s() < options.imu_init.min_time_s) {
+      chain.span_s() < options.imu_init.min_time_s ||
+      (after_rest && chain.keyframes.back()->t_s() - rest_init_t_s < options.imu_init.min_time_s)) {
     return false;
   }
   // Nothing new since the last estimate (the view has been occluded since): wait.
-  if (state.initialised && chain.keyframes.back()->t_s() <= last_imu_chain_end_t_s) return false;
-  const bool refinement = state.initialised && options.imu_init.visual_inertial_refinement;
+  if (initialised && chain.keyframes.back()->t_s() <= last_imu_chain_end_t_s) return false;
+  const bool refinement = initialised && options.imu_init.visual_inertial_refinement;
   std::optional<ScopedTimer> timer;
   if (timing != nullptr) timer.emplace(*timing, refinement ? "mapping.imu_refine" : "mapping.imu_init");
   std::optional<ImuInitEstimate> current;
-  if (state.initialised) current = ImuInitEstimate{state.g_w, state.bias};
+  if (initialised) current = ImuInitEstimate{state.g_w, state.bias};
   RefinementContext context{options.bf_px_m, options.local_mapping.min_point_beta,
                             options.local_mapping.lambda_imu,
                             options.local_mapping.visual_variance_estimation, options.ba_threads, level_sigma2};
-  if (state.initialised) context.max_acceleration_sigma_m_s2 = optim::accelerationSigma(state.acceleration_covariance_w);
+  if (initialised) context.max_acceleration_sigma_m_s2 = optim::accelerationSigma(state.acceleration_covariance_w);
   const std::optional<ImuInitEstimate> estimate = estimateImu(map, chain, options.imu_init, context, current);
-  const bool scheduled = state.initialised && imu_refinements < options.imu_refinement_delays_s.size() &&
+  const bool scheduled = initialised && imu_refinements < options.imu_refinement_delays_s.size() &&
                          kf->t_s() - first_imu_init_t_s >= options.imu_refinement_delays_s[imu_refinements];
   if (!estimate) {
-    if (!state.initialised) {
+    if (!initialised) {
       log::warn("IMU initialisation at kf ", kf->id(), " gave a non-finite estimate; retrying later");
       return false;
     }
@@ -327,8 +351,9 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
     last_imu_estimate_t_s = kf->t_s();
     return false;
   }
-  if (!state.initialised) {
+  if (!initialised) {
     first_imu_init_t_s = kf->t_s();
+    rest_init_t_s = -1.0;
   } else if (scheduled) {
     ++imu_refinements;
   }

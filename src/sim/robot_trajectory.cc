@@ -1,7 +1,11 @@
 #include "ltlo/sim/robot_trajectory.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
+
+#include "ltlo/core/errors.h"
 
 namespace ltlo::sim {
 namespace {
@@ -13,6 +17,21 @@ Mat3 rotZ(double a) { return Eigen::AngleAxisd(a, Vec3::UnitZ()).toRotationMatri
 }  // namespace
 
 RobotTrajectory::RobotTrajectory(const TrajectoryParams& params, uint64_t seed) : params_(params) {
+  std::sort(params_.stills.begin(), params_.stills.end(),
+            [](const StillInterval& a, const StillInterval& b) { return a.start_s < b.start_s; });
+  const double ramp = params_.still_ramp_s;
+  double free_from_s = 0.0;  // end of the previous interval's speed-up
+  for (const StillInterval& still : params_.stills) {
+    const std::string text = "--still " + std::to_string(still.start_s) + "," + std::to_string(still.duration_s);
+    if (!(still.duration_s > 0.0) || !(still.start_s >= 0.0))
+      throw InputError(text + ": expected START >= 0 and DURATION > 0 (s)");
+    const bool at_start = still.start_s == 0.0;
+    if (!at_start && still.start_s - ramp < free_from_s)
+      throw InputError(text + ": the robot slows down over " + std::to_string(ramp) +
+                       " s before a stop, so a stop starts at 0 or at least that long after the start or the "
+                       "previous stop's speed-up");
+    free_from_s = still.start_s + still.duration_s + ramp;
+  }
   std::mt19937_64 rng(seed * 7919 + 17);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
@@ -76,13 +95,72 @@ void RobotTrajectory::planar(double t_s, Vec2* p, Vec2* v, Vec2* a) const {
   *a = d2p_ds2 * s_dot * s_dot + dp_ds * s_ddot;
 }
 
+void RobotTrajectory::pathTime(double t_s, double* tau_s, double* rate, double* rate_dot) const {
+  // Speed profile around a stop at S for D s with ramp r: tau' = 1 - s(u) over the slow-down
+  // [S - r, S], 0 while still, s(u) over the speed-up [S + D, S + D + r], with the smoothstep
+  // s(u) = 3u^2 - 2u^3; the path time lost is the integral of 1 - tau'.
+  const double r = params_.still_ramp_s;
+  auto smooth = [](double u) { return u * u * (3.0 - 2.0 * u); };
+  auto smooth_rate = [](double u) { return 6.0 * u * (1.0 - u); };
+  auto smooth_integral = [](double u) { return u * u * u * (1.0 - 0.5 * u); };  // of s over [0, u]
+  double lost_s = 0.0;
+  *rate = 1.0;
+  *rate_dot = 0.0;
+  for (const StillInterval& still : params_.stills) {
+    const bool at_start = still.start_s == 0.0;
+    const double slow_from = at_start ? 0.0 : still.start_s - r;
+    const double end = still.start_s + still.duration_s;
+    if (t_s < slow_from) break;
+    if (!at_start) {
+      if (t_s < still.start_s) {
+        const double u = (t_s - slow_from) / r;
+        lost_s += r * smooth_integral(u);
+        *rate = 1.0 - smooth(u);
+        *rate_dot = -smooth_rate(u) / r;
+        break;
+      }
+      lost_s += 0.5 * r;
+    }
+    if (t_s <= end) {
+      lost_s += t_s - still.start_s;
+      *rate = 0.0;
+      break;
+    }
+    lost_s += still.duration_s;
+    if (t_s < end + r) {
+      const double u = (t_s - end) / r;
+      lost_s += r * (u - smooth_integral(u));
+      *rate = smooth(u);
+      *rate_dot = smooth_rate(u) / r;
+      break;
+    }
+    lost_s += 0.5 * r;
+  }
+  *tau_s = t_s - lost_s;
+}
+
 SE3 RobotTrajectory::T_w_floor(double t_s) const {
+  double tau_s, rate, rate_dot;
+  pathTime(t_s, &tau_s, &rate, &rate_dot);
   Vec2 p, v, a;
-  planar(t_s, &p, &v, &a);
+  planar(tau_s, &p, &v, &a);
   return SE3(rotZ(std::atan2(v.y(), v.x())), Vec3(p.x(), p.y(), 0.0));
 }
 
 RobotState RobotTrajectory::state(double t_s) const {
+  double tau_s, rate, rate_dot;
+  pathTime(t_s, &tau_s, &rate, &rate_dot);
+  RobotState state = movingState(tau_s);
+  state.t_s = t_s;
+  if (rate == 1.0 && rate_dot == 0.0) return state;  // moving: exactly the path's state
+  // p(t) = p_m(tau(t)): v = v_m tau', a = a_m tau'^2 + v_m tau'', omega_b = omega_m tau'.
+  state.a_w_b = state.a_w_b * (rate * rate) + state.v_w_b * rate_dot;
+  state.v_w_b *= rate;
+  state.omega_b *= rate;
+  return state;
+}
+
+RobotState RobotTrajectory::movingState(double t_s) const {
   Vec2 p, v, a;
   planar(t_s, &p, &v, &a);
   const double yaw = std::atan2(v.y(), v.x());

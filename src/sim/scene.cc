@@ -241,6 +241,33 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
       t = t_out;
     }
   }
+  addCrossingEvents(options);
+}
+
+void Scene::addCrossingEvents(const SimOptions& options) {
+  for (size_t k = 0; k < options.occlusion_at_s.size(); ++k) {
+    // Own stream per event, so the regular schedule's draws stay what they were.
+    std::mt19937_64 rng(options.seed * 2862933555777941757ULL + 3037000493ULL * (k + 1));
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
+    DynamicBox b;
+    b.size_m = Vec3(uniform(0.5, 0.8), uniform(0.75, 1.1), uniform(0.75, 1.1));
+    b.texture = kFirstDynamic + static_cast<int>(unit(rng) * kDynamicTextures);
+    b.t_in_s = options.occlusion_at_s[k];
+    b.t_out_s = b.t_in_s + 2 * kEnterS + uniform(2.0, 4.0);
+    b.distance_m = uniform(0.55, 1.05);
+    b.lateral_m = uniform(-0.2, 0.2);
+    b.side = unit(rng) < 0.5 ? -1.0 : 1.0;
+    b.crosses = true;
+    b.sway_phase = uniform(0.0, 2.0 * M_PI);
+    // Regular boxes present while it crosses would stand in its way: they are dropped.
+    boxes.erase(std::remove_if(boxes.begin(), boxes.end(),
+                               [&](const DynamicBox& other) {
+                                 return !other.carried && other.t_in_s < b.t_out_s && other.t_out_s > b.t_in_s;
+                               }),
+                boxes.end());
+    boxes.push_back(b);
+  }
 }
 
 std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s,
@@ -250,10 +277,10 @@ std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s,
   for (size_t i = 0; i < boxes.size(); ++i) {
     const DynamicBox& b = boxes[i];
     if (t_s < b.t_in_s || t_s >= b.t_out_s) continue;
-    const double slide = kSlideM * (1.0 - smoothstep((t_s - b.t_in_s) / b.enter_s)) +
-                         kSlideM * smoothstep((t_s - (b.t_out_s - b.enter_s)) / b.enter_s);
+    const double slide_in = kSlideM * (1.0 - smoothstep((t_s - b.t_in_s) / b.enter_s));
+    const double slide_out = kSlideM * smoothstep((t_s - (b.t_out_s - b.enter_s)) / b.enter_s);
     const double x = t_b_c.x() + b.distance_m + 0.5 * b.size_m.x();
-    const double y = b.lateral_m + b.side * slide;
+    const double y = b.lateral_m + b.side * slide_in + (b.crosses ? -b.side : b.side) * slide_out;
     if (b.carried) {
       const double z = -trajectory.state(0.0).T_w_b.translation().z() + 0.5 * b.size_m.z() + 0.05;
       const SE3 T_b_o(Quat::Identity(), Vec3(x, y, z));

@@ -35,6 +35,7 @@ TrajectoryParams trajectoryParams(const SimOptions& o) {
   p.mean_speed_mps = o.mean_speed_mps;
   p.vibration_angle_rad = o.vibration_angle_deg * M_PI / 180.0;
   p.vibration_height_m = o.vibration_height_m;
+  p.stills = o.stills;
   return p;
 }
 

@@ -21,6 +21,13 @@ tracking::TrackerOptions trackerOptions(const Settings& settings, bool use_imu) 
     tracker_options.imu_init_keyframe_interval_s =
         settings.imu_init.min_time_s / std::max(1, settings.imu_init.min_keyframes - 1);
   }
+  const TrackingOptions& tracking = settings.tracking;
+  tracker_options.zero_velocity_test =
+      use_imu && (tracking.zupt || tracking.zupt_no_keyframes || settings.imu_init.from_rest);
+  tracker_options.zero_velocity =
+      imu::ZeroVelocityOptions::fromCalib(settings.calib.imu, tracking.zupt_window_s, tracking.zupt_threshold);
+  tracker_options.rest_keyframe = use_imu && settings.imu_init.from_rest;
+  tracker_options.rest_time_s = settings.imu_init.rest_time_s;
   return tracker_options;
 }
 

@@ -357,4 +357,6 @@ RunReport System::report(double wall_s) const {
 
 tracking::TrackingState System::state() const { return tracker_->state(); }
 
+mapping::ImuState System::imuState() const { return mapper_->imuState(); }
+
 }  // namespace ltlo::system

@@ -55,6 +55,7 @@ map::Frame FrameBuilder::build(const io::RgbdImuFrame& input, const imu::ImuBias
       pim.integrate(samples);
       pim.setShifts(cut.shift_begin_s, cut.shift_end_s);
       frame.imu_from_last_frame = std::move(pim);
+      frame.imu_samples = samples;
     }
   }
   return frame;

@@ -50,6 +50,7 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   frame_tracked_ = false;
   frame_information_ = StateInformation();
   imu_prediction_ = ImuPrediction();
+  updateStandstill(frame);
   if (state_ == TrackingState::kNotInitialised) {
     segment(frame, MotionPrior());
     state_ = loaded_start_pending_ ? startInLoadedAtlas(frame) : initialise(frame);
@@ -67,8 +68,13 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   const bool was_lost = state_ == TrackingState::kLost;
   const SE3 T_w_b_pred = segmentAtPrediction(frame, predictPose_T_w_b(frame));
   const Vec3 v_w_b_pred = frame.v_w_b();
-  frame.setPose_T_w_b(T_w_b_pred);
-  const int matched = trackWithMotionModel(frame, T_w_b_pred);
+  // At rest (zero-velocity update, tracker_standstill.cc) the search starts from the held pose.
+  const bool hold = holdingStill();
+  if (!hold) link_last_frame_after_rest_ = false;
+  const SE3 T_w_b_start = hold ? prev_T_w_b_ : T_w_b_pred;
+  frame.setPose_T_w_b(T_w_b_start);
+  const int matched = trackWithMotionModel(frame, T_w_b_start);
+  if (hold && stillConfirmedByView(frame)) return trackStill(frame, matched, was_lost);
   const LossDecision decision =
       loss_.recover(frame, matched, lossContext(was_lost), *this, T_w_b_pred, v_w_b_pred);
   if (!decision.tracked()) return state_;

@@ -49,6 +49,7 @@ void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, doubl
   init_acceleration_sigma_m_s2_ = acceleration_sigma_m_s2;
   bias_ = bias;
   prev_bias_ = bias;
+  still_bias_ = bias;  // a frame held at rest keeps the new estimate from now on
   g_w_ = g_w;
   // New gravity and biases (first initialisation or a refinement, with the keyframes' velocities
   // re-estimated): the next frame links to the last keyframe instead of the old marginal.
@@ -168,9 +169,12 @@ Tracker::ImuPrediction Tracker::predictWithImu(const map::Frame& frame) {
   }
   // Without the inertial optimisation (the ablation) the keyframe only restarts the prediction
   // when local mapping updated it while tracking; with it, also right after a keyframe, a map
-  // change or an IMU (re)initialisation, and whenever the last frame has no marginal.
+  // change or an IMU (re)initialisation, and whenever the last frame has no marginal. At rest and
+  // on the frame after, an update of the keyframe from before the stop does not restart it: the
+  // held frame's state and its rest prior are better than a link through the whole standstill.
   const bool from_keyframe =
-      keyframe_usable && (optimise ? (keyframe_updated || link_to_keyframe_ || !prev_information_.valid)
+      keyframe_usable &&
+      (optimise ? ((keyframe_updated && !link_last_frame_after_rest_) || link_to_keyframe_ || !prev_information_.valid)
                                    : (keyframe_updated && state_ == TrackingState::kOk));
 
   optim::InertialLink link;

@@ -17,6 +17,7 @@ bool Tracker::needNewKeyFrame() const {
   if (options_.tracking.localisation_only) return false;  // the loaded map is not changed
   if (state_ != TrackingState::kOk || !last_frame_) return false;
   if (frames_since_keyframe_ < options_.min_frames_between_keyframes) return false;
+  if (still_ && options_.tracking.zupt_no_keyframes) return false;  // at rest (issue 32)
   const KeyFrameOptions& kf = options_.keyframe;
   // Before the IMU initialisation the interval shrinks to ImuInit.MinTime / (MinKeyFrames - 1), so
   // the map can initialise the IMU as soon as MinTime of motion is covered.

@@ -89,6 +89,118 @@ TEST(RobotTrajectory, PathIsClosedAndRevisited) {
   EXPECT_LT(closest_return_m, 0.1);
 }
 
+// Stops (issue 32): the pose is held exactly, the slow-down and speed-up are smooth (velocity,
+// acceleration and rate are still the derivatives of the pose), and after the stop the robot goes on
+// along the same path, D + ramp seconds behind.
+TEST(RobotTrajectory, StillIntervalsHoldThePoseAndTheRampsAreSmooth) {
+  TrajectoryParams params;
+  params.stills = {{6.0, 4.0}};
+  const RobotTrajectory still(params, 3), moving(TrajectoryParams{}, 3);
+  const RobotState held = still.state(6.0);
+  for (double t = 6.0; t <= 10.0; t += 0.05) {
+    const RobotState s = still.state(t);
+    EXPECT_EQ((s.T_w_b.translation() - held.T_w_b.translation()).norm(), 0.0) << t;
+    EXPECT_EQ(so3Log(s.T_w_b.rotationMatrix().transpose() * held.T_w_b.rotationMatrix()).norm(), 0.0) << t;
+    EXPECT_EQ(s.v_w_b.norm() + s.a_w_b.norm() + s.omega_b.norm(), 0.0) << t;
+  }
+  const double h = 1e-5;
+  for (double t = 4.93; t < 12.0; t += 0.17) {  // through both ramps
+    const RobotState s = still.state(t);
+    const RobotState sp = still.state(t + h), sm = still.state(t - h);
+    const Vec3 v_num = (sp.T_w_b.translation() - sm.T_w_b.translation()) / (2 * h);
+    const Vec3 a_num = (sp.v_w_b - sm.v_w_b) / (2 * h);
+    const Vec3 w_num = so3Log(sm.T_w_b.rotationMatrix().transpose() * sp.T_w_b.rotationMatrix()) / (2 * h);
+    EXPECT_LT((v_num - s.v_w_b).norm(), 1e-7) << t;
+    EXPECT_LT((a_num - s.a_w_b).norm(), 1e-5) << t;
+    EXPECT_LT((w_num - s.omega_b).norm(), 1e-6) << t;
+  }
+  // Before the slow-down: the moving path; after the speed-up: the moving path D + r = 5 s later.
+  EXPECT_EQ((still.state(4.5).T_w_b.translation() - moving.state(4.5).T_w_b.translation()).norm(), 0.0);
+  EXPECT_LT((still.state(14.0).T_w_b.translation() - moving.state(9.0).T_w_b.translation()).norm(), 1e-12);
+  EXPECT_LT((still.state(14.0).v_w_b - moving.state(9.0).v_w_b).norm(), 1e-12);
+  // A still start: at rest from t = 0, then on along the path 3.5 s behind.
+  params.stills = {{0.0, 3.0}};
+  const RobotTrajectory start(params, 3);
+  EXPECT_EQ((start.state(0.0).T_w_b.translation() - moving.state(0.0).T_w_b.translation()).norm(), 0.0);
+  EXPECT_EQ((start.state(2.9).T_w_b.translation() - moving.state(0.0).T_w_b.translation()).norm(), 0.0);
+  EXPECT_EQ(start.state(1.0).v_w_b.norm(), 0.0);
+  EXPECT_LT((start.state(8.0).T_w_b.translation() - moving.state(4.5).T_w_b.translation()).norm(), 1e-12);
+  params.stills = {{6.0, 4.0}, {10.5, 2.0}};  // within the first stop's speed-up
+  EXPECT_THROW(RobotTrajectory(params, 3), InputError);
+  params.stills = {{0.5, 2.0}};  // no room to slow down
+  EXPECT_THROW(RobotTrajectory(params, 3), InputError);
+}
+
+// While still, the written ground truth is one pose and the IMU measures gravity in the body frame
+// plus bias and white noise: the mean over the stretch agrees within 4 sigma / sqrt(N).
+TEST(Simulator, StillRobotHoldsItsPoseAndTheImuSeesOnlyGravity) {
+  SimOptions o = smallOptions(Scenario::kStatic, 8.0, false);
+  o.stills = {{2.0, 4.0}};
+  Simulator sim(o, sharedRoom());
+  const io::Trajectory gt = sim.groundTruth();
+  const io::StampedPose* first = nullptr;
+  for (const io::StampedPose& pose : gt) {
+    if (pose.t_s < 2.0 || pose.t_s > 6.0) continue;
+    if (first == nullptr) first = &pose;
+    EXPECT_EQ((pose.T_w_x.translation() - first->T_w_x.translation()).norm(), 0.0) << pose.t_s;
+    EXPECT_EQ(so3Log(pose.T_w_x.rotationMatrix().transpose() * first->T_w_x.rotationMatrix()).norm(), 0.0);
+  }
+  ASSERT_NE(first, nullptr);
+  EXPECT_GT((gt.back().T_w_x.translation() - first->T_w_x.translation()).norm(), 0.3);  // moves on
+  const Mat3 R_w_b = sim.trajectory().state(4.0).T_w_b.rotationMatrix();
+  const Vec3 g_b = R_w_b.transpose() * Vec3(0, 0, kGravityMps2);  // specific force at rest
+  Vec3 acc_sum = Vec3::Zero(), gyro_sum = Vec3::Zero();
+  int n = 0;
+  for (const ImuSample& sample : sim.imu()) {
+    if (sample.t_s < 2.0 || sample.t_s > 6.0) continue;
+    acc_sum += sample.acc_mps2 - sample.bias_acc;
+    gyro_sum += sample.gyro_rad_s - sample.bias_gyro;
+    ++n;
+  }
+  ASSERT_GT(n, 700);
+  const double acc_sigma = o.noise_acc * std::sqrt(o.imu_rate_hz) / std::sqrt(n);
+  const double gyro_sigma = o.noise_gyro * std::sqrt(o.imu_rate_hz) / std::sqrt(n);
+  for (int axis = 0; axis < 3; ++axis) {
+    EXPECT_NEAR(acc_sum[axis] / n, g_b[axis], 4.0 * acc_sigma) << axis;
+    EXPECT_NEAR(gyro_sum[axis] / n, 0.0, 4.0 * gyro_sigma) << axis;
+  }
+  EXPECT_GT(std::abs(g_b.x()) + std::abs(g_b.y()), 1e-3);  // a tilted body: not just the z axis
+}
+
+// --occlusion-at: a box crosses the view of the still camera (in from one side, out to the other)
+// with an exact mask, and the regular events overlapping it are dropped.
+TEST(Simulator, CrossingBoxPassesInFrontOfTheStillCamera) {
+  SimOptions o = smallOptions(Scenario::kLtlo, 12.0, true);
+  o.stills = {{2.0, 9.0}};
+  o.occlusion_at_s = {3.0};
+  Simulator sim(o, sharedRoom());
+  const DynamicBox* crossing = nullptr;
+  for (const DynamicBox& b : sim.scene().boxes) {
+    if (b.crosses) crossing = &b;
+    else EXPECT_TRUE(b.t_out_s <= 3.0 || b.t_in_s >= 3.0 + 2.0 + 4.0) << b.t_in_s << " " << b.t_out_s;
+  }
+  ASSERT_NE(crossing, nullptr);
+  EXPECT_EQ(crossing->t_in_s, 3.0);
+  ASSERT_LE(crossing->t_out_s, 11.0);
+  const SE3 T_c_w = sim.T_w_c(3.0).inverse();
+  auto lateralInCamera = [&](double t_s) {  // x of the box centre in the camera frame
+    for (const auto& [index, T_w_o] : sim.scene().dynamicPoses(t_s, sim.trajectory()))
+      if (&sim.scene().boxes[index] == crossing) return (T_c_w * T_w_o).translation().x();
+    ADD_FAILURE() << "crossing box absent at " << t_s;
+    return 0.0;
+  };
+  const double x_in = lateralInCamera(3.05), x_out = lateralInCamera(crossing->t_out_s - 0.05);
+  EXPECT_GT(std::abs(x_in), 1.5);
+  EXPECT_GT(std::abs(x_out), 1.5);
+  EXPECT_LT(x_in * x_out, 0.0);  // entered on one side, left on the other
+  const int held = static_cast<int>(std::lround((crossing->t_in_s + 1.5) * o.fps));
+  const SimFrame frame = sim.renderFrame(held);
+  EXPECT_GT(frame.dynamic_fraction, 0.3);
+  const render::RenderResult dynamic = sim.renderDynamicOnly(held);
+  EXPECT_LE(cv::countNonZero(frame.mask), cv::countNonZero(dynamic.labels));
+  EXPECT_GT(cv::countNonZero(frame.mask), static_cast<int>(0.3 * frame.mask.total()));
+}
+
 // Trapezoidal integration of the noise-free IMU from the ground-truth state at t = 0.
 TEST_F(NoiseFreeSim, ImuIntegrationReproducesGroundTruth) {
   const std::vector<ImuSample>& imu = sim_->imu();

@@ -220,6 +220,31 @@ struct TrackingOptions {
   /// new map; every frame is tracked against the loaded maps, relocalised or re-acquired there
   /// when lost, the IMU carrying the pose in between (Tracking.LocalisationOnly, 0/1)
   bool localisation_only = false;
+  /// Standstill (issue 32). Zero-velocity update (Tracking.Zupt, 0/1): while the IMU's
+  /// zero-velocity test (Tracking.ZuptWindow, Tracking.ZuptThreshold) says the robot is at rest, each
+  /// frame keeps the pose of the first still frame, zero velocity and the biases it had (it is still
+  /// matched, for the record and the next frame); a view full of moving boxes then cannot move it,
+  /// and frames the boxes leave without static matches are not lost. 0: frames are tracked as usual
+  bool zupt = false;
+  /// No keyframe while the IMU says the robot is at rest (Tracking.ZuptNoKeyFrames, 0/1): boxes
+  /// moving through the view lower the overlap and would make one keyframe after another of the
+  /// same place
+  bool zupt_no_keyframes = false;
+  /// Samples the zero-velocity test looks at, s (Tracking.ZuptWindow, [0.1, 5])
+  double zupt_window_s = 0.3;
+  /// Largest mean squared gyro reading (minus the bias) and accelerometer deviation from its window
+  /// mean that count as rest, in units of the white noise variance of one reading at the
+  /// calibration's density (IMU.NoiseGyro / IMU.NoiseAcc squared times IMU.Frequency; 1 at rest)
+  /// (Tracking.ZuptThreshold, [1, 100])
+  double zupt_threshold = 3.0;
+  /// Confirm rest with the static part of the view (Tracking.ZuptVisualCheck, 0/1): a frame whose
+  /// matched static keypoints (at least 10) reproject at the held pose with a median error above
+  /// Tracking.ZuptMaxDisplacement is tracked as usual (the IMU alone cannot tell a slow constant
+  /// motion from rest)
+  bool zupt_visual_check = false;
+  /// Median reprojection error of the static matches at the held pose that still confirms rest, px
+  /// (Tracking.ZuptMaxDisplacement, [0.1, 100])
+  double zupt_max_displacement_px = 2.0;
 
   static TrackingOptions load(const SettingsFile& file);
 };
@@ -410,6 +435,16 @@ struct ImuInitOptions {
   /// initialised IMU (ltlo seed 2: 0.13 -> 0.01-0.03 m, seed 3: 2.2 -> 0.06-0.26 m threaded; static
   /// seeds 1-3 0.3-0.6 mm better). 0: keyframes by KF.* alone (ImuInit.EarlyKeyFrames, 0/1)
   bool early_keyframes = true;
+  /// Initialise the IMU from rest when the map starts still (ImuInit.FromRest, 0/1): once the
+  /// zero-velocity test (Tracking.Zupt*) has held for ImuInit.RestTime since the map's last
+  /// keyframe, tracking makes a keyframe at rest and local mapping takes gravity from the mean
+  /// accelerometer reading, the gyro bias from the mean gyro reading and zero velocity (scale comes
+  /// from depth), instead of waiting for motion. The keyframe is made by a frame held at rest, so it
+  /// needs Tracking.Zupt. 0: the initialisation waits for ImuInit.MinTime of keyframes (motion)
+  bool from_rest = false;
+  /// Rest needed for it, s: the gyro bias from T s of rest has a standard deviation of
+  /// IMU.NoiseGyro / sqrt(T) per axis (ImuInit.RestTime, [0.2, 60])
+  double rest_time_s = 2.0;
   /// inertial-only optimisation iterations (ImuInit.Iterations, [1, 1000])
   int iterations = 10;
   /// Strength of the zero-mean priors on b_g and b_a, counted in IMU readings: each prior has the

@@ -92,6 +92,12 @@ class Frame {
   /// IMU preintegration from the last keyframe / the last frame to this frame (absent without IMU).
   std::optional<imu::Preintegrated> imu_from_last_keyframe;
   std::optional<imu::Preintegrated> imu_from_last_frame;
+  /// The raw IMU samples of the frame interval (stamp order, ends interpolated; empty without IMU),
+  /// for the zero-velocity test.
+  ImuSamples imu_samples;
+  /// Tracking held the frame at rest (zero-velocity update, issue 32); a keyframe made from it
+  /// says so (KeyFrame::atRest), local mapping's IMU initialisation from rest looks for it.
+  bool at_rest = false;
   /// Keyframe this frame was tracked against (invalid before the first keyframe).
   KeyFrameId reference_keyframe;
 

@@ -92,6 +92,9 @@ class KeyFrame {
   void setPreviousKeyFrame(KeyFrameId id);
   void setNextKeyFrame(KeyFrameId id);
   std::optional<imu::Preintegrated> imuFromPrevious() const;
+  /// Made from a frame tracking held at rest (Frame::at_rest): the IMU link from the previous
+  /// keyframe was then a standstill, if the previous keyframe is at rest too or was the map's first.
+  bool atRest() const { return at_rest_; }
   void setImuFromPrevious(std::optional<imu::Preintegrated> preintegration);
 
   // ---- observations: keypoint index -> map point (written through Map) ----
@@ -174,6 +177,7 @@ class KeyFrame {
   KeyFrameId previous_;
   KeyFrameId next_;
   std::optional<imu::Preintegrated> imu_from_previous_;
+  bool at_rest_ = false;
   std::vector<MapPointId> map_points_;
   std::unordered_map<KeyFrameId, int> connections_;
   std::vector<std::pair<KeyFrameId, int>> ordered_covisibles_;  ///< connections_ sorted best first

@@ -30,6 +30,7 @@ struct DynamicBox {
   double distance_m = 1.0;  ///< camera-to-near-face distance along the heading while held
   double lateral_m = 0.0;   ///< lateral offset while held (+ = left)
   double side = 1.0;        ///< enters from +1 left / -1 right
+  bool crosses = false;     ///< leaves to the other side (-side) instead of back to `side`
   bool carried = false;     ///< rigidly attached to the (vibrating) body while held
   double sway_phase = 0.0;  ///< phase of the small sway of a pushed box
 };
@@ -54,6 +55,8 @@ struct Scene {
   static Scene buildRoom(const std::string& texture_dir);
   /// Replaces `boxes` with the scenario's occlusion schedule for options.seed and duration.
   void scheduleOcclusions(const SimOptions& options);
+  /// Adds the crossing boxes of options.occlusion_at_s (called by scheduleOcclusions).
+  void addCrossingEvents(const SimOptions& options);
 
   /// Poses of the boxes present at t_s: (index into boxes, T_w_o).
   std::vector<std::pair<int, SE3>> dynamicPoses(double t_s,

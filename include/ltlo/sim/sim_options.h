@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "ltlo/core/calib.h"
+#include "ltlo/sim/robot_trajectory.h"
 #include "ltlo/sim/sensor_profile.h"
 
 namespace ltlo {
@@ -85,6 +86,14 @@ struct SimOptions {
 
   // Forced sensor failures (command line only; ground truth and masks are unaffected)
   std::vector<SensorOutage> outages;
+
+  // Standstill (command line only, issue 32)
+  /// --still START,DURATION: the robot holds its pose (RobotTrajectory's slow-down and speed-up
+  /// ramps around it); a still start is --still 0,DURATION.
+  std::vector<StillInterval> stills;
+  /// --occlusion-at T: a box crosses the view at T (enters from one side, is held 2-4 s, leaves to
+  /// the other side), drawn from its own random stream; regular events overlapping it are dropped.
+  std::vector<double> occlusion_at_s;
 
   // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
   // noise_free, which turns off noise, biases, holes and exposure jitter only.

@@ -50,6 +50,7 @@
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/atlas_file.h"
 #include "ltlo/map/ids.h"
+#include "ltlo/mapping/local_mapper.h"
 #include "ltlo/system/run_records.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/tracker.h"
@@ -155,6 +156,9 @@ class System {
   /// the caller's measurement of the run.
   RunReport report(double wall_s) const;
   tracking::TrackingState state() const;
+  /// Local mapping's IMU estimate (gravity in the map frame, biases; not initialised without the
+  /// IMU). Any thread.
+  mapping::ImuState imuState() const;
 
   /// Writes the atlas (every map, keyframe and point, and the IMU state) to `path` (atomic:
   /// written as path.part, then renamed), for a later run's load_atlas_path. Call after shutdown().

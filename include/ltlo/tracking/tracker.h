@@ -386,6 +386,30 @@ class Tracker : private RecoverySteps {
   /// The previous frame's (the link's "last frame").
   StateInformation prev_information_;
   imu::ImuBias prev_bias_;
+
+  // ---- standstill (tracker_standstill.cc, issue 32) ----
+  /// Feeds the frame's IMU samples to the zero-velocity test; sets still_ and, on the first still
+  /// frame, the bias held while still.
+  void updateStandstill(const map::Frame& frame);
+  /// The frame is held at rest (Tracking.Zupt, the test says rest, tracking has a pose).
+  bool holdingStill() const;
+  /// Tracking.ZuptVisualCheck: the frame's static matches agree with the held pose (true when off
+  /// or when fewer than 10 static matches leave the view without a say).
+  bool stillConfirmedByView(const map::Frame& frame);
+  /// The zero-velocity update: the frame keeps the previous frame's pose (corrected with it by map
+  /// changes), zero velocity and the held bias, is tracked whatever its matches, and makes the rest
+  /// keyframe when due (TrackerOptions::rest_keyframe); never another keyframe.
+  TrackingState trackStill(map::Frame& frame, int inliers, bool was_lost);
+  bool restKeyFrameDue(const map::Frame& frame) const;
+
+  std::optional<imu::ZeroVelocityDetector> zero_velocity_;
+  bool still_ = false;               ///< the zero-velocity test says rest at this frame
+  double still_from_t_s_ = 0.0;      ///< oldest sample of the window that first said rest
+  imu::ImuBias still_bias_;          ///< the bias held while still
+  bool rest_keyframe_made_ = false;  ///< the rest keyframe for the IMU initialisation was made
+  /// Held at rest at the last frame or the one before: the IMU links to the last frame (its state
+  /// and the rest prior), not to the keyframe from before the stop.
+  bool link_last_frame_after_rest_ = false;
 };
 
 }  // namespace ltlo::tracking

@@ -2,6 +2,7 @@
 /// TrackerOptions: the settings of the Tracker (tracker.h) and of its loss policy
 /// (loss_recovery.h), and the guided search of the re-acquisition they give.
 #include "ltlo/core/settings.h"
+#include "ltlo/imu/zero_velocity_detector.h"
 #include "ltlo/place/guided_place_match.h"
 #include "ltlo/tracking/relocaliser.h"
 
@@ -62,6 +63,16 @@ struct TrackerOptions {
   /// tracking.localisation_only no keyframes are made for local mapping to estimate the biases on,
   /// so the tracker estimates them itself over the frames the map localised (iterations, bias priors).
   ImuInitOptions imu_init;
+  // ---- standstill (issue 32; tracker_standstill.cc) ----
+  /// Run the IMU's zero-velocity test on every frame (System: with the IMU, when Tracking.Zupt,
+  /// Tracking.ZuptNoKeyFrames or ImuInit.FromRest is on); tracking.zupt* say what rest changes.
+  bool zero_velocity_test = false;
+  /// The test's window, threshold and the calibration's noise densities and rate.
+  imu::ZeroVelocityOptions zero_velocity;
+  /// Before the IMU initialisation, a keyframe at rest once the test has held for rest_time_s since
+  /// the last keyframe (ImuInit.FromRest, ImuInit.RestTime): local mapping initialises from it.
+  bool rest_keyframe = false;
+  double rest_time_s = 2.0;
 };
 
 /// The guided search of the re-acquisition (Tracking.Reacquire*, the local-map window floor and
