@@ -136,6 +136,7 @@ struct ImuInitGraph {
     gyro_bias = graph.addVertex(std::make_unique<VertexGyroBias>(2 * n, start.bias.b_g));
     acc_bias = graph.addVertex(std::make_unique<VertexAccBias>(2 * n + 1, start.bias.b_a));
     gravity = graph.addVertex(std::make_unique<VertexGravityDir>(2 * n + 2, start.R_w_g));
+    if (problem.known_R_w_g) gravity->setFixed(true);
     for (int k = 0; k + 1 < n; ++k) {
       auto edge = std::make_unique<EdgeInertialGravity>(problem.pims[static_cast<size_t>(k)], problem.gravity_m_s2);
       edge->setVertex(0, poses[static_cast<size_t>(k)]);
@@ -164,6 +165,7 @@ struct ImuInitGraph {
 
 ImuInitResult initializeImu(const ImuInitProblem& problem) {
   ImuInitResult result = linearImuInit(problem);
+  if (problem.known_R_w_g) result.R_w_g = *problem.known_R_w_g;
   const int n = static_cast<int>(problem.T_w_b.size());
   ImuInitGraph init(problem, result);
   sparse_opt::Options options;
@@ -218,6 +220,8 @@ Mat3 inertialAccelerationCovariance(const ImuInitProblem& problem, const ImuInit
       }
     }
   }
+  // A known gravity (ImuInitProblem::known_R_w_g) is held: no uncertainty in its direction.
+  if (problem.known_R_w_g) H.block<2, 2>(gravity_at, gravity_at) += 1e12 * Mat2::Identity();
   const Eigen::LDLT<MatX> ldlt(H);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Mat3::Constant(std::numeric_limits<double>::infinity());
   // Joint covariance of (b_a, gravity direction): the two trade off (a tilt of gravity reads like a

@@ -6,9 +6,9 @@
 // behind a box. With local mapping, the run's own keyframes refine the biases (the IMU
 // refinements); localisation only makes no keyframes, so the tracker estimates them itself: the
 // frames the map localised become nodes of a sliding window, linked by the IMU between them, and
-// the inertial-only optimisation of the IMU initialisation (optim::initializeImu: velocities, one
-// bias pair and gravity, the nodes' poses held) runs over it once a second. Its result replaces the
-// tracker's biases and gravity as a refinement from local mapping would.
+// the inertial-only optimisation of the IMU initialisation (optim::initializeImu: velocities and one
+// bias pair, the nodes' poses and the loaded map's gravity held) runs over it once a second. Its
+// biases replace the tracker's as a refinement from local mapping would.
 #include <algorithm>
 #include <cmath>
 
@@ -79,6 +79,9 @@ void Tracker::updateLocalisationImu(const map::Frame& frame, bool map_localised)
   problem.gyro_bias_prior_information = prior.gyro;
   problem.acc_bias_prior_information = prior.acc;
   problem.iterations = options_.imu_init.iterations;
+  // Gravity is the loaded map's (its run's whole window): held, so the few seconds of localised
+  // frames only have to tell the biases, and a horizontal b_a cannot hide in a tilt.
+  problem.known_R_w_g = Quat::FromTwoVectors(Vec3(0.0, 0.0, -1.0), g_w_.normalized()).toRotationMatrix();
   const optim::ImuInitResult result = optim::initializeImu(problem);
   if (!finite(result)) {
     log::warn("localisation only: the IMU estimate at t = ", frame.t_s(), " s is not finite; biases kept");
@@ -86,8 +89,7 @@ void Tracker::updateLocalisationImu(const map::Frame& frame, bool map_localised)
   }
   log::info("localisation only: IMU over ", window.t_s.size(), " localised frames (", span_s, " s): b_a = (",
             result.bias.b_a.transpose(), ") m/s^2, b_g = (", result.bias.b_g.transpose(), ") rad/s, ",
-            std::acos(std::clamp(result.g_w.normalized().dot(g_w_.normalized()), -1.0, 1.0)) * 180.0 / M_PI,
-            " deg of gravity from the previous");
+            "gravity held at the loaded map's");
   setImuInitialised(result.bias, result.g_w, optim::accelerationSigma(result.acceleration_covariance_w));
   // The newest node is this frame: the next frame links to it with the estimate's velocity.
   prev_v_w_b_ = result.v_w_b.back();

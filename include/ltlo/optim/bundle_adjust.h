@@ -5,6 +5,7 @@
 /// map/; the caller copies states in and writes results back under its own locks.
 #include <atomic>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <sparse_opt/graph.h>
@@ -146,6 +147,9 @@ struct ImuInitProblem {
   double gyro_bias_prior_information = 1e2;
   double acc_bias_prior_information = 1e2;
   int iterations = 20;
+  /// Gravity already known (a loaded map's, estimated over a longer window): R_w_g held at it, so
+  /// the window only estimates velocities and biases (a horizontal b_a no longer trades with a tilt).
+  std::optional<Mat3> known_R_w_g;
 };
 
 struct ImuInitResult {
