@@ -46,6 +46,7 @@ TrackingState Tracker::startInLoadedAtlas(map::Frame& frame) {
   const TrackingState state = initialise(frame);
   if (state == TrackingState::kOk) {
     loaded_start_pending_ = false;
+    loaded_start_new_map_ = true;
     log::warn("loaded atlas: not relocalised in ", waited_s, " s (Tracking.LoadedAtlasNewMapAfter = ",
               new_map_after_s, " s): new map ", created.id(), " at t = ", frame.t_s(),
               " s, merged with a loaded map when the loop closer recognises one");

@@ -82,9 +82,10 @@ class AtlasSessionEndToEnd : public EndToEndSuite {
   }
 
   static SessionRun run(const std::string& dir, const std::string& load_atlas, const std::string& save_atlas,
-                        bool localisation_only = false) {
+                        bool localisation_only = false, double new_map_after_s = 10.0) {
     Settings settings = settingsFor(dir);
     settings.tracking.localisation_only = localisation_only;
+    settings.tracking.loaded_atlas_new_map_after_s = new_map_after_s;
     io::SequenceReaderOptions reader_options;
     reader_options.calib_override = settings.calib;
     reader_options.imu_margin_s = 0.06;  // as rgbd_inertial with the time-offset estimate
@@ -154,6 +155,22 @@ TEST_F(AtlasSessionEndToEnd, ASecondRunRelocalisesInTheFirstRunsWorld) {
   EXPECT_LT(first_error_m, 0.02);
   EXPECT_LT(ate.error_m.rmse, 0.02);
   EXPECT_GT(c.keyframes, c.keyframes_loaded);  // it extends the loaded map
+}
+
+// Not relocalised in time (here: at once, Tracking.LoadedAtlasNewMapAfter = 0), the run starts its own
+// map; the loop closer recognises the loaded map and merges the new one into it, so the final
+// trajectory is in run 1's world again.
+TEST_F(AtlasSessionEndToEnd, ANewMapStartedBesideTheLoadedOneIsMergedIntoIt) {
+  const SessionRun second = run(sequence("room_s2", sim::Scenario::kStatic, 2, 6.0), atlasPath(), "", false, 0.0);
+  const SystemCounts& c = second.report.counts;
+  const eval::AteResult ate = ateInFirstWorld(second);
+  log::info("atlas session: new map at once: ", c.maps_created, " created, ", c.merges, " merge(s), ", c.maps,
+            " map(s) at the end, ATE in run 1's world ", ate.error_m.rmse, " m");
+  EXPECT_EQ(c.maps_created, 1);
+  EXPECT_GE(c.merges, 1);
+  EXPECT_EQ(c.maps, 1);
+  EXPECT_EQ(c.frames_with_pose, second.frames);
+  EXPECT_LT(ate.error_m.rmse, 0.02);
 }
 
 TEST_F(AtlasSessionEndToEnd, LocalisationOnlyAddsNothingToTheLoadedMap) {

@@ -158,7 +158,7 @@ class Tracker : private RecoverySteps {
   /// frame's pose are consistent (the frame's pose was estimated against the map holding it).
   std::shared_ptr<map::KeyFrame> referenceKeyFramePtr() const { return reference_kf_ptr_; }
   /// Maps started by the loss policy (the first map is not counted).
-  int numMapsCreated() const { return loss_.mapsCreated(); }
+  int numMapsCreated() const { return loss_.mapsCreated() + (loaded_start_new_map_ ? 1 : 0); }
   /// Declares tracking lost (the next frame goes through the lost path: motion model with wide
   /// windows, relocalisation). For tests and resets; no-op before initialisation.
   void forceLost();
@@ -317,6 +317,7 @@ class Tracker : private RecoverySteps {
   /// time of its first frame.
   bool loaded_start_pending_ = false;
   std::optional<double> loaded_start_t_s_;
+  bool loaded_start_new_map_ = false;  ///< such a run started a new map (not relocalised in time)
   /// Such a run's velocity is unknown when its first frame is relocalised: an IMU state handed over
   /// before it is known (the loaded atlas's, setImuInitialised) waits in deferred_imu_ until
   /// estimateStartVelocity() has fitted the velocity to kStartVelocityBaselineS of tracked frames.
