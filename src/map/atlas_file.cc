@@ -41,13 +41,6 @@ std::string hex32(std::uint32_t v) {
   return text;
 }
 
-std::string exact(double v) {
-  std::ostringstream os;
-  os.precision(17);
-  os << v;
-  return os.str();
-}
-
 // ---- build and imu sections ----
 
 void writeBuildSection(const AtlasBuildInfo& build, ByteWriter& out) {
@@ -308,26 +301,6 @@ AtlasFileSummary summarise(const ParsedFile& parsed, std::uint64_t file_bytes) {
   return summary;
 }
 
-/// BoW of the keyframe's current static keypoints, as local mapping computes it (feature indices
-/// are keypoint indices, direct index at tree depth 2, Frame::computeBow's layout).
-void rebuildBow(KeyFrame& kf, const bow::Vocabulary& vocabulary) {
-  constexpr int kFeatureDepth = 2;
-  const std::vector<int> indices = kf.staticKeypoints();
-  std::vector<features::Descriptor> descriptors;
-  descriptors.reserve(indices.size());
-  for (const int i : indices) descriptors.push_back(kf.descriptors()[static_cast<std::size_t>(i)]);
-  bow::BowVector bow_vector;
-  bow::FeatureVector by_position;
-  vocabulary.transform(descriptors, &bow_vector, &by_position, kFeatureDepth);
-  bow::FeatureVector feature_vector;
-  for (auto& [node, positions] : by_position) {
-    std::vector<std::uint32_t>& keypoints = feature_vector[node];
-    keypoints.reserve(positions.size());
-    for (const std::uint32_t position : positions) keypoints.push_back(static_cast<std::uint32_t>(indices[position]));
-  }
-  kf.setBow(std::move(bow_vector), std::move(feature_vector));
-}
-
 }  // namespace
 
 AtlasFileError::AtlasFileError(const std::string& file, const std::string& section, std::uint64_t offset,
@@ -343,6 +316,7 @@ std::string mapSettingsSummary(const SensorCalib& calib, int orb_levels, double 
   const LensDistortion& lens = calib.camera.lens;
   const Quat& q = calib.imu.T_b_c.quaternion();
   const Vec3& t = calib.imu.T_b_c.translation();
+  const auto exact = exactNumberText;  // every bit of each value shows
   std::ostringstream os;
   os << "camera fx=" << exact(camera.fx()) << " fy=" << exact(camera.fy()) << " cx=" << exact(camera.cx())
      << " cy=" << exact(camera.cy()) << " width=" << camera.width() << " height=" << camera.height() << "\n";
@@ -415,7 +389,9 @@ LoadedAtlas loadAtlasFromBytes(const std::string& bytes, const std::string& name
   for (const auto& [id, map] : parsed.restore.maps) max_map = max_map.valid() ? std::max(max_map, id) : id;
   for (const auto& [id, kf] : parsed.restore.keyframes) {
     max_keyframe = max_keyframe.valid() ? std::max(max_keyframe, id) : id;
-    rebuildBow(*kf, vocabulary);
+    // As local mapping computes it when Gamma changes.
+    auto [bow_vector, feature_vector] = staticKeypointsBow(*kf, vocabulary);
+    kf->setBow(std::move(bow_vector), std::move(feature_vector));
     atlas.keyFrameDatabase().add(kf);
   }
   for (const auto& [id, point] : parsed.restore.points) max_point = max_point.valid() ? std::max(max_point, id) : id;

@@ -20,13 +20,6 @@ std::array<std::uint32_t, 256> makeCrcTable() {
   return table;
 }
 
-std::string formatValue(double v) {
-  std::ostringstream os;
-  os.precision(17);
-  os << v;
-  return os.str();
-}
-
 }  // namespace
 
 std::uint32_t crc32(const char* data, std::size_t size, std::uint32_t crc) {
@@ -124,14 +117,14 @@ double ByteReader::f64(const char* what) {
 float ByteReader::finiteF32(const char* what) {
   const std::uint64_t offset = fileOffset();
   const float v = f32(what);
-  if (!std::isfinite(v)) failAt(offset, std::string(what) + " is not finite", formatValue(v));
+  if (!std::isfinite(v)) failAt(offset, std::string(what) + " is not finite", exactNumberText(v));
   return v;
 }
 
 double ByteReader::finiteF64(const char* what) {
   const std::uint64_t offset = fileOffset();
   const double v = f64(what);
-  if (!std::isfinite(v)) failAt(offset, std::string(what) + " is not finite", formatValue(v));
+  if (!std::isfinite(v)) failAt(offset, std::string(what) + " is not finite", exactNumberText(v));
   return v;
 }
 
@@ -139,7 +132,8 @@ double ByteReader::f64InRange(const char* what, double min, double max) {
   const std::uint64_t offset = fileOffset();
   const double v = finiteF64(what);
   if (v < min || v > max) {
-    failAt(offset, std::string(what) + " out of [" + formatValue(min) + ", " + formatValue(max) + "]", formatValue(v));
+    failAt(offset, std::string(what) + " out of [" + exactNumberText(min) + ", " + exactNumberText(max) + "]",
+           exactNumberText(v));
   }
   return v;
 }
@@ -173,7 +167,7 @@ SE3 ByteReader::se3(const char* what) {
   const double x = finiteF64(what), y = finiteF64(what), z = finiteF64(what), w = finiteF64(what);
   const Quat q(w, x, y, z);
   if (std::abs(q.norm() - 1.0) > 1e-6) {
-    failAt(offset, std::string(what) + ": rotation is not a unit quaternion", "|q| = " + formatValue(q.norm()));
+    failAt(offset, std::string(what) + ": rotation is not a unit quaternion", "|q| = " + exactNumberText(q.norm()));
   }
   const Vec3 t = vec3(what);
   return SE3::fromUnitQuaternion(q, t);
@@ -209,6 +203,13 @@ std::size_t ByteReader::count(const char* what, std::size_t min_item_bytes) {
 
 void ByteReader::expectEnd() {
   if (remaining() != 0) fail("bytes left after the last field", std::to_string(remaining()));
+}
+
+std::string exactNumberText(double v) {
+  std::ostringstream os;
+  os.precision(17);
+  os << v;
+  return os.str();
 }
 
 }  // namespace ltlo::map

@@ -23,6 +23,8 @@ std::uint32_t crc32(const char* data, std::size_t size, std::uint32_t crc = 0);
 /// FNV-1a 64 of the bytes.
 std::uint64_t fnv1a64(const char* data, std::size_t size);
 inline std::uint64_t fnv1a64(const std::string& text) { return fnv1a64(text.data(), text.size()); }
+/// A double with 17 significant digits (every bit shows): error values and the settings summary.
+std::string exactNumberText(double v);
 
 /// Appends little-endian values to a byte string.
 class ByteWriter {

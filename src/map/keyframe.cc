@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "bow/vocabulary.h"
 #include "ltlo/core/assert.h"
 
 namespace ltlo::map {
@@ -322,6 +323,25 @@ SE3 latestPose_T_w_b(const KeyFrame& kf) {
     current = hold.get();
   }
   return current->T_w_b() * T_last_kf;
+}
+
+std::pair<bow::BowVector, bow::FeatureVector> staticKeypointsBow(const KeyFrame& kf,
+                                                                const bow::Vocabulary& vocabulary) {
+  constexpr int kFeatureDepth = 2;
+  const std::vector<int> indices = kf.staticKeypoints();
+  std::vector<features::Descriptor> descriptors;
+  descriptors.reserve(indices.size());
+  for (const int i : indices) descriptors.push_back(kf.descriptors()[static_cast<std::size_t>(i)]);
+  bow::BowVector bow_vector;
+  bow::FeatureVector by_position;
+  vocabulary.transform(descriptors, &bow_vector, &by_position, kFeatureDepth);
+  bow::FeatureVector feature_vector;
+  for (auto& [node, positions] : by_position) {
+    std::vector<std::uint32_t>& keypoints = feature_vector[node];
+    keypoints.reserve(positions.size());
+    for (const std::uint32_t position : positions) keypoints.push_back(static_cast<std::uint32_t>(indices[position]));
+  }
+  return {std::move(bow_vector), std::move(feature_vector)};
 }
 
 }  // namespace ltlo::map

@@ -22,26 +22,6 @@ double angleDeg(const Vec3& a, const Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
 }
 
-/// BoW of the keyframe's current static keypoints (as Frame::computeBow: feature indices are
-/// keypoint indices, direct index at tree depth 2).
-std::pair<bow::BowVector, bow::FeatureVector> staticBow(const map::KeyFrame& kf, const bow::Vocabulary& vocabulary) {
-  constexpr int kFeatureDepth = 2;
-  const std::vector<int> indices = kf.staticKeypoints();
-  std::vector<features::Descriptor> descriptors;
-  descriptors.reserve(indices.size());
-  for (const int i : indices) descriptors.push_back(kf.descriptors()[static_cast<std::size_t>(i)]);
-  bow::BowVector bow_vector;
-  bow::FeatureVector by_position;
-  vocabulary.transform(descriptors, &bow_vector, &by_position, kFeatureDepth);
-  bow::FeatureVector feature_vector;
-  for (auto& [node, positions] : by_position) {
-    std::vector<std::uint32_t>& keypoints = feature_vector[node];
-    keypoints.reserve(positions.size());
-    for (const std::uint32_t position : positions) keypoints.push_back(static_cast<std::uint32_t>(indices[position]));
-  }
-  return {std::move(bow_vector), std::move(feature_vector)};
-}
-
 }  // namespace
 
 struct LocalMapper::Impl {
@@ -262,7 +242,7 @@ void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<m
   delta.dynamic_points += stats.dynamic_points_erased;
   for (const std::shared_ptr<map::KeyFrame>& changed : stats.static_set_changed) {
     if (options.vocabulary == nullptr || changed->isBad()) continue;
-    auto [bow_vector, feature_vector] = staticBow(*changed, *options.vocabulary);
+    auto [bow_vector, feature_vector] = map::staticKeypointsBow(*changed, *options.vocabulary);
     changed->setBow(std::move(bow_vector), std::move(feature_vector));
     atlas.keyFrameDatabase().replace(changed);
     ++delta.bow_updates;

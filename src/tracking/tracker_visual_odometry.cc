@@ -48,8 +48,8 @@ int Tracker::trackWithOdometry(map::Frame& frame, int map_inliers) {
   if (options_.tracking.reacquire && last_frame_) {
     const double sigma_m = kOdometrySigmaM + kOdometrySigmaPerSecondM * (frame.t_s() - last_map_localised_t_s_);
     // A search that fails leaves the frame as the map's own search left it.
-    const std::vector<map::MapPointId> matches_before = frame.map_points;
-    const std::vector<bool> outliers_before = frame.outliers;
+    odometry_matches_before_.assign(frame.map_points.begin(), frame.map_points.end());
+    odometry_outliers_before_.assign(frame.outliers.begin(), frame.outliers.end());
     const SE3 T_w_b_before = frame.T_w_b();
     const Vec3 v_w_b_before = frame.v_w_b();
     const imu::ImuBias bias_before = frame.bias();
@@ -61,8 +61,8 @@ int Tracker::trackWithOdometry(map::Frame& frame, int map_inliers) {
       frame_map_localised_ = true;
       return reacquired;
     }
-    frame.map_points = matches_before;
-    frame.outliers = outliers_before;
+    frame.map_points.assign(odometry_matches_before_.begin(), odometry_matches_before_.end());
+    frame.outliers.assign(odometry_outliers_before_.begin(), odometry_outliers_before_.end());
     frame.setPose_T_w_b(T_w_b_before);
     frame.setVelocity(v_w_b_before);
     frame.setBias(bias_before);
@@ -73,8 +73,10 @@ int Tracker::trackWithOdometry(map::Frame& frame, int map_inliers) {
   const SE3 T_c_w = frame.T_w_c().inverse();
   const PinholeCamera& camera = frame.camera();
   // Best temporary point per keypoint (a keypoint matched to the map keeps that match).
-  std::vector<int> best_point(static_cast<std::size_t>(frame.numKeypoints()), -1);
-  std::vector<int> best_distance(static_cast<std::size_t>(frame.numKeypoints()), 257);
+  std::vector<int>& best_point = odometry_best_point_;
+  std::vector<int>& best_distance = odometry_best_distance_;
+  best_point.assign(static_cast<std::size_t>(frame.numKeypoints()), -1);
+  best_distance.assign(static_cast<std::size_t>(frame.numKeypoints()), 257);
   for (std::size_t j = 0; j < odometry_points_.size(); ++j) {
     const OdometryPoint& point = odometry_points_[j];
     const Vec3 p_c = T_c_w * point.p_w;

@@ -32,9 +32,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using test_support::EndToEndSuite;
-using test_support::sourceDir;
-
-constexpr double kFps = 15.0;
+using test_support::shortRunSettings;
+using test_support::shortRunSimOptions;
 
 struct SessionRun {
   int frames = 0;
@@ -60,30 +59,14 @@ class AtlasSessionEndToEnd : public EndToEndSuite {
   static std::string sequence(const std::string& name, sim::Scenario scenario, std::uint64_t seed, double seconds) {
     const fs::path dir = root() / name;
     if (!fs::exists(dir / "groundtruth.txt")) {
-      sim::SimOptions options;
-      options.width_px = 320;
-      options.height_px = 240;
-      options.scenario = scenario;
-      options.seed = seed;
-      options.duration_s = seconds;
-      options.fps = kFps;
-      sim::writeSequence(options, dir.string(), 0);
+      sim::writeSequence(shortRunSimOptions(scenario, seed, seconds), dir.string(), 0);
     }
     return dir.string();
   }
 
-  static Settings settingsFor(const std::string& dir) {
-    Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(),
-                                       (fs::path(dir) / "calib.yaml").string());
-    settings.orb.num_features = 500;  // 320x240: half the VGA budget
-    settings.keyframe.max_interval_s = 0.5;
-    settings.imu_init.min_keyframes = 8;
-    return settings;
-  }
-
   static SessionRun run(const std::string& dir, const std::string& load_atlas, const std::string& save_atlas,
                         bool localisation_only = false, double new_map_after_s = 10.0) {
-    Settings settings = settingsFor(dir);
+    Settings settings = shortRunSettings(dir);
     settings.tracking.localisation_only = localisation_only;
     settings.tracking.loaded_atlas_new_map_after_s = new_map_after_s;
     io::SequenceReaderOptions reader_options;
@@ -200,7 +183,7 @@ TEST_F(AtlasSessionEndToEnd, ADamagedAtlasStopsTheRunNamingTheFile) {
   options.threaded = false;
   options.load_atlas_path = damaged;
   try {
-    System system(settingsFor(dir), vocabulary(), options);
+    System system(shortRunSettings(dir), vocabulary(), options);
     FAIL() << "a truncated atlas was loaded";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(damaged), std::string::npos) << e.what();
@@ -208,7 +191,7 @@ TEST_F(AtlasSessionEndToEnd, ADamagedAtlasStopsTheRunNamingTheFile) {
 }
 
 TEST_F(AtlasSessionEndToEnd, LocalisationOnlyWithoutAnAtlasIsASettingsError) {
-  Settings settings = settingsFor(sequence("room_s2", sim::Scenario::kStatic, 2, 6.0));
+  Settings settings = shortRunSettings(sequence("room_s2", sim::Scenario::kStatic, 2, 6.0));
   settings.tracking.localisation_only = true;
   SystemOptions options;
   options.threaded = false;

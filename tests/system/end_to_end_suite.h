@@ -6,12 +6,15 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <string>
 
 #include "bow/vocabulary.h"
+#include "ltlo/core/settings.h"
+#include "ltlo/sim/sim_options.h"
 
 namespace ltlo::test_support {
 
@@ -19,6 +22,34 @@ namespace ltlo::test_support {
 inline std::filesystem::path sourceDir() {
   const char* root = std::getenv("LTLO_SOURCE_DIR");
   return root != nullptr ? std::filesystem::path(root) : std::filesystem::current_path();
+}
+
+/// Frame rate of the short end-to-end sequences: half the simulation and run time of 30 Hz, twice
+/// the motion between frames.
+inline constexpr double kShortRunFps = 15.0;
+
+/// The simulator's options for a short end-to-end sequence: 320x240 at kShortRunFps.
+inline sim::SimOptions shortRunSimOptions(sim::Scenario scenario, std::uint64_t seed, double seconds) {
+  sim::SimOptions options;
+  options.width_px = 320;
+  options.height_px = 240;
+  options.scenario = scenario;
+  options.seed = seed;
+  options.duration_s = seconds;
+  options.fps = kShortRunFps;
+  return options;
+}
+
+/// The settings of a run on such a sequence: config_yaml/synthetic.yaml with the sequence's
+/// calib.yaml, half the VGA feature budget (320x240), keyframes twice a second and the IMU
+/// initialised after 8 of them (about 4 s).
+inline Settings shortRunSettings(const std::string& sequence_dir) {
+  Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(),
+                                     (std::filesystem::path(sequence_dir) / "calib.yaml").string());
+  settings.orb.num_features = 500;
+  settings.keyframe.max_interval_s = 0.5;
+  settings.imu_init.min_keyframes = 8;
+  return settings;
 }
 
 /// Base of the end-to-end fixtures. A derived suite calls createSuiteResources(prefix) from its

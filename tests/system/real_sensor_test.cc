@@ -24,9 +24,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using test_support::EndToEndSuite;
-using test_support::sourceDir;
+using test_support::shortRunSettings;
+using test_support::shortRunSimOptions;
 
-constexpr double kFps = 15.0;
+constexpr double kFps = test_support::kShortRunFps;
 constexpr double kSeconds = 10.0;
 
 struct RunResult {
@@ -43,13 +44,7 @@ class RealSensorEndToEnd : public EndToEndSuite {
   static std::string sequence(const std::string& name, std::uint64_t seed, const sim::SensorProfile& sensor) {
     const fs::path dir = root() / name;
     if (!fs::exists(dir / "groundtruth.txt")) {
-      sim::SimOptions options;
-      options.width_px = 320;
-      options.height_px = 240;
-      options.scenario = sim::Scenario::kStatic;
-      options.seed = seed;
-      options.duration_s = kSeconds;
-      options.fps = kFps;
+      sim::SimOptions options = shortRunSimOptions(sim::Scenario::kStatic, seed, kSeconds);
       options.sensor = sensor;
       sim::writeSequence(options, dir.string(), 0);
     }
@@ -58,11 +53,7 @@ class RealSensorEndToEnd : public EndToEndSuite {
 
   /// `ignore_lens`: the calibration's lens is dropped (what today's pinhole-only path did).
   static RunResult run(const std::string& dir, bool estimate_offset = true, bool ignore_lens = false) {
-    Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(),
-                                       (fs::path(dir) / "calib.yaml").string());
-    settings.orb.num_features = 500;  // 320x240: half the VGA budget
-    settings.keyframe.max_interval_s = 0.5;
-    settings.imu_init.min_keyframes = 8;
+    Settings settings = shortRunSettings(dir);
     settings.local_mapping.estimate_time_offset = estimate_offset;
     if (ignore_lens) settings.calib.camera.lens = LensDistortion();
     io::SequenceReaderOptions reader_options;

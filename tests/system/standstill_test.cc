@@ -24,9 +24,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using test_support::EndToEndSuite;
-using test_support::sourceDir;
-
-constexpr double kFps = 15.0;
+using test_support::shortRunSettings;
+using test_support::shortRunSimOptions;
 
 double angleDeg(const Vec3& a, const Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
@@ -57,13 +56,7 @@ class StandstillEndToEnd : public EndToEndSuite {
                               const std::vector<double>& crossings) {
     const fs::path dir = root() / name;
     if (!fs::exists(dir / "groundtruth.txt")) {
-      sim::SimOptions options;
-      options.width_px = 320;
-      options.height_px = 240;
-      options.scenario = sim::Scenario::kStatic;
-      options.seed = 1;
-      options.duration_s = seconds;
-      options.fps = kFps;
+      sim::SimOptions options = shortRunSimOptions(sim::Scenario::kStatic, 1, seconds);
       options.stills = stills;
       options.occlusion_at_s = crossings;
       sim::writeSequence(options, dir.string(), 0);
@@ -71,14 +64,7 @@ class StandstillEndToEnd : public EndToEndSuite {
     return dir.string();
   }
 
-  static Settings settings(const std::string& dir) {
-    Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(),
-                                       (fs::path(dir) / "calib.yaml").string());
-    settings.orb.num_features = 500;  // 320x240: half the VGA budget
-    settings.keyframe.max_interval_s = 0.5;
-    settings.imu_init.min_keyframes = 8;
-    return settings;
-  }
+  static Settings settings(const std::string& dir) { return shortRunSettings(dir); }
 };
 
 TEST_F(StandstillEndToEnd, AStillStartInitialisesTheImuFromRest) {

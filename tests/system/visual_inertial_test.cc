@@ -29,10 +29,10 @@ namespace {
 namespace fs = std::filesystem;
 
 using test_support::EndToEndSuite;
-using test_support::sourceDir;
+using test_support::shortRunSettings;
+using test_support::shortRunSimOptions;
 
-/// 15 Hz: half the simulation and run time of 30 Hz, twice the motion between frames.
-constexpr double kFps = 15.0;
+constexpr double kFps = test_support::kShortRunFps;
 
 struct RunResult {
   int frames = 0;
@@ -53,28 +53,14 @@ class VisualInertialEndToEnd : public EndToEndSuite {
                               std::vector<sim::SensorOutage> outages = {}) {
     const fs::path dir = root() / name;
     if (!fs::exists(dir / "groundtruth.txt")) {
-      sim::SimOptions options;
-      options.width_px = 320;
-      options.height_px = 240;
-      options.scenario = scenario;
-      options.seed = seed;
-      options.duration_s = seconds;
-      options.fps = kFps;
+      sim::SimOptions options = shortRunSimOptions(scenario, seed, seconds);
       options.outages = std::move(outages);
       sim::writeSequence(options, dir.string(), 0);
     }
     return dir.string();
   }
 
-  static Settings settingsFor(const std::string& dir) {
-    Settings settings = Settings::load((sourceDir() / "config_yaml/synthetic.yaml").string(),
-                                       (fs::path(dir) / "calib.yaml").string());
-    settings.orb.num_features = 500;  // 320x240: half the VGA budget
-    // Short runs: keyframes twice a second and the IMU initialised after 8 of them (about 4 s).
-    settings.keyframe.max_interval_s = 0.5;
-    settings.imu_init.min_keyframes = 8;
-    return settings;
-  }
+  static Settings settingsFor(const std::string& dir) { return shortRunSettings(dir); }
 
   static RunResult run(const std::string& dir, bool use_imu, bool oracle_masks = false) {
     io::SequenceReaderOptions reader_options;

@@ -189,6 +189,12 @@ class KeyFrame {
   SE3 T_parent_this_;
 };
 
+/// BoW of the keyframe's current static keypoints, as Frame::computeBow lays it out (feature indices
+/// are keypoint indices, direct index at tree depth 2): what local mapping recomputes when Gamma
+/// changes and what a loaded atlas rebuilds (KeyFrame::setBow takes it).
+std::pair<bow::BowVector, bow::FeatureVector> staticKeypointsBow(const KeyFrame& kf,
+                                                                const bow::Vocabulary& vocabulary);
+
 /// The keyframe's current body pose, also once culled: a culled keyframe's pose is its culled
 /// parent's current pose composed with T_parent_this (recursively), so frames referenced to it follow
 /// later corrections (loop closure, merge, BA) of the keyframes that remain.

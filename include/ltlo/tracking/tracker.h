@@ -347,6 +347,11 @@ class Tracker : private RecoverySteps {
   std::vector<OdometryPoint> odometry_points_;
   std::vector<optim::PoseObservation> odometry_observations_;
   std::vector<bool> odometry_inlier_;  ///< per odometry observation, set by optimisePose
+  /// trackWithOdometry's per-frame buffers, kept so a frame allocates nothing once they have grown.
+  std::vector<int> odometry_best_point_;
+  std::vector<int> odometry_best_distance_;
+  std::vector<map::MapPointId> odometry_matches_before_;
+  std::vector<bool> odometry_outliers_before_;
   /// The last frame the map alone localised (s), and frames so localised in the run.
   double last_map_localised_t_s_ = 0.0;
   int frames_localised_in_map_ = 0;
