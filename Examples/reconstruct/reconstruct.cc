@@ -27,6 +27,7 @@
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "ltlo/core/process_memory.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/core/settings_file.h"
 #include "ltlo/eval/trajectory_metrics.h"
@@ -234,7 +235,7 @@ int run(const Arguments& args) {
   metrics.set("snapshots_wall_s", snapshot_wall_s);
   metrics.set("wall_s", wall_s);
   metrics.set("cpu_s", recon::processCpuS() - cpu_start_s);
-  metrics.set("peak_memory_mb", recon::peakMemoryMb());
+  metrics.set("peak_memory_mb", peakResidentMb());
   metrics.set("trajectory", request.trajectory_path);
   metrics.set("surfels_ply", ply_path);
   metrics.writeJson((fs::path(args.out_dir) / "reconstruct.json").string());

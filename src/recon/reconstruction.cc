@@ -32,12 +32,6 @@ io::Trajectory readTrajectory(const std::string& path) {
 
 }  // namespace
 
-double peakMemoryMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
-}
-
 double processCpuS() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);

@@ -1,6 +1,5 @@
 #include "ltlo/system/run_outputs.h"
 
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -23,6 +22,8 @@ namespace ltlo::system {
 namespace {
 
 constexpr const char* kKeyFramesHeader = "# t tx ty tz qx qy qz qw id map static_area_ratio";
+constexpr const char* kMappingTimelineHeader =
+    "# t keyframe_id mapping_ms atlas_keyframes atlas_map_points resident_mb";
 constexpr const char* kPlyVertexLayout[] = {"property float x",     "property float y",
                                             "property float z",     "property uchar red",
                                             "property uchar green", "property uchar blue",
@@ -62,12 +63,6 @@ std::string metricKey(std::string stage) {
 
 }  // namespace
 
-double peakMemoryMb() {
-  rusage usage{};
-  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0.0;
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
-}
-
 io::Trajectory toTumTrajectory(const std::vector<FramePose>& trajectory) {
   io::Trajectory tum;
   tum.reserve(trajectory.size());
@@ -91,6 +86,46 @@ void writeKeyFrames(const std::string& path, const std::vector<KeyFrameRecord>& 
         << ' ' << kf.id << ' ' << kf.map << ' ' << kf.static_area_ratio << '\n';
   }
   if (!out) throw InputError(path, 0, "write failed");
+}
+
+void writeMappingTimeline(const std::string& path, const std::vector<mapping::MappingTimelineEntry>& timeline) {
+  std::ofstream out(path);
+  if (!out) throw InputError(path, 0, "cannot open for writing");
+  out << kMappingTimelineHeader << '\n';
+  for (const mapping::MappingTimelineEntry& entry : timeline) {
+    out << std::fixed << std::setprecision(6) << entry.t_s << ' ' << entry.keyframe_id << ' ' << std::setprecision(3)
+        << entry.mapping_ms << ' ' << entry.atlas_keyframes << ' ' << entry.atlas_map_points << ' '
+        << std::setprecision(1) << entry.resident_mb << '\n';
+  }
+  if (!out) throw InputError(path, 0, "write failed");
+}
+
+MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::MappingTimelineEntry>& timeline,
+                                                double window_s) {
+  MappingTimelineSummary summary;
+  if (timeline.empty()) return summary;
+  double first_t_s = timeline.front().t_s, last_t_s = timeline.front().t_s;
+  for (const mapping::MappingTimelineEntry& entry : timeline) {
+    first_t_s = std::min(first_t_s, entry.t_s);
+    last_t_s = std::max(last_t_s, entry.t_s);
+    summary.max_resident_mb = std::max(summary.max_resident_mb, entry.resident_mb);
+  }
+  // The two windows must not overlap, or the ratio would compare a stretch with itself.
+  if (last_t_s - first_t_s < 2.0 * window_s) return summary;
+  std::vector<double> first_ms, last_ms;
+  for (const mapping::MappingTimelineEntry& entry : timeline) {
+    if (entry.t_s < first_t_s + window_s) first_ms.push_back(entry.mapping_ms);
+    if (entry.t_s > last_t_s - window_s) {
+      last_ms.push_back(entry.mapping_ms);
+      summary.last_resident_mb = std::max(summary.last_resident_mb, entry.resident_mb);
+    } else if (entry.t_s < first_t_s + window_s) {
+      summary.first_resident_mb = std::max(summary.first_resident_mb, entry.resident_mb);
+    }
+  }
+  summary.windows = true;
+  summary.first_median_ms = percentile(first_ms, 0.5);
+  summary.last_median_ms = percentile(last_ms, 0.5);
+  return summary;
 }
 
 std::vector<KeyFrameRecord> readKeyFrames(const std::string& path) {
@@ -288,6 +323,16 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("wall_s", report.wall_s);
   metrics.set("fps", report.wall_s > 0.0 ? c.frames / report.wall_s : 0.0);
   metrics.set("peak_memory_mb", report.peak_memory_mb);
+  // Long runs: does the mapping cost per keyframe (and the memory) stay bounded?
+  const MappingTimelineSummary timeline = summariseMappingTimeline(report.mapping_timeline, 60.0);
+  if (timeline.windows) {
+    metrics.set("mapping_keyframe_first_minute_median_ms", timeline.first_median_ms);
+    metrics.set("mapping_keyframe_last_minute_median_ms", timeline.last_median_ms);
+    metrics.set("mapping_keyframe_last_to_first_minute",
+                timeline.first_median_ms > 0.0 ? timeline.last_median_ms / timeline.first_median_ms : 0.0);
+    metrics.set("resident_first_minute_max_mb", timeline.first_resident_mb);
+    metrics.set("resident_last_minute_max_mb", timeline.last_resident_mb);
+  }
   if (report.time_offset_estimated) {
     metrics.set("imu_time_offset_s", report.time_offset_s);
     metrics.set("imu_time_offset_sigma_s", report.time_offset_sigma_s);
@@ -330,6 +375,9 @@ WrittenOutputs writeSlamOutputs(const std::string& out_dir, const RunReport& rep
   const std::string keyframes_path = (fs::path(out_dir) / "keyframes.txt").string();
   writeKeyFrames(keyframes_path, report.keyframes);
   written.files.push_back(keyframes_path);
+  const std::string timeline_path = (fs::path(out_dir) / "mapping_timeline.txt").string();
+  writeMappingTimeline(timeline_path, report.mapping_timeline);
+  written.files.push_back(timeline_path);
   const std::string ply_path = (fs::path(out_dir) / "static_map.ply").string();
   written.static_points = writeStaticMapPly(ply_path, report.map_points, min_beta);
   written.files.push_back(ply_path);

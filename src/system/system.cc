@@ -9,6 +9,7 @@
 #include "ltlo/core/assert.h"
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "ltlo/core/process_memory.h"
 #include "ltlo/core/undistorter.h"
 #include "ltlo/loop/loop_closer.h"
 #include "ltlo/map/atlas.h"
@@ -343,8 +344,9 @@ RunReport System::report(double wall_s) const {
   report.map_points = mapPoints();
   report.counts = counts();
   report.timing = timing_.stages();
+  report.mapping_timeline = mapper_->timeline();
   report.wall_s = wall_s;
-  report.peak_memory_mb = peakMemoryMb();
+  report.peak_memory_mb = peakResidentMb();
   report.oracle_masks = options_.oracle_masks;
   const mapping::TimeOffsetStatus offset = mapper_->timeOffset();
   report.time_offset_estimated = offset.estimated;

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <iterator>
 #include <random>
+#include <sstream>
+#include <string>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -190,13 +192,63 @@ TEST_F(RunOutputs, MetricsCarryAteCountsAndTiming) {
   EXPECT_NEAR(metrics.number("peak_memory_mb"), 123.0, 1e-12);
 }
 
+// A 5-minute timeline whose mapping cost doubles over the run: the first and last minutes' medians
+// and their ratio; a run shorter than two minutes has no windows (they would overlap).
+TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
+  std::vector<mapping::MappingTimelineEntry> timeline;
+  for (int k = 0; k <= 600; ++k) {  // two keyframes a second over 300 s
+    mapping::MappingTimelineEntry entry;
+    entry.t_s = 0.5 * k;
+    entry.keyframe_id = static_cast<std::uint64_t>(k);
+    entry.mapping_ms = 100.0 + entry.t_s / 3.0 + (k % 2 == 0 ? 5.0 : -5.0);  // 100 ms -> 200 ms
+    entry.atlas_keyframes = static_cast<std::size_t>(k + 1);
+    entry.resident_mb = 200.0 + entry.t_s;
+    timeline.push_back(entry);
+  }
+  const MappingTimelineSummary summary = summariseMappingTimeline(timeline, 60.0);
+  ASSERT_TRUE(summary.windows);
+  // First minute: t in [0, 60), median at t = 29.75 s; last: t in (240, 300], median at 270.25 s.
+  EXPECT_NEAR(summary.first_median_ms, 100.0 + 29.75 / 3.0, 5.01);
+  EXPECT_NEAR(summary.last_median_ms, 100.0 + 270.25 / 3.0, 5.01);
+  EXPECT_NEAR(summary.first_resident_mb, 259.5, 1e-9);
+  EXPECT_NEAR(summary.last_resident_mb, 500.0, 1e-9);
+  EXPECT_NEAR(summary.max_resident_mb, 500.0, 1e-9);
+
+  const std::vector<mapping::MappingTimelineEntry> short_run(timeline.begin(), timeline.begin() + 200);
+  EXPECT_FALSE(summariseMappingTimeline(short_run, 60.0).windows);
+
+  RunReport report = syntheticReport(circleGroundTruth(10), 0.0);
+  report.mapping_timeline = timeline;
+  const io::Metrics metrics = computeRunMetrics(report, circleGroundTruth(10));
+  EXPECT_NEAR(metrics.number("mapping_keyframe_last_to_first_minute"),
+              summary.last_median_ms / summary.first_median_ms, 1e-12);
+  writeMappingTimeline(path("timeline.txt"), timeline);
+  std::ifstream in(path("timeline.txt"));
+  std::string header, line;
+  std::getline(in, header);
+  EXPECT_EQ(header.rfind("# t keyframe_id mapping_ms", 0), 0u);
+  int lines = 0;
+  double t_s = 0.0, mapping_ms = 0.0, resident_mb = 0.0;
+  std::uint64_t id = 0, keyframes = 0, points = 0;
+  while (std::getline(in, line)) {
+    std::istringstream(line) >> t_s >> id >> mapping_ms >> keyframes >> points >> resident_mb;
+    ++lines;
+  }
+  EXPECT_EQ(lines, 601);
+  EXPECT_NEAR(t_s, 300.0, 1e-9);
+  EXPECT_EQ(id, 600u);
+  EXPECT_EQ(keyframes, 601u);
+  EXPECT_NEAR(mapping_ms, timeline.back().mapping_ms, 1e-3);
+  EXPECT_NEAR(resident_mb, 500.0, 0.05);
+}
+
 TEST_F(RunOutputs, WriteRunOutputsWritesEveryFileAndTheTrajectoryReadsBack) {
   const io::Trajectory gt = circleGroundTruth(30);
   RunReport report = syntheticReport(gt, 0.0);
   report.keyframes.push_back(KeyFrameRecord{0.0, SE3(), 0, 0, 1.0});
   report.map_points.resize(4);
   const WrittenOutputs written = writeRunOutputs(path("run"), report, gt, 0.5);
-  ASSERT_EQ(written.files.size(), 5u);
+  ASSERT_EQ(written.files.size(), 6u);
   for (const std::string& file : written.files) EXPECT_TRUE(fs::is_regular_file(file)) << file;
   EXPECT_TRUE(written.has_metrics);
   const io::Trajectory online = io::readTumTrajectory(path("run/trajectory_online.txt"));
@@ -211,7 +263,7 @@ TEST_F(RunOutputs, WriteRunOutputsWritesEveryFileAndTheTrajectoryReadsBack) {
 
   // Without ground truth there is no metrics.json.
   const WrittenOutputs without = writeRunOutputs(path("run2"), report, io::Trajectory(), 0.5);
-  EXPECT_EQ(without.files.size(), 4u);
+  EXPECT_EQ(without.files.size(), 5u);
   EXPECT_FALSE(fs::exists(path("run2/metrics.json")));
 }
 
@@ -293,8 +345,6 @@ TEST_F(RunOutputs, MalformedGroundTruthFileIsAnEvaluationErrorNotAnException) {
   EXPECT_TRUE(none.evaluation_error.empty());
   EXPECT_FALSE(fs::exists(path("run3/metrics.json")));
 }
-
-TEST(PeakMemory, IsPositive) { EXPECT_GT(peakMemoryMb(), 1.0); }
 
 }  // namespace
 }  // namespace ltlo::system

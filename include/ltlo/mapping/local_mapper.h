@@ -29,6 +29,7 @@
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
+#include "ltlo/mapping/mapping_timeline.h"
 
 namespace bow {
 class Vocabulary;
@@ -151,6 +152,8 @@ class LocalMapper {
   void setKeyFrameProcessedCallback(std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback);
 
   LocalMapperCounters counters() const;
+  /// One entry per processed keyframe, in processing order.
+  std::vector<MappingTimelineEntry> timeline() const;
 
  private:
   struct Impl;

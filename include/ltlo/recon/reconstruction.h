@@ -65,8 +65,7 @@ struct ReconstructionResult {
 /// options out of range.
 ReconstructionResult reconstruct(const ReconstructionRequest& request, const ReconOptions& options);
 
-/// Peak resident set size of this process, MB, and its CPU time (user + system) so far, s.
-double peakMemoryMb();
+/// CPU time (user + system) of this process so far, s. (Its peak memory: ltlo::peakResidentMb.)
 double processCpuS();
 
 }  // namespace ltlo::recon

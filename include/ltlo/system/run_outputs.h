@@ -33,6 +33,24 @@ io::Trajectory toTumTrajectory(const std::vector<FramePose>& trajectory);
 void writeKeyFrames(const std::string& path, const std::vector<KeyFrameRecord>& keyframes);
 std::vector<KeyFrameRecord> readKeyFrames(const std::string& path);
 
+/// mapping_timeline.txt: one line per processed keyframe (its time, id, mapping ms, the atlas's
+/// keyframes and points after it, the resident memory MB), in processing order.
+void writeMappingTimeline(const std::string& path, const std::vector<mapping::MappingTimelineEntry>& timeline);
+
+/// The mapping cost of a run's first and last `window_s` of keyframe time (metrics.json's
+/// mapping_keyframe_first/last_minute_median_ms): `windows` is false when the run is shorter than
+/// two windows (they would overlap).
+struct MappingTimelineSummary {
+  bool windows = false;
+  double first_median_ms = 0.0;
+  double last_median_ms = 0.0;
+  double first_resident_mb = 0.0;  ///< the largest resident memory in each window, MB
+  double last_resident_mb = 0.0;
+  double max_resident_mb = 0.0;    ///< over the whole timeline
+};
+MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::MappingTimelineEntry>& timeline,
+                                                double window_s);
+
 /// Writes the points with beta >= min_beta; returns how many.
 int writeStaticMapPly(const std::string& path, const std::vector<MapPointRecord>& points, double min_beta);
 /// Reads a PLY written by writeStaticMapPly (exactly that vertex layout).

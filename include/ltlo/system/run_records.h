@@ -8,6 +8,7 @@
 #include "ltlo/core/lie.h"
 #include "ltlo/core/timing.h"
 #include "ltlo/map/ids.h"
+#include "ltlo/mapping/mapping_timeline.h"
 
 namespace ltlo::system {
 
@@ -74,6 +75,7 @@ struct RunReport {
   std::vector<MapPointRecord> map_points;
   SystemCounts counts;
   std::vector<StageTiming> timing;
+  std::vector<mapping::MappingTimelineEntry> mapping_timeline;  ///< mapping_timeline.csv
   double wall_s = 0.0;          ///< whole run (reading + SLAM), s
   double peak_memory_mb = 0.0;  ///< peak resident set size, MB
   bool interrupted = false;     ///< stopped early (signal or error)
@@ -95,8 +97,5 @@ struct RunReport {
   std::uint64_t viewer_http_frames = 0;
   std::uint64_t viewer_poses = 0;
 };
-
-/// Peak resident set size of this process so far, MB (getrusage ru_maxrss).
-double peakMemoryMb();
 
 }  // namespace ltlo::system

@@ -1,0 +1,19 @@
+#pragma once
+/// The mapping timeline of a run (LocalMapper::timeline, mapping_timeline.csv).
+#include <cstddef>
+#include <cstdint>
+
+namespace ltlo::mapping {
+
+/// One processed keyframe of the mapping timeline (mapping_timeline.csv in the run folder): how the
+/// cost of local mapping, the atlas and the memory grow over a long run.
+struct MappingTimelineEntry {
+  double t_s = 0.0;                 ///< the keyframe's timestamp (sequence time, s)
+  std::uint64_t keyframe_id = 0;
+  double mapping_ms = 0.0;          ///< its whole processing (the "mapping.keyframe" stage)
+  std::size_t atlas_keyframes = 0;  ///< keyframes in all maps after it
+  std::size_t atlas_map_points = 0;
+  double resident_mb = 0.0;         ///< resident set size of the process after it
+};
+
+}  // namespace ltlo::mapping
