@@ -5,6 +5,7 @@
 //            [--sensor ideal|realsense|kinect|FILE.yaml] [--sensor-set KEY=VALUE]...
 //            [--time-offset S] [--lens none|radtan|radtan-strong|rational|kb]
 //            [--still START,DURATION]... [--occlusion-at T]...
+//            [--plain-movers]
 // Exit status: 0 written, 2 bad input (options, config file, output folder), 1 any other error.
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -130,6 +131,9 @@ int main(int argc, char** argv) {
   app.add_option("--occlusion-at", occlusion_at,
                  "T (s): a box crosses the view from T (in from one side, held 2-4 s, out to the other); repeatable")
       ->check(CLI::Range(0.0, 1e6));
+  bool plain_movers = false;
+  app.add_flag("--plain-movers", plain_movers,
+               "every mover one plain colour; half of the events are thin panels instead of boxes");
   app.add_option("--progress-every", progress_every, "progress line every N frames")
       ->check(CLI::Range(1, 1000000));
   try {
@@ -188,6 +192,7 @@ int main(int argc, char** argv) {
       options.stills.push_back({parsed.start_s, parsed.duration_s});
     }
     options.occlusion_at_s = occlusion_at;
+    options.plain_movers = plain_movers;
     ltlo::sim::writeSequence(options, out_dir, progress_every);
   } catch (const ltlo::ConfigError& e) {
     std::cerr << "simulate: " << e.what() << "\n";

@@ -95,6 +95,11 @@ struct SimOptions {
   /// the other side), drawn from its own random stream; regular events overlapping it are dropped.
   std::vector<double> occlusion_at_s;
 
+  // Harder worlds (command line only, issue 32); each draws from its own random stream.
+  /// --plain-movers: every mover one plain colour; half of the scenario's and --occlusion-at's
+  /// events are thin panels instead of boxes.
+  bool plain_movers = false;
+
   // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
   // noise_free, which turns off noise, biases, holes and exposure jitter only.
   SensorProfile sensor;

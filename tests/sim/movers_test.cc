@@ -1,0 +1,152 @@
+// The movers of issue 32's harder worlds: plain movers and panels.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <set>
+
+#include "ltlo/sim/simulator.h"
+
+namespace ltlo::sim {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+SimOptions smallOptions(Scenario scenario, double seconds, uint64_t seed) {
+  SimOptions o;
+  o.width_px = 160;
+  o.height_px = 120;
+  o.scenario = scenario;
+  o.seed = seed;
+  o.duration_s = seconds;
+  o.noise_free = true;
+  return o;
+}
+
+// The room (photographs decoded once per test process; each simulator reschedules its movers).
+const Scene& sharedRoom() {
+  static const Scene room = Scene::buildRoom(SimOptions().texture_dir);
+  return room;
+}
+
+double percentile(std::vector<double> values, double q) {
+  EXPECT_FALSE(values.empty());
+  if (values.empty()) return 0.0;
+  const size_t k = std::min(values.size() - 1, static_cast<size_t>(q * values.size()));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[k];
+}
+
+// Intensity std of every 5x5 window lying wholly on the visible pixels of mover `label`.
+std::vector<double> windowStds(const SimFrame& frame, const cv::Mat& labels, int label) {
+  cv::Mat gray, on;
+  cv::cvtColor(frame.bgr, gray, cv::COLOR_BGR2GRAY);
+  cv::bitwise_and(frame.mask, labels == label, on);
+  std::vector<double> stds;
+  for (int v = 2; v + 2 < gray.rows; ++v)
+    for (int u = 2; u + 2 < gray.cols; ++u) {
+      const cv::Rect window(u - 2, v - 2, 5, 5);
+      if (cv::countNonZero(on(window)) < 25) continue;
+      cv::Scalar mean, std;
+      cv::meanStdDev(gray(window), mean, std);
+      stds.push_back(std[0]);
+    }
+  return stds;
+}
+
+// Pixels of each label in a render of the movers alone.
+std::map<int, int> labelCounts(const cv::Mat& labels) {
+  std::map<int, int> counts;
+  for (auto it = labels.begin<uint8_t>(); it != labels.end<uint8_t>(); ++it)
+    if (*it) ++counts[*it];
+  return counts;
+}
+
+// ---- plain movers --------------------------------------------------------------------------------
+
+// --plain-movers keeps the schedule (times, distances, lateral places, sways; the boxes' sizes and
+// the near bottom edge of every panel), makes every mover one colour and half of the events panels.
+TEST(PlainMovers, KeepTheScheduleAndMakeHalfOfTheEventsPanels) {
+  SimOptions o = smallOptions(Scenario::kMtlo, 40.0, 3);
+  o.width_px = 320;
+  o.height_px = 240;
+  o.occlusion_at_s = {31.0};
+  Simulator textured(o, sharedRoom());
+  o.plain_movers = true;
+  Simulator plain(o, sharedRoom());
+  const std::vector<DynamicBox>& a = textured.scene().boxes;
+  const std::vector<DynamicBox>& b = plain.scene().boxes;
+  ASSERT_EQ(a.size(), b.size());
+  std::set<int> events, panel_events;
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].t_in_s, b[i].t_in_s);
+    EXPECT_EQ(a[i].t_out_s, b[i].t_out_s);
+    EXPECT_EQ(a[i].distance_m, b[i].distance_m);
+    EXPECT_EQ(a[i].lateral_m, b[i].lateral_m);
+    EXPECT_EQ(a[i].side, b[i].side);
+    EXPECT_EQ(a[i].sway_phase, b[i].sway_phase);
+    EXPECT_EQ(a[i].event, b[i].event);
+    EXPECT_TRUE(b[i].plain && !a[i].plain);
+    events.insert(b[i].event);
+    if (b[i].panel) {
+      panel_events.insert(b[i].event);
+      EXPECT_GE(b[i].size_m.x(), 0.03);
+      EXPECT_LE(b[i].size_m.x(), 0.05);
+      EXPECT_GE(b[i].size_m.y(), 1.0);
+      EXPECT_LE(b[i].size_m.y(), 1.4);
+      EXPECT_GE(b[i].size_m.z(), 1.5);
+      EXPECT_LE(b[i].size_m.z(), 2.0);
+    } else {
+      EXPECT_EQ(a[i].size_m, b[i].size_m);
+    }
+  }
+  ASSERT_GE(events.size(), 3u);
+  EXPECT_EQ(panel_events.size(), (events.size() + 1) / 2);
+  for (const std::vector<render::Mesh>& parts : plain.scene().moverMeshes()) EXPECT_EQ(parts[0].texture, -1);
+
+  for (double t = 0.0; t < o.duration_s; t += 0.2) {
+    const auto pa = textured.scene().dynamicPoses(t, textured.trajectory());
+    const auto pb = plain.scene().dynamicPoses(t, plain.trajectory());
+    ASSERT_EQ(pa.size(), pb.size()) << t;
+    for (size_t k = 0; k < pa.size(); ++k) {
+      ASSERT_EQ(pa[k].first, pb[k].first);
+      // In the floor frame the same rotation, the centres apart by the change of half the depth
+      // and of half the height only (near faces and footprints where they were).
+      const SE3 T_floor_w = textured.trajectory().T_w_floor(t).inverse();
+      const SE3 T_a = T_floor_w * pa[k].second, T_b = T_floor_w * pb[k].second;
+      const Vec3 half_change = 0.5 * (b[pb[k].first].size_m - a[pa[k].first].size_m);
+      EXPECT_LT((T_b.translation() - T_a.translation() - Vec3(half_change.x(), 0.0, half_change.z())).norm(), 1e-9)
+          << t;
+      EXPECT_LT(so3Log(T_a.rotationMatrix().transpose() * T_b.rotationMatrix()).norm(), 1e-12);
+    }
+  }
+
+  // A plain face is one grey level before noise: 5x5 windows wholly on a mover have (almost) no
+  // intensity spread, where the photo texture's spread is large.
+  int checked = 0;
+  for (int i = 0; i < textured.numFrames() && checked < 3; i += 15) {
+    const render::RenderResult movers = plain.renderDynamicOnly(i);
+    const std::map<int, int> counts = labelCounts(movers.labels);
+    if (counts.empty()) continue;
+    const auto largest = std::max_element(counts.begin(), counts.end(),
+                                          [](const auto& x, const auto& y) { return x.second < y.second; });
+    if (largest->second < static_cast<int>(movers.labels.total() / 5)) continue;
+    const std::vector<double> plain_stds = windowStds(plain.renderFrame(i), movers.labels, largest->first);
+    const std::vector<double> textured_stds =
+        windowStds(textured.renderFrame(i), textured.renderDynamicOnly(i).labels, largest->first);
+    ASSERT_GT(plain_stds.size(), 1000u) << i;
+    RecordProperty(
+        "window_std_plain_p99_textured_p75_frame" + std::to_string(i),
+        std::to_string(percentile(plain_stds, 0.99)) + " " + std::to_string(percentile(textured_stds, 0.75)));
+    EXPECT_LT(percentile(plain_stds, 0.99), 1.0) << "frame " << i;
+    EXPECT_GT(percentile(textured_stds, 0.75), 5.0) << "frame " << i;
+    ++checked;
+  }
+  EXPECT_EQ(checked, 3);
+}
+
+}  // namespace
+}  // namespace ltlo::sim
