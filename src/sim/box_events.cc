@@ -1,5 +1,5 @@
-// The boxes' schedule: the scenario's events, --occlusion-at and --plain-movers; their poses over
-// time.
+// The boxes' schedule: the scenario's events, --occlusion-at, --occluded-start and --plain-movers;
+// their poses over time.
 #include <algorithm>
 #include <cmath>
 
@@ -15,9 +15,56 @@ struct Profile {
   int max_boxes;
 };
 
+// Occluded start: how far and how fast its box leaves after t_move_s (gone 1.5 s later).
+constexpr double kStartLeaveS = 1.5;
+constexpr double kStartAwayGrowM = 1.0, kStartAwaySlideM = 3.5;     // pushed away: further, then aside
+constexpr double kStartTowardsM = 0.35, kStartTowardsSlideM = 2.5;  // pulled to 0.35 m, then aside
+constexpr double kStartClearS = 5.0;                                // scenario events before this are dropped
+
+// Pose in the floor frame of a box ahead of the camera: near face distance_m from the camera,
+// lateral_m to the left, standing on the floor.
+SE3 boxAheadInFloor(const DynamicBox& b, double distance_m, double lateral_m) {
+  const Vec3 t_b_c = SimOptions::T_b_c().translation();
+  return SE3(Quat::Identity(), Vec3(t_b_c.x() + distance_m + 0.5 * b.size_m.x(), lateral_m, 0.5 * b.size_m.z()));
+}
+
+// The occluded start's box: still in the floor frame until t_move_s, then pushed away (its
+// distance grows by 1 m over 1 s while it slides 3.5 m aside from 0.3 s) or pulled towards the
+// robot (to 0.35 m over 0.7 s, then slid 2.5 m aside from 0.6 s).
+SE3 startBoxInFloor(const DynamicBox& b, double t_s) {
+  const double u = t_s - b.t_move_s;
+  if (b.start_move == StartMove::kAway)
+    return boxAheadInFloor(b, b.distance_m + kStartAwayGrowM * smoothstep(u / 1.0),
+                           b.lateral_m + b.side * kStartAwaySlideM * smoothstep((u - 0.3) / 1.2));
+  const double closest = std::min(b.distance_m, kStartTowardsM);
+  return boxAheadInFloor(b, b.distance_m + (closest - b.distance_m) * smoothstep(u / 0.7),
+                         b.lateral_m + b.side * kStartTowardsSlideM * smoothstep((u - 0.6) / 0.9));
+}
+
+// Largest x in [lo, hi] with decreasing(x) >= target by bisection (lo when none, hi when all).
+template <typename F>
+double solveDecreasing(F decreasing, double target, double lo, double hi) {
+  if (decreasing(lo) < target) return lo;
+  if (decreasing(hi) >= target) return hi;
+  for (int k = 0; k < 40; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (decreasing(mid) >= target ? lo : hi) = mid;
+  }
+  return lo;
+}
+
 }  // namespace
 
 double clearTimeS(const SimOptions& options) { return std::min(3.0, 0.1 * options.duration_s); }
+
+void dropBoxesOverlapping(Scene* scene, double t0_s, double t1_s, bool carried_too) {
+  std::vector<DynamicBox>& boxes = scene->boxes;
+  boxes.erase(std::remove_if(boxes.begin(), boxes.end(),
+                             [&](const DynamicBox& b) {
+                               return (carried_too || !b.carried) && b.t_in_s <= t1_s && b.t_out_s >= t0_s;
+                             }),
+              boxes.end());
+}
 
 void Scene::scheduleOcclusions(const SimOptions& options) {
   Scene& scene = *this;
@@ -86,6 +133,7 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
     }
   }
   addCrossingEvents(options);
+  addOccludedStart(options, this);
   applyPlainMovers(options, this);
 }
 
@@ -117,6 +165,36 @@ void Scene::addCrossingEvents(const SimOptions& options) {
   }
 }
 
+void addOccludedStart(const SimOptions& options, Scene* scene) {
+  if (options.occluded_start == StartMove::kNone) return;
+  Draw draw(options.seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
+  DynamicBox b;
+  b.size_m = Vec3(draw(0.5, 0.8), draw(0.8, 1.2), draw(0.9, 1.3));
+  b.texture = draw.dynamicTexture();
+  b.lateral_m = draw(-0.15, 0.15);
+  b.side = draw.sign();
+  b.start_move = options.occluded_start;
+  b.t_move_s = draw(1.5, 3.5);
+  b.t_in_s = 0.0;
+  b.t_out_s = b.t_move_s + kStartLeaveS;
+  // Its distance: the share of frame 0 it covers (nominal camera, no vibration) is the drawn target.
+  const double target = draw(0.45, 0.75);
+  const PinholeCamera camera = options.camera();
+  const SE3 T_c_floor = nominalT_floor_c().inverse();
+  b.distance_m = solveDecreasing(
+      [&](double d) { return boxImageShare(camera, T_c_floor * boxAheadInFloor(b, d, b.lateral_m), b.size_m); }, target,
+      0.3, 3.0);
+  dropBoxesOverlapping(scene, 0.0, std::max(kStartClearS, b.t_out_s), true);
+  scene->boxes.push_back(b);
+}
+
+double occludedStartEndS(const Scene& scene) {
+  double end_s = 0.0;
+  for (const DynamicBox& b : scene.boxes)
+    if (b.start_move != StartMove::kNone) end_s = std::max(end_s, std::max(kStartClearS, b.t_out_s));
+  return end_s;
+}
+
 void applyPlainMovers(const SimOptions& options, Scene* scene) {
   if (!options.plain_movers) return;
   Draw draw(options.seed * 0xBF58476D1CE4E5B9ULL + 0x94D049BB133111EBULL);
@@ -141,6 +219,10 @@ std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s, const RobotTraj
   for (size_t i = 0; i < boxes.size(); ++i) {
     const DynamicBox& b = boxes[i];
     if (t_s < b.t_in_s || t_s >= b.t_out_s) continue;
+    if (b.start_move != StartMove::kNone) {
+      poses.emplace_back(static_cast<int>(i), trajectory.T_w_floor(t_s) * startBoxInFloor(b, t_s));
+      continue;
+    }
     const double slide_in = kSlideM * (1.0 - smoothstep((t_s - b.t_in_s) / b.enter_s));
     const double slide_out = kSlideM * smoothstep((t_s - (b.t_out_s - b.enter_s)) / b.enter_s);
     const double x = t_b_c.x() + b.distance_m + 0.5 * b.size_m.x();

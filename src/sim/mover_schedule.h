@@ -9,6 +9,13 @@ namespace ltlo::sim {
 /// Start of the scenario's first events: the first 3 s (10 % of short runs) are free of movers.
 double clearTimeS(const SimOptions& options);
 
+/// Drops the boxes (carried ones too when `carried_too`) present at some time in [t0_s, t1_s].
+void dropBoxesOverlapping(Scene* scene, double t0_s, double t1_s, bool carried_too);
+
+/// --occluded-start: a box covering 40-80 % of frame 0 that leaves by 5 s.
+void addOccludedStart(const SimOptions& options, Scene* scene);
+/// When the occluded start's box has gone (0 without the option).
+double occludedStartEndS(const Scene& scene);
 /// --plain-movers: plain colours for every mover, half of the events' boxes become panels.
 void applyPlainMovers(const SimOptions& options, Scene* scene);
 

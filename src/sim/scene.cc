@@ -189,6 +189,30 @@ void makePlain(render::Mesh* mesh, const Vec3& rgb) {
   for (Eigen::Vector3f& colour : mesh->colours_rgb) colour = colour.cwiseProduct(rgb.cast<float>());
 }
 
+SE3 nominalT_floor_c() {
+  return SE3(Quat::Identity(), Vec3(0, 0, TrajectoryParams{}.body_height_m)) * SimOptions::T_b_c();
+}
+
+double boxImageShare(const PinholeCamera& camera, const SE3& T_c_o, const Vec3& size_m) {
+  const double factor = std::min(1.0, 160.0 / camera.width());
+  const PinholeCamera small = camera.scaled(factor);
+  std::vector<cv::Point> corners;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 p_o(0.5 * size_m.x() * (k & 1 ? 1 : -1), 0.5 * size_m.y() * (k & 2 ? 1 : -1),
+                   0.5 * size_m.z() * (k & 4 ? 1 : -1));
+    const Vec3 p_c = T_c_o * p_o;
+    if (p_c.z() < 0.01) return 1.0;
+    const Vec2 uv = small.project(p_c);
+    constexpr double kSub = 16.0;  // 4 fractional bits
+    corners.emplace_back(static_cast<int>(std::lround(uv.x() * kSub)), static_cast<int>(std::lround(uv.y() * kSub)));
+  }
+  std::vector<cv::Point> hull;
+  cv::convexHull(corners, hull);
+  cv::Mat covered = cv::Mat::zeros(small.height(), small.width(), CV_8U);
+  cv::fillConvexPoly(covered, hull, cv::Scalar(255), cv::LINE_8, 4);
+  return cv::countNonZero(covered) / static_cast<double>(covered.total());
+}
+
 void Scene::writePly(const std::string& path) const {
   std::ofstream out(path);
   if (!out) throw InputError(path, 0, "cannot open for writing");

@@ -45,4 +45,13 @@ Vec3 plainColour(Draw& draw);
 /// Multiplies a mesh's (baked) vertex colours by rgb and drops its texture: a plain object.
 void makePlain(render::Mesh* mesh, const Vec3& rgb);
 
+/// The camera in the robot's floor frame (RobotTrajectory::T_w_floor) without vibration: the body
+/// at its nominal height, the camera at SimOptions::T_b_c.
+SE3 nominalT_floor_c();
+
+/// Share of the image of `camera` covered by a box of full extents size_m at pose T_c_o (camera
+/// frame): the convex hull of its projected corners, rasterised at about 160 px wide. Every corner
+/// must be in front of the camera (z > 1 cm; otherwise 1 is returned, the view is blocked).
+double boxImageShare(const PinholeCamera& camera, const SE3& T_c_o, const Vec3& size_m);
+
 }  // namespace ltlo::sim

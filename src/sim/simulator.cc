@@ -518,6 +518,10 @@ void writeHarderWorldStats(const Simulator& sim, std::ostream& out) {
     const auto panels = std::count_if(scene.boxes.begin(), scene.boxes.end(), [](const DynamicBox& b) { return b.panel; });
     out << "\nplain_movers 1 (" << panels << " of " << scene.boxes.size() << " boxes are panels)";
   }
+  for (const DynamicBox& b : scene.boxes)
+    if (b.start_move != StartMove::kNone)
+      out << "\noccluded_start " << (b.start_move == StartMove::kAway ? "away" : "towards") << " (moves at "
+          << b.t_move_s << " s, gone at " << b.t_out_s << " s, near face " << b.distance_m << " m)";
 }
 
 void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std::string& dir) {

@@ -1,4 +1,4 @@
-// The movers of issue 32's harder worlds: plain movers and panels.
+// The movers of issue 32's harder worlds: plain movers and panels, the occluded start.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -64,6 +64,8 @@ std::map<int, int> labelCounts(const cv::Mat& labels) {
     if (*it) ++counts[*it];
   return counts;
 }
+
+int frameAt(const Simulator& sim, double t_s) { return static_cast<int>(std::lround(t_s * sim.options().fps)); }
 
 // ---- plain movers --------------------------------------------------------------------------------
 
@@ -146,6 +148,78 @@ TEST(PlainMovers, KeepTheScheduleAndMakeHalfOfTheEventsPanels) {
     ++checked;
   }
   EXPECT_EQ(checked, 3);
+}
+
+// ---- occluded start ------------------------------------------------------------------------------
+
+// At VGA the box covers 40-80 % of frame 0, has slid out of the view before it is taken away
+// (the last frame it exists in shows none of it), and nothing is dynamic at 5.5 s.
+TEST(OccludedStart, CoversFrameZeroAndHasLeftTheViewByFiveSeconds) {
+  for (const StartMove move : {StartMove::kAway, StartMove::kTowards}) {
+    for (uint64_t seed : {1, 2, 3}) {
+      SimOptions o = smallOptions(Scenario::kStatic, 6.0, seed);
+      o.width_px = 640;
+      o.height_px = 480;
+      o.occluded_start = move;
+      Simulator sim(o, sharedRoom());
+      ASSERT_EQ(sim.scene().boxes.size(), 1u);
+      const DynamicBox& box = sim.scene().boxes[0];
+      EXPECT_LE(box.t_out_s, 5.0);
+      EXPECT_GE(box.t_move_s, 1.5);
+      EXPECT_LE(box.t_move_s, 3.5);
+      const double share0 = sim.renderFrame(0).dynamic_fraction;
+      RecordProperty("share0_seed" + std::to_string(seed) + (move == StartMove::kAway ? "_away" : "_towards"),
+                     std::to_string(share0));
+      EXPECT_GE(share0, 0.4) << seed;
+      EXPECT_LE(share0, 0.8) << seed;
+      const int last = static_cast<int>(std::ceil(box.t_out_s * o.fps)) - 1;
+      EXPECT_EQ(sim.renderFrame(last).dynamic_fraction, 0.0) << seed;
+      EXPECT_EQ(sim.renderFrame(frameAt(sim, 5.5)).dynamic_fraction, 0.0) << seed;
+      // Its near face: pushed away it only gets further, pulled towards it comes to 0.35 m.
+      double nearest_m = 1e9, furthest_m = 0.0;
+      for (double t = 0.0; t < box.t_out_s; t += 0.01) {
+        const auto poses = sim.scene().dynamicPoses(t, sim.trajectory());
+        ASSERT_EQ(poses.size(), 1u);
+        const SE3 T_floor_o = sim.trajectory().T_w_floor(t).inverse() * poses[0].second;
+        const double distance_m =
+            T_floor_o.translation().x() - 0.5 * box.size_m.x() - SimOptions::T_b_c().translation().x();
+        nearest_m = std::min(nearest_m, distance_m);
+        furthest_m = std::max(furthest_m, distance_m);
+      }
+      if (move == StartMove::kAway) {
+        EXPECT_NEAR(nearest_m, box.distance_m, 1e-9);
+        EXPECT_NEAR(furthest_m, box.distance_m + 1.0, 1e-3);
+      } else {
+        EXPECT_NEAR(nearest_m, 0.35, 1e-3);
+      }
+    }
+  }
+}
+
+// With a still start the box stands in the world until it moves; the scenario's events that would
+// overlap the first 5 s are dropped, the later ones kept.
+TEST(OccludedStart, StandsStillWithTheRobotAndClearsTheScenarioStart) {
+  SimOptions o = smallOptions(Scenario::kLtlo, 30.0, 2);
+  o.stills = {{0.0, 3.0}};
+  Simulator plain_ltlo(o, sharedRoom());
+  o.occluded_start = StartMove::kTowards;
+  Simulator sim(o, sharedRoom());
+  const DynamicBox* start = nullptr;
+  for (const DynamicBox& b : sim.scene().boxes) {
+    if (b.start_move != StartMove::kNone)
+      start = &b;
+    else
+      EXPECT_GT(b.t_in_s, 5.0);
+  }
+  ASSERT_NE(start, nullptr);
+  int kept = 0;
+  for (const DynamicBox& b : plain_ltlo.scene().boxes) kept += b.t_in_s > 5.0;
+  EXPECT_EQ(static_cast<int>(sim.scene().boxes.size()), kept + 1);
+  const SE3 T_w_o0 = sim.scene().dynamicPoses(0.0, sim.trajectory())[0].second;
+  for (double t = 0.0; t < std::min(3.0, start->t_move_s); t += 0.05) {
+    const SE3 T_w_o = sim.scene().dynamicPoses(t, sim.trajectory())[0].second;
+    EXPECT_EQ((T_w_o.translation() - T_w_o0.translation()).norm(), 0.0) << t;
+  }
 }
 
 }  // namespace

@@ -37,6 +37,8 @@ struct DynamicBox {
   bool panel = false;       ///< a thin board (--plain-movers): size_m = (thickness, width, height)
   bool plain = false;       ///< one colour, no texture (--plain-movers)
   Vec3 plain_rgb = Vec3::Ones();  ///< its colour (0..1) when plain
+  StartMove start_move = StartMove::kNone;  ///< --occluded-start: present from t = 0
+  double t_move_s = 0.0;    ///< occluded start: held in the floor frame until then, then leaves
 };
 
 /// Fixed lighting baked into vertex colours: each triangle is shaded 0.65 + 0.35 |n . l| for one

@@ -27,6 +27,13 @@ enum class Scenario {
 bool parseScenario(const std::string& text, Scenario* scenario);
 std::string scenarioName(Scenario scenario);
 
+/// How an occluded start's box leaves (simulate --occluded-start).
+enum class StartMove {
+  kNone,     ///< no occluded start
+  kAway,     ///< pushed away: its distance grows while it slides out to a side
+  kTowards,  ///< pulled towards the robot to about 0.35 m, then slid out to a side
+};
+
 /// A stretch of the sequence where one sensor fails: kBlack gives black colour and no depth (lens
 /// covered; forced tracking loss while the IMU runs), kNoDepth keeps colour without depth, kImuGap
 /// drops the IMU samples from imu.txt (a dropped driver buffer; imu_biases.txt keeps them).
@@ -99,6 +106,8 @@ struct SimOptions {
   /// --plain-movers: every mover one plain colour; half of the scenario's and --occlusion-at's
   /// events are thin panels instead of boxes.
   bool plain_movers = false;
+  /// --occluded-start away|towards: a box covering 40-80 % of frame 0 leaves by 5 s.
+  StartMove occluded_start = StartMove::kNone;
 
   // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
   // noise_free, which turns off noise, biases, holes and exposure jitter only.
