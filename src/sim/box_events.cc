@@ -69,6 +69,7 @@ void dropBoxesOverlapping(Scene* scene, double t0_s, double t1_s, bool carried_t
 void Scene::scheduleOcclusions(const SimOptions& options) {
   Scene& scene = *this;
   scene.boxes.clear();
+  scene.walkers.clear();
   std::mt19937_64 event_rng(options.seed * 6364136223846793005ULL + 1442695040888963407ULL);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(event_rng); };
@@ -134,6 +135,7 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   }
   addCrossingEvents(options);
   addOccludedStart(options, this);
+  scheduleWalkers(options, this);
   applyPlainMovers(options, this);
 }
 
@@ -210,6 +212,11 @@ void applyPlainMovers(const SimOptions& options, Scene* scene) {
     if (std::find(events.begin(), events.end(), b.event) == events.end()) continue;
     b.panel = true;
     b.size_m = Vec3(draw(0.03, 0.05), draw(1.0, 1.4), draw(1.5, 2.0));
+  }
+  for (Walker& w : scene->walkers) {
+    w.plain = true;
+    w.shirt_rgb = plainColour(draw);
+    w.trouser_rgb = 0.6 * plainColour(draw);
   }
 }
 

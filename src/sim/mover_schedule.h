@@ -16,6 +16,8 @@ void dropBoxesOverlapping(Scene* scene, double t0_s, double t1_s, bool carried_t
 void addOccludedStart(const SimOptions& options, Scene* scene);
 /// When the occluded start's box has gone (0 without the option).
 double occludedStartEndS(const Scene& scene);
+/// --walkers N (walkers.cc).
+void scheduleWalkers(const SimOptions& options, Scene* scene);
 /// --plain-movers: plain colours for every mover, half of the events' boxes become panels.
 void applyPlainMovers(const SimOptions& options, Scene* scene);
 

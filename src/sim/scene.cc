@@ -165,12 +165,22 @@ std::vector<std::vector<render::Mesh>> Scene::moverMeshes() const {
     if (box.plain) makePlain(&mesh, box.plain_rgb);
     meshes.push_back({std::move(mesh)});
   }
+  for (const Walker& walker : walkers) meshes.push_back(walkerMeshes(walker));
   return meshes;
 }
 
 std::vector<MoverPart> Scene::moverParts(double t_s, const RobotTrajectory& trajectory) const {
   std::vector<MoverPart> parts;
   for (const auto& [index, T_w_o] : dynamicPoses(t_s, trajectory)) parts.push_back({index, 0, T_w_o});
+  int mover = static_cast<int>(boxes.size());
+  for (const Walker& walker : walkers) {
+    if (const std::optional<WalkerState> state = walkerState(walker, t_s, trajectory)) {
+      const std::vector<SE3> T_f_p = walkerPartPoses(walker, state->phase_rad);
+      for (int part = 0; part < static_cast<int>(T_f_p.size()); ++part)
+        parts.push_back({mover, part, state->T_w_f * T_f_p[part]});
+    }
+    ++mover;
+  }
   return parts;
 }
 

@@ -349,7 +349,7 @@ void logSequenceStart(const Simulator& sim) {
             sim.scene().photo_textures
                 ? std::to_string(sim.scene().photo_paths.size()) + " photographs"
                 : "procedural",
-            ", ", sim.scene().boxes.size(), " dynamic boxes");
+            ", ", sim.scene().boxes.size(), " dynamic boxes, ", sim.scene().walkers.size(), " walkers");
 }
 
 bool inImuGap(const SimOptions& options, double t_s) {
@@ -522,6 +522,12 @@ void writeHarderWorldStats(const Simulator& sim, std::ostream& out) {
     if (b.start_move != StartMove::kNone)
       out << "\noccluded_start " << (b.start_move == StartMove::kAway ? "away" : "towards") << " (moves at "
           << b.t_move_s << " s, gone at " << b.t_out_s << " s, near face " << b.distance_m << " m)";
+  if (options.walkers > 0) {
+    const auto leading = std::count_if(scene.walkers.begin(), scene.walkers.end(),
+                                       [](const Walker& w) { return w.kind == Walker::Kind::kLeading; });
+    out << "\nwalkers " << scene.walkers.size() << " (" << leading << " leading, " << scene.walkers.size() - leading
+        << " crossing)";
+  }
 }
 
 void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std::string& dir) {

@@ -1,4 +1,5 @@
-// The movers of issue 32's harder worlds: plain movers and panels, the occluded start.
+// The movers of issue 32's harder worlds: plain movers and panels, the occluded start, walking
+// figures.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -220,6 +221,141 @@ TEST(OccludedStart, StandsStillWithTheRobotAndClearsTheScenarioStart) {
     const SE3 T_w_o = sim.scene().dynamicPoses(t, sim.trajectory())[0].second;
     EXPECT_EQ((T_w_o.translation() - T_w_o0.translation()).norm(), 0.0) << t;
   }
+}
+
+// ---- walkers -------------------------------------------------------------------------------------
+
+double pitchOf(const SE3& T) {  // forward swing of a part hanging along -z
+  const Vec3 down = T.rotationMatrix() * Vec3(0, 0, -1);
+  return std::atan2(down.x(), -down.z());
+}
+
+double lowestFootZ(const std::vector<render::Mesh>& meshes, const std::vector<SE3>& T_x_p) {
+  double lowest = 1e9;
+  for (const int part : {kFootLeft, kFootRight})
+    for (const Eigen::Vector3f& p : meshes[part].positions_o)
+      lowest = std::min(lowest, (T_x_p[part] * p.cast<double>()).z());
+  return lowest;
+}
+
+// Over a gait cycle the hips swing +-25 deg, the knees bend 0-60 deg, each arm swings opposite to
+// the leg of its side; one foot's sole is always on the floor and the pelvis bobs a few cm.
+TEST(WalkerGait, LimbsSwingRelativeToTheTorsoAndAFootStaysOnTheFloor) {
+  Walker walker;
+  walker.height_m = 1.75;
+  const std::vector<render::Mesh> meshes = walkerMeshes(walker);
+  double hip_min = 1e9, hip_max = -1e9, knee_min = 1e9, knee_max = -1e9, pelvis_min = 1e9, pelvis_max = -1e9;
+  double limb_motion_rad = 0.0;
+  const std::vector<SE3> T0 = walkerPartPoses(walker, 0.0);
+  for (int k = 0; k < 96; ++k) {
+    const double phase = 2.0 * M_PI * k / 96;
+    const std::vector<SE3> T = walkerPartPoses(walker, phase);
+    ASSERT_EQ(T.size(), static_cast<size_t>(kNumWalkerParts));
+    const SE3 T_torso_inv = T[kTorso].inverse();
+    const double hip = pitchOf(T_torso_inv * T[kThighLeft]);
+    const double knee = hip - pitchOf(T_torso_inv * T[kShankLeft]);
+    hip_min = std::min(hip_min, hip);
+    hip_max = std::max(hip_max, hip);
+    knee_min = std::min(knee_min, knee);
+    knee_max = std::max(knee_max, knee);
+    EXPECT_LE(pitchOf(T_torso_inv * T[kUpperArmLeft]) * hip, 1e-12) << phase;  // opposite swings
+    EXPECT_LE(pitchOf(T_torso_inv * T[kUpperArmRight]) * pitchOf(T_torso_inv * T[kThighRight]), 1e-12);
+    EXPECT_NEAR(lowestFootZ(meshes, T), 0.0, 1e-6) << phase;
+    pelvis_min = std::min(pelvis_min, T[kTorso].translation().z());
+    pelvis_max = std::max(pelvis_max, T[kTorso].translation().z());
+    for (int part = kUpperArmLeft; part < kNumWalkerParts; ++part)  // non-rigid: limbs move on the torso
+      limb_motion_rad =
+          std::max(limb_motion_rad, so3Log((T0[kTorso].inverse() * T0[part]).rotationMatrix().transpose() *
+                                           (T_torso_inv * T[part]).rotationMatrix())
+                                        .norm());
+  }
+  EXPECT_NEAR(hip_max, 25.0 * kDeg, 0.1 * kDeg);
+  EXPECT_NEAR(hip_min, -25.0 * kDeg, 0.1 * kDeg);
+  EXPECT_NEAR(knee_min, 0.0, 1e-9);
+  EXPECT_NEAR(knee_max, 60.0 * kDeg, 0.5 * kDeg);
+  EXPECT_GT(limb_motion_rad, 40.0 * kDeg);
+  RecordProperty("pelvis_bob_mm", std::to_string(1e3 * (pelvis_max - pelvis_min)));
+  EXPECT_GT(pelvis_max - pelvis_min, 0.01);
+  EXPECT_LT(pelvis_max - pelvis_min, 0.1);
+  EXPECT_GT(pelvis_min, 0.8);  // legs about straight under a 1.75 m figure
+}
+
+// In the world: feet on the floor; a leading walker 1.0-2.5 m ahead of the camera walking with the
+// robot, a crossing one passing the optical axis perpendicular to the robot's heading at 1.0-1.4 m/s.
+TEST(Walkers, LeadAheadOrCrossTheViewWithTheirFeetOnTheFloor) {
+  int leading = 0, crossing = 0;
+  for (uint64_t seed : {1, 2, 3}) {
+    SimOptions o = smallOptions(Scenario::kStatic, 45.0, seed);
+    o.walkers = 6;
+    Simulator sim(o, sharedRoom());
+    const RobotTrajectory& trajectory = sim.trajectory();
+    ASSERT_EQ(sim.scene().walkers.size(), 6u);
+    for (const Walker& w : sim.scene().walkers) {
+      const std::vector<render::Mesh> meshes = walkerMeshes(w);
+      int present = 0;
+      for (double t = w.t_in_s; t < w.t_out_s; t += 0.1) {
+        const std::optional<WalkerState> state = walkerState(w, t, trajectory);
+        if (!state) continue;
+        ++present;
+        std::vector<SE3> T_w_p = walkerPartPoses(w, state->phase_rad);
+        for (SE3& T : T_w_p) T = state->T_w_f * T;
+        EXPECT_NEAR(lowestFootZ(meshes, T_w_p), 0.0, 1e-6) << t;
+        if (w.kind == Walker::Kind::kLeading && t > w.t_in_s + 2.0 && t < w.t_out_s - 2.0) {
+          const Vec3 p_floor = trajectory.T_w_floor(t).inverse() * state->T_w_f.translation();
+          const double ahead_m = p_floor.x() - SimOptions::T_b_c().translation().x();
+          EXPECT_GE(ahead_m, 1.0) << t;
+          EXPECT_LE(ahead_m, 2.5) << t;
+          EXPECT_LT(std::abs(p_floor.y()), 0.31) << t;
+          EXPECT_LT(state->speed_mps, 1.2) << t;
+        }
+      }
+      EXPECT_GT(present, 20);
+      if (w.kind == Walker::Kind::kLeading) {
+        ++leading;
+        continue;
+      }
+      ++crossing;
+      const std::optional<WalkerState> mid = walkerState(w, w.t_mid_s, trajectory);
+      ASSERT_TRUE(mid.has_value());
+      const SE3 T_floor_f = trajectory.T_w_floor(w.t_mid_s).inverse() * mid->T_w_f;
+      EXPECT_LT(std::abs(T_floor_f.rotationMatrix()(0, 0)), 1e-9);  // walks across the heading
+      EXPECT_NEAR(std::abs(T_floor_f.translation().y() - SimOptions::T_b_c().translation().y()), 0.0, 1e-9);
+      EXPECT_GE(T_floor_f.translation().x(), 1.2);
+      EXPECT_LE(T_floor_f.translation().x(), 3.2);
+      EXPECT_GE(mid->speed_mps, 1.0);
+      EXPECT_LE(mid->speed_mps, 1.4);
+    }
+  }
+  EXPECT_GE(leading, 3);
+  EXPECT_GE(crossing, 3);
+}
+
+// A figure of 12 parts is one mover: one label in the render of the movers, the mask exactly its
+// visible pixels and 0 elsewhere.
+TEST(Walkers, OneLabelPerFigureAndTheMaskIsExactlyItsVisiblePixels) {
+  SimOptions o = smallOptions(Scenario::kStatic, 20.0, 1);
+  o.width_px = 320;
+  o.height_px = 240;
+  o.walkers = 2;
+  Simulator sim(o, sharedRoom());
+  int checked = 0;
+  for (int i = 0; i < sim.numFrames(); i += 10) {
+    const render::RenderResult movers = sim.renderDynamicOnly(i);
+    const std::map<int, int> counts = labelCounts(movers.labels);
+    for (const auto& [label, count] : counts) EXPECT_TRUE(label == 1 || label == 2) << label;
+    if (counts.empty() || counts.begin()->second < static_cast<int>(movers.labels.total() / 50)) continue;
+    const SimFrame frame = sim.renderFrame(i);
+    const render::RenderResult room = sim.renderStaticOnly(i);
+    int wrong = 0;
+    for (int v = 0; v < frame.mask.rows; ++v)
+      for (int u = 0; u < frame.mask.cols; ++u) {
+        const float zd = movers.depth_m.at<float>(v, u), zs = room.depth_m.at<float>(v, u);
+        wrong += (zd > 0 && (zs == 0 || zd < zs)) != (frame.mask.at<uint8_t>(v, u) == 255);
+      }
+    EXPECT_EQ(wrong, 0) << "frame " << i;
+    ++checked;
+  }
+  EXPECT_GE(checked, 5);
 }
 
 }  // namespace

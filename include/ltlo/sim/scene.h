@@ -15,6 +15,7 @@
 
 #include "ltlo/core/lie.h"
 #include "ltlo/render/offscreen_renderer.h"
+#include "ltlo/sim/movers.h"
 #include "ltlo/sim/robot_trajectory.h"
 #include "ltlo/sim/sim_options.h"
 
@@ -58,8 +59,9 @@ struct MoverPart {
 struct Scene {
   std::vector<cv::Mat> textures;            ///< CV_8UC3 BGR; mesh texture ids index this list
   std::vector<render::Mesh> static_meshes;  ///< world frame
-  /// Movers: the boxes.
+  /// Movers, numbered in this order: boxes, walkers.
   std::vector<DynamicBox> boxes;
+  std::vector<Walker> walkers;
   bool photo_textures = false;           ///< false: procedural fallback was used
   std::vector<std::string> photo_paths;  ///< photographs used (for the log and stats.txt)
 
