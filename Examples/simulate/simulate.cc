@@ -5,7 +5,7 @@
 //            [--sensor ideal|realsense|kinect|FILE.yaml] [--sensor-set KEY=VALUE]...
 //            [--time-offset S] [--lens none|radtan|radtan-strong|rational|kb]
 //            [--still START,DURATION]... [--occlusion-at T]...
-//            [--plain-movers] [--occluded-start away|towards] [--walkers N]
+//            [--plain-movers] [--occluded-start away|towards] [--walkers N] [--door]
 // Exit status: 0 written, 2 bad input (options, config file, output folder), 1 any other error.
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
   app.add_option("--occlusion-at", occlusion_at,
                  "T (s): a box crosses the view from T (in from one side, held 2-4 s, out to the other); repeatable")
       ->check(CLI::Range(0.0, 1e6));
-  bool plain_movers = false;
+  bool plain_movers = false, doors = false;
   std::string occluded_start;
   int walkers = 0;
   app.add_flag("--plain-movers", plain_movers,
@@ -142,6 +142,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"away", "towards"}));
   app.add_option("--walkers", walkers, "N walking figures over the run (leading the robot or crossing its view)")
       ->check(CLI::Range(1, 100));
+  app.add_flag("--door", doors, "door leaves swinging open and closed at three places the path passes");
   app.add_option("--progress-every", progress_every, "progress line every N frames")
       ->check(CLI::Range(1, 1000000));
   try {
@@ -204,6 +205,7 @@ int main(int argc, char** argv) {
     if (!occluded_start.empty())
       options.occluded_start = occluded_start == "away" ? ltlo::sim::StartMove::kAway : ltlo::sim::StartMove::kTowards;
     options.walkers = walkers;
+    options.doors = doors;
     ltlo::sim::writeSequence(options, out_dir, progress_every);
   } catch (const ltlo::ConfigError& e) {
     std::cerr << "simulate: " << e.what() << "\n";

@@ -70,6 +70,8 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   Scene& scene = *this;
   scene.boxes.clear();
   scene.walkers.clear();
+  scene.doors.clear();
+  scene.door_frames.clear();
   std::mt19937_64 event_rng(options.seed * 6364136223846793005ULL + 1442695040888963407ULL);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(event_rng); };
@@ -136,6 +138,7 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   addCrossingEvents(options);
   addOccludedStart(options, this);
   scheduleWalkers(options, this);
+  scheduleDoors(options, this);
   applyPlainMovers(options, this);
 }
 
@@ -217,6 +220,10 @@ void applyPlainMovers(const SimOptions& options, Scene* scene) {
     w.plain = true;
     w.shirt_rgb = plainColour(draw);
     w.trouser_rgb = 0.6 * plainColour(draw);
+  }
+  for (Door& door : scene->doors) {
+    door.plain = true;
+    door.plain_rgb = plainColour(draw);
   }
 }
 

@@ -18,6 +18,8 @@ void addOccludedStart(const SimOptions& options, Scene* scene);
 double occludedStartEndS(const Scene& scene);
 /// --walkers N (walkers.cc).
 void scheduleWalkers(const SimOptions& options, Scene* scene);
+/// --door (doors.cc): the leaves and their static frames.
+void scheduleDoors(const SimOptions& options, Scene* scene);
 /// --plain-movers: plain colours for every mover, half of the events' boxes become panels.
 void applyPlainMovers(const SimOptions& options, Scene* scene);
 

@@ -166,6 +166,7 @@ std::vector<std::vector<render::Mesh>> Scene::moverMeshes() const {
     meshes.push_back({std::move(mesh)});
   }
   for (const Walker& walker : walkers) meshes.push_back(walkerMeshes(walker));
+  for (const Door& door : doors) meshes.push_back({doorLeafMesh(door)});
   return meshes;
 }
 
@@ -181,6 +182,7 @@ std::vector<MoverPart> Scene::moverParts(double t_s, const RobotTrajectory& traj
     }
     ++mover;
   }
+  for (const Door& door : doors) parts.push_back({mover++, 0, doorLeafPose(door, t_s)});
   return parts;
 }
 
@@ -226,8 +228,12 @@ double boxImageShare(const PinholeCamera& camera, const SE3& T_c_o, const Vec3& 
 void Scene::writePly(const std::string& path) const {
   std::ofstream out(path);
   if (!out) throw InputError(path, 0, "cannot open for writing");
+  std::vector<const render::Mesh*> meshes;
+  for (const render::Mesh& mesh : static_meshes) meshes.push_back(&mesh);
+  for (const render::Mesh& mesh : door_frames) meshes.push_back(&mesh);
   size_t num_vertices = 0, num_triangles = 0;
-  for (const render::Mesh& mesh : static_meshes) {
+  for (const render::Mesh* mesh_ptr : meshes) {
+    const render::Mesh& mesh = *mesh_ptr;
     num_vertices += mesh.positions_o.size();
     num_triangles += mesh.triangles.size() / 3;
   }
@@ -236,11 +242,12 @@ void Scene::writePly(const std::string& path) const {
       << "\nproperty float x\nproperty float y\nproperty float z\n"
       << "element face " << num_triangles
       << "\nproperty list uchar int vertex_indices\nend_header\n";
-  for (const render::Mesh& mesh : static_meshes)
-    for (const Eigen::Vector3f& p : mesh.positions_o)
+  for (const render::Mesh* mesh : meshes)
+    for (const Eigen::Vector3f& p : mesh->positions_o)
       out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
   size_t offset = 0;
-  for (const render::Mesh& mesh : static_meshes) {
+  for (const render::Mesh* mesh_ptr : meshes) {
+    const render::Mesh& mesh = *mesh_ptr;
     for (size_t k = 0; k + 2 < mesh.triangles.size(); k += 3)
       out << "3 " << offset + mesh.triangles[k] << ' ' << offset + mesh.triangles[k + 1] << ' '
           << offset + mesh.triangles[k + 2] << '\n';

@@ -149,6 +149,8 @@ Simulator::Simulator(const SimOptions& options, Scene room)
   for (const cv::Mat& texture : scene_.textures) renderer_->addTexture(texture);
   for (const render::Mesh& mesh : scene_.static_meshes)
     static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
+  for (const render::Mesh& mesh : scene_.door_frames)
+    static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
   for (const std::vector<render::Mesh>& parts : scene_.moverMeshes()) {
     mover_drawables_.emplace_back();
     for (const render::Mesh& mesh : parts) mover_drawables_.back().push_back(renderer_->addMesh(mesh));
@@ -349,7 +351,8 @@ void logSequenceStart(const Simulator& sim) {
             sim.scene().photo_textures
                 ? std::to_string(sim.scene().photo_paths.size()) + " photographs"
                 : "procedural",
-            ", ", sim.scene().boxes.size(), " dynamic boxes, ", sim.scene().walkers.size(), " walkers");
+            ", ", sim.scene().boxes.size(), " dynamic boxes, ", sim.scene().walkers.size(), " walkers, ",
+            sim.scene().doors.size(), " doors");
 }
 
 bool inImuGap(const SimOptions& options, double t_s) {
@@ -528,6 +531,7 @@ void writeHarderWorldStats(const Simulator& sim, std::ostream& out) {
     out << "\nwalkers " << scene.walkers.size() << " (" << leading << " leading, " << scene.walkers.size() - leading
         << " crossing)";
   }
+  if (options.doors) out << "\ndoors " << scene.doors.size();
 }
 
 void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std::string& dir) {

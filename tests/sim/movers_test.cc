@@ -1,5 +1,5 @@
 // The movers of issue 32's harder worlds: plain movers and panels, the occluded start, walking
-// figures.
+// figures, swinging doors.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -356,6 +356,91 @@ TEST(Walkers, OneLabelPerFigureAndTheMaskIsExactlyItsVisiblePixels) {
     ++checked;
   }
   EXPECT_GE(checked, 5);
+}
+
+// ---- doors ---------------------------------------------------------------------------------------
+
+// Distance in the floor plane from p to a leaf (a segment from its hinge, thickened by half its thickness).
+double distanceToLeaf(const Vec2& p, const Door& door, double angle_rad) {
+  const double yaw = door.closed_yaw_rad + door.open_sign * angle_rad;
+  const Vec2 hinge = door.hinge_w.head<2>(), tip = hinge + door.width_m * Vec2(std::cos(yaw), std::sin(yaw));
+  const double s = std::clamp((p - hinge).dot(tip - hinge) / (tip - hinge).squaredNorm(), 0.0, 1.0);
+  return (p - (hinge + s * (tip - hinge))).norm() - 0.5 * door.thickness_m;
+}
+
+// Each leaf swings between 0 and at most 100 deg, held at both ends, about a hinge edge fixed in the world.
+TEST(Doors, LeavesSwingWithinTheirBoundsAboutAFixedHingeEdge) {
+  SimOptions o = smallOptions(Scenario::kStatic, 60.0, 1);
+  o.doors = true;
+  Simulator sim(o, sharedRoom());
+  ASSERT_EQ(sim.scene().doors.size(), 3u);
+  EXPECT_EQ(sim.scene().door_frames.size(), 9u);
+  for (const Door& door : sim.scene().doors) {
+    EXPECT_LE(door.max_angle_rad, 100.0 * kDeg + 1e-12);
+    double closed_s = 0.0, open_s = 0.0, largest = 0.0;
+    for (double t = 0.0; t < o.duration_s; t += 0.01) {
+      const double angle = doorAngle(door, t);
+      ASSERT_GE(angle, 0.0);
+      ASSERT_LE(angle, door.max_angle_rad);
+      largest = std::max(largest, angle);
+      closed_s += angle == 0.0 ? 0.01 : 0.0;
+      open_s += angle == door.max_angle_rad ? 0.01 : 0.0;
+      const SE3 T_w_leaf = doorLeafPose(door, t);
+      for (const double z : {-0.5, 0.5}) {  // the hinge edge's ends
+        const Vec3 p_w = T_w_leaf * Vec3(-0.5 * door.width_m, 0.0, z * door.height_m);
+        EXPECT_LT((p_w.head<2>() - door.hinge_w.head<2>()).norm(), 1e-9) << t;
+      }
+    }
+    EXPECT_EQ(largest, door.max_angle_rad);
+    EXPECT_GT(closed_s, 5.0);
+    EXPECT_GT(open_s, 5.0);
+  }
+}
+
+// Where the leaves sweep is at least 0.3 m from the camera's path (seeds 1-5, two laps).
+TEST(Doors, LeavesNeverComeWithinThirtyCentimetresOfTheCameraPath) {
+  SimOptions o = smallOptions(Scenario::kStatic, 1.0, 1);
+  o.doors = true;
+  Simulator sim(o, sharedRoom());
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    const RobotTrajectory trajectory(TrajectoryParams{}, seed);
+    double closest_m = 1e9;
+    for (double t = 0.0; t < 70.0; t += 0.05) {
+      const Vec2 camera = (trajectory.state(t).T_w_b * SimOptions::T_b_c()).translation().head<2>();
+      for (const Door& door : sim.scene().doors)
+        for (double angle = 0.0; angle <= door.max_angle_rad; angle += 1.0 * kDeg)
+          closest_m = std::min(closest_m, distanceToLeaf(camera, door, angle));
+    }
+    RecordProperty("closest_mm_seed" + std::to_string(seed), std::to_string(1e3 * closest_m));
+    EXPECT_GT(closest_m, 0.3) << "seed " << seed;
+  }
+}
+
+// A leaf is a mover all the time: at rest (closed) it is in the mask as well; the leaves are in
+// view for a good share of the run.
+TEST(Doors, ALeafIsInTheMaskAlsoWhenAtRest) {
+  SimOptions o = smallOptions(Scenario::kStatic, 35.0, 1);
+  o.width_px = 80;
+  o.height_px = 60;
+  o.fps = 5.0;
+  o.doors = true;
+  Simulator sim(o, sharedRoom());
+  int in_view = 0, at_rest_in_mask = 0;
+  for (int i = 0; i < sim.numFrames(); ++i) {
+    const double t_s = sim.frameTime(i);
+    const SimFrame frame = sim.renderFrame(i);
+    const render::RenderResult movers = sim.renderDynamicOnly(i);
+    if (frame.dynamic_fraction > 0.01) ++in_view;
+    for (const auto& [label, count] : labelCounts(movers.labels)) {
+      const Door& door = sim.scene().doors[label - 1];
+      cv::Mat on;
+      cv::bitwise_and(frame.mask, movers.labels == label, on);
+      if (doorAngle(door, t_s) == 0.0 && cv::countNonZero(on) > 20) ++at_rest_in_mask;
+    }
+  }
+  RecordProperty("share_in_view", std::to_string(in_view / static_cast<double>(sim.numFrames())));
+  EXPECT_GT(at_rest_in_mask, 3);
+  EXPECT_GT(in_view, sim.numFrames() / 4);
 }
 
 }  // namespace

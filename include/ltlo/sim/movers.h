@@ -1,7 +1,7 @@
 #pragma once
 /// Movers beyond the pushed boxes (issue 32, "harder worlds"): articulated walking figures
-/// (simulate --walkers N). A figure is one mover, so one label in the mask, however many rigid
-/// parts it has.
+/// (simulate --walkers N) and door leaves swinging at fixed places of the room (--door). Each is one
+/// mover, so one label in the mask, however many rigid parts it has.
 #include <optional>
 #include <vector>
 
@@ -84,5 +84,30 @@ struct WalkerState {
 };
 /// Where the figure is at t_s, or nothing when it is not present.
 std::optional<WalkerState> walkerState(const Walker& walker, double t_s, const RobotTrajectory& trajectory);
+
+/// A door leaf on a frame post at a fixed place in the world, swinging open and closed periodically:
+/// closed (held), swings open over swing_s, held open, swings closed, held closed again...
+struct Door {
+  Vec3 hinge_w = Vec3::Zero();  ///< foot of the hinge axis on the floor (world)
+  double closed_yaw_rad = 0.0;  ///< world yaw of the leaf (hinge towards its free edge) when closed
+  double open_sign = -1.0;      ///< the yaw grows (+1) or shrinks (-1) as it opens
+  double width_m = 0.85, height_m = 2.0, thickness_m = 0.04;
+  double max_angle_rad = 100.0 * M_PI / 180.0;  ///< fully open
+  double swing_s = 1.2;                         ///< duration of one swing (open or close)
+  double open_hold_s = 1.0;                     ///< held fully open
+  double closed_hold_s = 1.5;                   ///< held closed
+  double t0_s = 0.0;                            ///< a cycle (starting closed, held) begins at t0_s
+  int texture = -1;
+  bool plain = false;
+  Vec3 plain_rgb = Vec3::Ones();
+};
+
+/// Opening angle (rad, 0 = closed) at t_s; smoothstep swings.
+double doorAngle(const Door& door, double t_s);
+/// Pose of the leaf's centre (the frame of doorLeafMesh: x along the leaf, y through it, z up).
+SE3 doorLeafPose(const Door& door, double t_s);
+render::Mesh doorLeafMesh(const Door& door);
+/// The static frame: two posts beside the doorway and a lintel over it (world frame, plain white).
+std::vector<render::Mesh> doorFrameMeshes(const Door& door);
 
 }  // namespace ltlo::sim

@@ -110,6 +110,8 @@ struct SimOptions {
   StartMove occluded_start = StartMove::kNone;
   /// --walkers N: N walking figures over the run (leading the robot or crossing its view).
   int walkers = 0;
+  /// --door: door leaves swinging at fixed places of the room.
+  bool doors = false;
 
   // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
   // noise_free, which turns off noise, biases, holes and exposure jitter only.
