@@ -532,6 +532,7 @@ void writeHarderWorldStats(const Simulator& sim, std::ostream& out) {
         << " crossing)";
   }
   if (options.doors) out << "\ndoors " << scene.doors.size();
+  if (options.three_movers) out << "\nthree_movers 1";
 }
 
 void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std::string& dir) {

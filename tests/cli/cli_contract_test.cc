@@ -124,6 +124,9 @@ TEST_F(CliContract, SimulateHarderWorldOptionsExitTwoNamingTheOptionAndValue) {
   result = simulate({"--walkers", "3"});  // 10 s hold one walker of 5 s after the first 1 s
   EXPECT_EQ(result.exit_code, 2) << result.describe();
   EXPECT_NE(result.err.find("--walkers 3: each walker needs 5 s"), std::string::npos) << result.err;
+  result = simulate({"--walkers", "1", "--three-movers"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--three-movers"), std::string::npos) << result.err;
   EXPECT_FALSE(fs::exists(work_ / "seq" / "stats.txt"));
 }
 

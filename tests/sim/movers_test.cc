@@ -1,5 +1,5 @@
 // The movers of issue 32's harder worlds: plain movers and panels, the occluded start, walking
-// figures, swinging doors.
+// figures, swinging doors and three movers at once.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -441,6 +441,42 @@ TEST(Doors, ALeafIsInTheMaskAlsoWhenAtRest) {
   RecordProperty("share_in_view", std::to_string(in_view / static_cast<double>(sim.numFrames())));
   EXPECT_GT(at_rest_in_mask, 3);
   EXPECT_GT(in_view, sim.numFrames() / 4);
+}
+
+// ---- three movers --------------------------------------------------------------------------------
+
+// From t_clear on: a lead box, crossing boxes and a carried box, three labels in view together in
+// most frames; the carried box alone covers 20-30 % of the view.
+TEST(ThreeMovers, ThreeLabelsAreInViewTogetherInMostFrames) {
+  SimOptions o = smallOptions(Scenario::kLtlo, 40.0, 2);
+  o.fps = 5.0;
+  o.three_movers = true;
+  Simulator sim(o, sharedRoom());
+  const std::vector<DynamicBox>& boxes = sim.scene().boxes;
+  ASSERT_GE(boxes.size(), 5u);
+  int carried = -1;
+  for (size_t k = 0; k < boxes.size(); ++k) {
+    EXPECT_GE(boxes[k].t_in_s, 3.0);
+    EXPECT_EQ(boxes[k].event, -1);  // the scenario's own events are gone
+    if (boxes[k].carried) carried = static_cast<int>(k);
+  }
+  ASSERT_GE(carried, 0);
+  int frames = 0, with_three = 0;
+  std::vector<double> carried_share;
+  for (int i = frameAt(sim, 5.0); i < sim.numFrames(); ++i) {
+    const render::RenderResult movers = sim.renderDynamicOnly(i);
+    int visible = 0;
+    for (const auto& [label, count] : labelCounts(movers.labels)) {
+      visible += count > static_cast<int>(movers.labels.total() / 200);
+      if (label == carried + 1) carried_share.push_back(count / static_cast<double>(movers.labels.total()));
+    }
+    ++frames;
+    with_three += visible >= 3;
+  }
+  RecordProperty("share_three_visible", std::to_string(with_three / static_cast<double>(frames)));
+  EXPECT_GT(with_three, frames / 2);
+  EXPECT_GT(percentile(carried_share, 0.5), 0.17);  // partly hidden by nothing: it is the nearest
+  EXPECT_LT(percentile(carried_share, 0.5), 0.33);
 }
 
 }  // namespace

@@ -112,6 +112,8 @@ struct SimOptions {
   int walkers = 0;
   /// --door: door leaves swinging at fixed places of the room.
   bool doors = false;
+  /// --three-movers: from t_clear on a leading box, repeated crossing boxes and a carried box.
+  bool three_movers = false;
 
   // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
   // noise_free, which turns off noise, biases, holes and exposure jitter only.
