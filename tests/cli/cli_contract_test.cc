@@ -105,6 +105,31 @@ class CliContract : public ::testing::Test {
   std::string settings_ = sourceDir() + "/config_yaml/synthetic.yaml";
 };
 
+// simulate's harder-world options (issue 32) exit 2 on bad values, naming the option and the value.
+TEST_F(CliContract, SimulateHarderWorldOptionsExitTwoNamingTheOptionAndValue) {
+  const auto simulate = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> argv = {programPath("simulate"), "--scenario", "static", "--seed", "1", "--seconds", "10",
+                                     "--width", "80", "--height", "60", "--out", (work_ / "seq").string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return runProgram(argv);
+  };
+  ProgramResult result;
+  result = simulate({"--occluded-start", "sideways"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--occluded-start"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("sideways"), std::string::npos) << result.err;
+  result = simulate({"--walkers", "0"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--walkers"), std::string::npos) << result.err;
+  result = simulate({"--walkers", "3"});  // 10 s hold one walker of 5 s after the first 1 s
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--walkers 3: each walker needs 5 s"), std::string::npos) << result.err;
+  result = simulate({"--walkers", "1", "--three-movers"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--three-movers"), std::string::npos) << result.err;
+  EXPECT_FALSE(fs::exists(work_ / "seq" / "stats.txt"));
+}
+
 TEST_F(CliContract, MissingOrGarbageVocabularyExitsTwoNamingTheFile) {
   const std::string missing = (work_ / "no_such.bin").string();
   ProgramResult result = slam(sharedSequence(), {"--vocabulary", missing});
