@@ -133,6 +133,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     KeyFrameCullingOptions culling;
     culling.redundant_ratio = options.local_mapping.redundant_ratio;
     culling.use_imu = options.use_imu;
+    if (imu.initialised) culling.max_imu_span_s = options.local_mapping.cull_max_imu_span_s;
     for (const map::KeyFrameId id : cullRedundantKeyFrames(*map, *kf, culling)) {
       atlas.keyFrameDatabase().erase(id);
       ++delta.culled_keyframes;

@@ -289,6 +289,11 @@ struct LocalMappingOptions {
   /// a keyframe is culled when this fraction of its points is seen by >= 3 other keyframes
   /// (LocalMapping.RedundantRatio, [0.5, 1])
   double redundant_ratio = 0.9;
+  /// With the IMU initialised, a keyframe is culled only when its neighbours in time are at most this
+  /// far apart (s), so the merged preintegration stays short; before the initialisation 0.5 s.
+  /// Longer spans let revisits cull the keyframes earlier passes made redundant, so a run of many laps
+  /// keeps a bounded map (LocalMapping.CullMaxImuSpan, [0.1, 10])
+  double cull_max_imu_span_s = 0.5;
   /// Estimate the camera-IMU time offset online (what IMU.TimeOffset left), from the keyframe
   /// rotations after each local BA against the gyroscope (mapping/time_offset_estimator.h); tracking
   /// cuts the frames' IMU intervals with it (LocalMapping.EstimateTimeOffset, 0/1)
