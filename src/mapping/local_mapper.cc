@@ -133,10 +133,16 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     KeyFrameCullingOptions culling;
     culling.redundant_ratio = options.local_mapping.redundant_ratio;
     culling.use_imu = options.use_imu;
-    for (const map::KeyFrameId id : cullRedundantKeyFrames(*map, *kf, culling)) {
+    if (imu.initialised) {
+      culling.max_imu_span_s = options.local_mapping.cull_max_imu_span_s;
+      culling.cut_imu_min_age_s = options.local_mapping.cull_imu_cut_age_s;
+    }
+    int cut_links = 0;
+    for (const map::KeyFrameId id : cullRedundantKeyFrames(*map, *kf, culling, &cut_links)) {
       atlas.keyFrameDatabase().erase(id);
       ++delta.culled_keyframes;
     }
+    if (cut_links > 0) log::debug("culling at kf ", kf->id(), ": ", cut_links, " old keyframes culled, IMU chain cut");
 
     // 5. IMU initialisation and its refinements.
     if (options.use_imu && maybeInitialiseImu(*map, kf)) ++delta.imu_initialisations;
