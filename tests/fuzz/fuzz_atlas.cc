@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <string>
 
-#include "binary_io.h"
+#include "ltlo/map/binary_io.h"
 #include "fuzz_atlas_vocabulary.h"
 #include "fuzz_common.h"
 #include "ltlo/map/atlas_file.h"

@@ -13,7 +13,7 @@
 #include <string>
 
 #include "atlas_compare.h"
-#include "binary_io.h"
+#include "ltlo/map/binary_io.h"
 #include "bow/vocabulary.h"
 #include "map_test_util.h"
 
