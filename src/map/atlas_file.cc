@@ -470,7 +470,8 @@ AtlasFileSummary readAtlasSummaryFromBytes(const std::string& bytes, const std::
   AtlasFileSummary summary = summarise(parsed, bytes.size(), fileVersion(bytes));
   if (parsed.has_run_state()) {
     ByteReader stages(bytes.data(), 0, name, "run", 0);
-    summary.run = runSummary(readRunSection(bytes, name, parsed, &stages), stages.remaining());
+    const AtlasRunState state = readRunSection(bytes, name, parsed, &stages);
+    summary.run = runSummary(state, stages.remaining());
   }
   return summary;
 }
