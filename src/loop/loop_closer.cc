@@ -593,6 +593,8 @@ void LoopCloser::run() {
 
 void LoopCloser::requestFinish() { impl_->queue.close(); }
 
+std::size_t LoopCloser::queuedKeyFrames() const { return impl_->queue.size(); }
+
 std::vector<LoopEvent> LoopCloser::events() const {
   std::lock_guard<std::mutex> lock(impl_->events_mutex);
   return impl_->events;

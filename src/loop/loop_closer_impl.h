@@ -49,8 +49,8 @@ struct LoopCloser::Impl {
   /// kf's map was merged into the parent.
   bool tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
   /// The guided search settings for kf (Loop.Rejoin's, refined pose) at the given sigmas.
-  place::GuidedPlaceMatchOptions guidedSearch(const map::KeyFrame& kf, double sigma_position_m, double sigma_rotation_rad,
-                                       std::uint32_t salt) const;
+  place::GuidedPlaceMatchOptions guidedSearch(const map::KeyFrame& kf, double sigma_position_m,
+                                              double sigma_rotation_rad, std::uint32_t salt) const;
   /// One rejoin search of kf (of `map`) in `target` with the given sigmas; merges on success.
   bool rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map, map::Map& target, double sigma_position_m,
                 double sigma_rotation_rad);

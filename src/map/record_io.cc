@@ -251,7 +251,6 @@ imu::Preintegrated readPreintegration(ByteReader& in) {
   return preintegration;
 }
 
-
 void writeOptionalPreintegration(const std::optional<imu::Preintegrated>& preintegration, ByteWriter& out) {
   out.boolean(preintegration.has_value());
   if (preintegration) writePreintegration(*preintegration, out);

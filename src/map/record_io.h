@@ -4,9 +4,8 @@
 /// cluster segmentation, ORB features with their pyramid and depths. Every reader checks what the
 /// live code would assert (ranges, sizes) and fails naming the field and value.
 #include <cstdint>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "ltlo/core/camera.h"
 #include "ltlo/features/orb_extractor.h"

@@ -32,7 +32,7 @@ void writeKeyFrameIds(const std::vector<KeyFrameId>& ids, ByteWriter& out) {
 
 /// Ids that must name keyframes of the atlas, each once.
 std::vector<KeyFrameId> readAtlasKeyFrameIds(ByteReader& in, const char* what,
-                                              const std::unordered_map<KeyFrameId, std::shared_ptr<KeyFrame>>& known) {
+                                             const std::unordered_map<KeyFrameId, std::shared_ptr<KeyFrame>>& known) {
   const std::size_t n = in.count(what, kIdBytes);
   std::vector<KeyFrameId> ids;
   ids.reserve(n);
@@ -40,7 +40,8 @@ std::vector<KeyFrameId> readAtlasKeyFrameIds(ByteReader& in, const char* what,
   for (std::size_t k = 0; k < n; ++k) {
     const std::uint64_t offset = in.fileOffset();
     const KeyFrameId id(in.u64(what));
-    if (known.count(id) == 0) in.failAt(offset, std::string(what) + " is not a keyframe of the file", std::to_string(id.value));
+    if (known.count(id) == 0)
+      in.failAt(offset, std::string(what) + " is not a keyframe of the file", std::to_string(id.value));
     if (!seen.insert(id).second) in.failAt(offset, std::string(what) + " given twice", std::to_string(id.value));
     ids.push_back(id);
   }
@@ -98,7 +99,9 @@ std::shared_ptr<KeyFrame> RunKeyFrames::read(ByteReader& in, const char* what) c
   const KeyFrameId id(in.u64(what));
   if (!id.valid()) return nullptr;
   std::shared_ptr<KeyFrame> kf = find(id);
-  if (!kf) in.failAt(offset, std::string(what) + " is neither a keyframe of the file nor a culled one", std::to_string(id.value));
+  if (!kf)
+    in.failAt(offset, std::string(what) + " is neither a keyframe of the file nor a culled one",
+              std::to_string(id.value));
   return kf;
 }
 
@@ -185,7 +188,8 @@ AtlasRunState readAtlasRunState(ByteReader& in, Atlas& atlas) {
     AtlasRunState::MergedMap merged;
     const std::uint64_t offset = in.fileOffset();
     merged.id = readMapId(in, "merged map");
-    if (!all_maps.insert(merged.id).second) in.failAt(offset, "merged map id repeated", std::to_string(merged.id.value));
+    if (!all_maps.insert(merged.id).second)
+      in.failAt(offset, "merged map id repeated", std::to_string(merged.id.value));
     target_offsets.push_back(in.fileOffset());
     merged.target = readMapId(in, "merge target");
     merged.version = in.u64("merged map version");
@@ -205,7 +209,8 @@ AtlasRunState readAtlasRunState(ByteReader& in, Atlas& atlas) {
   for (std::size_t k = 0; k < state.merged.size(); ++k) {
     MapId id = state.merged[k].id;
     for (std::size_t steps = 0; into.count(id) > 0; ++steps) {
-      if (steps > state.merged.size()) in.failAt(target_offsets[k], "merge targets form a cycle", std::to_string(id.value));
+      if (steps > state.merged.size())
+        in.failAt(target_offsets[k], "merge targets form a cycle", std::to_string(id.value));
       id = into.at(id);
     }
   }

@@ -57,7 +57,8 @@ std::uint64_t runStateFingerprint(const std::string& settings_description, bool 
   std::istringstream lines(settings_description);
   std::string kept;
   for (std::string line; std::getline(lines, line);) {
-    if (line.rfind("settings = ", 0) == 0 || line.rfind("calibration = ", 0) == 0 || line.rfind("--set ", 0) == 0) continue;
+    if (line.rfind("settings = ", 0) == 0 || line.rfind("calibration = ", 0) == 0 || line.rfind("--set ", 0) == 0)
+      continue;
     kept += line + "\n";
   }
   kept += use_imu ? "imu\n" : "no imu\n";

@@ -189,7 +189,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   }
   ScopedTimer frame_timer(timing_, "tracking.frame");
   ScopedThreadCpuTimer frame_cpu_timer(timing_, "tracking.frame_cpu");
-  last_input_ = std::make_pair(input.index, input.t_s);
+  frame_in_progress_ = true;  // an exception from here on leaves the stages mid-frame
   pollImuState();
 
   // The segmenter starts on the images (possibly on its worker thread) while ORB is extracted here.
@@ -249,6 +249,8 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     processPendingKeyFrames();
     pollImuState();
   }
+  last_input_ = std::make_pair(input.index, input.t_s);
+  frame_in_progress_ = false;
   return state;
 }
 
@@ -374,8 +376,17 @@ void System::saveAtlas(const std::string& path) {
   state.g_w = imu.g_w;
   state.acceleration_covariance_w = imu.acceleration_covariance_w;
   state.time_offset_s = settings_.calib.imu.time_offset_s + mapper_->timeOffset().shift_s;
-  // The run state: the next frame follows the last one tracked (or, a resumed run that tracked
-  // none, the frame it would have resumed at).
+  // The run state, unless a stage stopped part-way (an error inside a frame, local mapping or loop
+  // closing stopped with keyframes queued): the maps are saved all the same.
+  if (frame_in_progress_ || mapper_->queuedKeyFrames() > 0 || closer_->queuedKeyFrames() > 0 ||
+      closer_->globalBaRunning()) {
+    map::saveAtlas(*atlas_, state, atlasBuildInfo(), path);
+    log::warn("system: atlas saved to ", path, " without the run state (the run stopped part-way through a ",
+              frame_in_progress_ ? "frame" : "keyframe", "): it loads, but cannot be resumed");
+    return;
+  }
+  // The next frame follows the last one tracked (or, a resumed run that tracked none, the frame it
+  // would have resumed at).
   map::RunStateHeader header;
   if (last_input_) {
     header.next_frame_index = static_cast<std::uint64_t>(last_input_->first) + 1;

@@ -224,7 +224,8 @@ void Tracker::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes)
   const std::uint64_t pims_offset = in.fileOffset();
   const std::size_t num_pims = in.count("localisation IMU links", 8);
   if (num_pims + 1 != num_nodes && !(num_pims == 0 && num_nodes == 0)) {
-    in.failAt(pims_offset, "localisation IMU links for " + std::to_string(num_nodes) + " nodes", std::to_string(num_pims));
+    in.failAt(pims_offset, "localisation IMU links for " + std::to_string(num_nodes) + " nodes",
+              std::to_string(num_pims));
   }
   for (std::size_t k = 0; k < num_pims; ++k) {
     window.pims.push_back(std::make_shared<const imu::Preintegrated>(map::readPreintegration(in)));

@@ -90,7 +90,8 @@ struct TestAtlas {
 };
 
 inline std::shared_ptr<KeyFrame> addKeyFrame(Map& map, std::mt19937& rng, double t_s, const SE3& T_w_b,
-                                      const std::shared_ptr<KeyFrame>& previous, const bow::Vocabulary& vocabulary) {
+                                             const std::shared_ptr<KeyFrame>& previous,
+                                             const bow::Vocabulary& vocabulary) {
   Frame frame = test::randomFrame(rng, t_s, T_w_b, kKeypoints);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   frame.setSegmentation(randomSegmentation(rng, {1.0, unit(rng), 0.9, 1.0}), 0.5);
@@ -111,7 +112,7 @@ inline std::shared_ptr<KeyFrame> addKeyFrame(Map& map, std::mt19937& rng, double
 
 /// `count` points seen by each of `kfs` at fresh keypoints (next_keypoint counts per keyframe).
 inline void sharePoints(Map& map, std::mt19937& rng, const std::vector<std::shared_ptr<KeyFrame>>& kfs, int count,
-                 std::unordered_map<KeyFrameId, int>& next_keypoint) {
+                        std::unordered_map<KeyFrameId, int>& next_keypoint) {
   std::uniform_real_distribution<double> coord(-2.0, 2.0), unit(0.0, 1.0);
   for (int n = 0; n < count; ++n) {
     std::shared_ptr<MapPoint> point = map.createMapPoint(Vec3(coord(rng), coord(rng), 3.0 + coord(rng)), KeyFrameId());
@@ -127,7 +128,7 @@ inline void sharePoints(Map& map, std::mt19937& rng, const std::vector<std::shar
 }
 
 inline std::vector<std::shared_ptr<KeyFrame>> buildMap(Map& map, std::mt19937& rng, int num_keyframes, double t0_s,
-                                                const bow::Vocabulary& vocabulary) {
+                                                       const bow::Vocabulary& vocabulary) {
   std::vector<std::shared_ptr<KeyFrame>> kfs;
   std::unordered_map<KeyFrameId, int> next_keypoint;
   for (int k = 0; k < num_keyframes; ++k) {

@@ -122,7 +122,9 @@ TEST_F(AtlasRunStateTest, RestoresTheAtlasAsTheRunLeftIt) {
   // A correction of the live end moves the culled ones alike in both atlases.
   const SE3 move(so3Exp(Vec3(0.0, 0.0, 0.2)), Vec3(0.5, -0.1, 0.0));
   a_[1]->setPose_T_w_b(move * a_[1]->T_w_b());
-  restored.map(test_.map_a)->keyFrame(a_[1]->id())->setPose_T_w_b(move * culled->culledParent()->culledParent()->T_w_b());
+  restored.map(test_.map_a)
+      ->keyFrame(a_[1]->id())
+      ->setPose_T_w_b(move * culled->culledParent()->culledParent()->T_w_b());
   expectSameSe3(latestPose_T_w_b(*culled), latestPose_T_w_b(*a_[3]), "culled latest pose");
   EXPECT_EQ(live, restored.map(test_.map_a)->keyFrame(a_[4]->id()));
   EXPECT_EQ(loaded.summary.run->culled_keyframes, 2u);
@@ -220,8 +222,8 @@ TEST_F(AtlasRunStateTest, ABadRunSectionIsNamedWithItsByte) {
   EXPECT_EQ(loadError(counters, nullptr, nullptr, true),
             bad + ": section run at byte " + std::to_string(counters_at) +
                 ": id counters not above the file's ids (keyframe, point, map) (1, " +
-                std::to_string(readU64(bytes, counters_at + 8)) + ", " + std::to_string(readU64(bytes, counters_at + 16)) +
-                ")");
+                std::to_string(readU64(bytes, counters_at + 8)) + ", " +
+                std::to_string(readU64(bytes, counters_at + 16)) + ")");
 }
 
 TEST(AtlasRunStateRecords, AFrameRecordKeepsEveryField) {

@@ -110,6 +110,8 @@ class LoopCloser {
   void run();
   void requestFinish();
 
+  /// Keyframes waiting in the queue.
+  std::size_t queuedKeyFrames() const;
   std::vector<LoopEvent> events() const;
   int numLoops() const;   ///< same-map loops corrected
   int numMerges() const;  ///< maps merged

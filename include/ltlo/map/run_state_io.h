@@ -122,10 +122,10 @@ struct AtlasRunState {
     bool created_keyframe = false;
     std::optional<MapOrigin> origin;
   };
-  std::vector<MergedMap> merged;         ///< in merge order
-  std::vector<KeyFrameId> database;      ///< in insertion order
-  std::vector<KeyFrameId> anchors;       ///< KeyFrame::isAnchor
-  std::vector<KeyFrameId> at_rest;       ///< KeyFrame::atRest
+  std::vector<MergedMap> merged;     ///< in merge order
+  std::vector<KeyFrameId> database;  ///< in insertion order
+  std::vector<KeyFrameId> anchors;   ///< KeyFrame::isAnchor
+  std::vector<KeyFrameId> at_rest;   ///< KeyFrame::atRest
   struct CulledKeyFrame {
     KeyFrameId id;
     MapId map;

@@ -181,8 +181,9 @@ class System {
 
   /// Writes the atlas (every map, keyframe and point, and the IMU state) to `path` (atomic:
   /// written as path.part, then renamed), for a later run's load_atlas_path, with the run state a
-  /// resumed run continues from (system/run_state.h; the frame after the last one given to
-  /// trackFrame is the next). Call after shutdown(). Throws InputError naming the file when it
+  /// resumed run continues from (system/run_state.h; the frame after the last one trackFrame
+  /// completed is the next; left out, with a warning, when a frame or a keyframe was left
+  /// part-way by an error). Call after shutdown(). Throws InputError naming the file when it
   /// cannot be written.
   void saveAtlas(const std::string& path);
 
@@ -247,8 +248,11 @@ class System {
   /// or processed after the frame (synchronous mode).
   std::vector<std::shared_ptr<map::KeyFrame>> pending_keyframes_;
   std::uint64_t imu_generation_ = 0;
-  /// The last frame given to trackFrame (its sequence index and time), for the saved run state.
+  /// The last frame trackFrame completed (its sequence index and time), for the saved run state.
   std::optional<std::pair<int, double>> last_input_;
+  /// trackFrame began a frame and did not complete it (it threw): the stages are mid-frame and
+  /// saveAtlas leaves the run state out.
+  bool frame_in_progress_ = false;
   /// A resumed run: the run state read from the file (until applied), and where it goes on.
   std::optional<map::LoadedRunState> loaded_run_;
   std::optional<ResumePoint> resume_point_;
