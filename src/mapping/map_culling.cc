@@ -15,6 +15,27 @@ void RecentPointCuller::addPointsOf(const map::Map& map, const map::KeyFrame& kf
   }
 }
 
+void RecentPointCuller::writeState(map::ByteWriter& out) const {
+  out.u64(entries_.size());
+  for (const Entry& entry : entries_) {
+    out.u64(entry.map.value);
+    out.u64(entry.point.value);
+    out.i32(entry.created_at);
+  }
+}
+
+void RecentPointCuller::readState(map::ByteReader& in) {
+  const std::size_t n = in.count("recent map points", 8 + 8 + 4);
+  entries_.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    Entry entry;
+    entry.map = map::MapId(in.u64("recent point map"));
+    entry.point = map::MapPointId(in.u64("recent map point"));
+    entry.created_at = in.i32("recent point's keyframe");
+    entries_.push_back(entry);
+  }
+}
+
 int RecentPointCuller::cull(map::Atlas& atlas, int sequence) {
   int culled = 0;
   std::deque<Entry> kept;

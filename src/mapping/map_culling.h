@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "ltlo/map/atlas.h"
+#include "ltlo/map/binary_io.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/map.h"
 
@@ -30,6 +31,9 @@ class RecentPointCuller {
   /// Checks the remembered points at processing index `sequence`; returns how many were erased.
   int cull(map::Atlas& atlas, int sequence);
   std::size_t size() const { return entries_.size(); }
+  /// The remembered points (a run resumed from an atlas file, LocalMapper::writeState).
+  void writeState(map::ByteWriter& out) const;
+  void readState(map::ByteReader& in);
 
  private:
   struct Entry {
