@@ -103,6 +103,7 @@ void visitTracking(O& o, V& v) {
 template <typename O, typename V>
 void visitLocalMapping(O& o, V& v) {
   v.integer("LocalMapping.WindowSize", o.window_size, 2, 100);
+  v.integer("LocalMapping.MaxFixedKeyFrames", o.max_fixed_keyframes, 1, 1000);
   v.integer("LocalMapping.Iterations", o.ba_iterations, 1, 1000);
   v.boolean("Mapping.RobustBeta", o.robust_beta);
   v.integer("LocalMapping.Alternations", o.alternations, 1, 100);

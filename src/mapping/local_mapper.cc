@@ -226,6 +226,7 @@ void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<m
   if (timing != nullptr) timer.emplace(*timing, "mapping.local_ba");
   WindowBaOptions ba;
   ba.window_size = options.local_mapping.window_size;
+  ba.max_fixed_keyframes = static_cast<std::size_t>(options.local_mapping.max_fixed_keyframes);
   ba.iterations = options.local_mapping.ba_iterations;
   ba.bf_px_m = options.bf_px_m;
   ba.min_point_beta = options.local_mapping.min_point_beta;

@@ -254,6 +254,11 @@ struct LocalMappingOptions {
   /// keyframes optimised (their covisible neighbours held fixed) (LocalMapping.WindowSize, [2,
   /// 100])
   int window_size = 10;
+  /// At most this many other keyframes observing the window's points are held fixed in it, those
+  /// sharing most points first (LocalMapping.MaxFixedKeyFrames, [1, 1000]). A room revisited lap
+  /// after lap gives every point more observers, and the fixed set (its observations) grows to this
+  /// cap: it sets how the local BA's cost grows over a long run
+  int max_fixed_keyframes = 50;
   /// solver iterations per state step (LocalMapping.Iterations, [1, 1000])
   int ba_iterations = 10;
   /// Robust VIBA (Mapping.RobustBeta, 0/1): 1 alternates the state/point step with the closed-form
