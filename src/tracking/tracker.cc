@@ -40,6 +40,7 @@ void Tracker::forceLost() {
 
 TrackingState Tracker::track(map::Frame& frame) {
   const TrackingState state = trackFrame(frame);
+  if (!provisional_points_.empty() && state != TrackingState::kNotInitialised) checkProvisionalPoints(frame);
   if (options_.tracking.localisation_only) updateLocalisationImu(frame, frame_map_localised_);
   return state;
 }
@@ -53,8 +54,13 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   updateStandstill(frame);
   if (state_ == TrackingState::kNotInitialised) {
     segment(frame, MotionPrior());
+    const bool plain_start = !loaded_start_pending_;
     state_ = loaded_start_pending_ ? startInLoadedAtlas(frame) : initialise(frame);
     frame_tracked_ = state_ == TrackingState::kOk;
+    // The map's first keyframe was made without any motion seen: its points are provisional.
+    if (frame_tracked_ && plain_start && reference_kf_ptr_) {
+      makeStartPointsProvisional(*reference_kf_ptr_);
+    }
     return state_;
   }
   LTLO_ASSERT(last_frame_.has_value(), "tracking without a last frame");
@@ -76,7 +82,7 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   const int matched = trackWithMotionModel(frame, T_w_b_start);
   if (hold && stillConfirmedByView(frame)) return trackStill(frame, matched, was_lost);
   const LossDecision decision =
-      loss_.recover(frame, matched, lossContext(was_lost), *this, T_w_b_pred, v_w_b_pred);
+      loss_.recover(frame, matched, lossContext(frame, was_lost), *this, T_w_b_pred, v_w_b_pred);
   if (!decision.tracked()) return state_;
   recordTrackedFrame(frame, decision.inliers, was_lost);
   if (velocity_unknown_) estimateStartVelocity(frame, was_lost || stats_.relocalised);
@@ -127,7 +133,7 @@ SE3 Tracker::segmentAtPrediction(map::Frame& frame, const SE3& T_w_b_pred) {
   return T_w_b_pred;
 }
 
-LossContext Tracker::lossContext(bool was_lost) {
+LossContext Tracker::lossContext(const map::Frame& frame, bool was_lost) {
   LossContext context{atlas_, state_, stats_, frame_tracked_, reference_kf_, last_kf_, last_kf_ptr_,
                       imu_since_keyframe_, imu_chain_broken_};
   context.was_lost = was_lost;
@@ -137,6 +143,7 @@ LossContext Tracker::lossContext(bool was_lost) {
   context.imu_link = imu_prediction_.link.has_value();
   context.T_w_b_imu = imu_prediction_.state.T_w_b;
   context.last_tracked_t_s = last_tracked_t_s_;
+  context.start_reacquire_sigma_m = startReacquireSigma(frame);
   return context;
 }
 

@@ -112,7 +112,7 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
                                           : T_w_c * SE3::exp(ratio * velocity_T_last_cur_->log());
   }
   frame.setVelocity(keep_moving ? prev_v_w_b_ : Vec3::Zero());
-  return T_w_c * frame.T_b_c().inverse();
+  return startGyroRotation(frame, T_w_c * frame.T_b_c().inverse());
 }
 
 MotionPrior Tracker::motionPrior(const map::Frame& frame, const SE3& T_w_b_pred) const {

@@ -186,7 +186,7 @@ class Tracker : private RecoverySteps {
   /// Segmentation step at the prediction; returns the prediction, refined by it where it applies.
   SE3 segmentAtPrediction(map::Frame& frame, const SE3& T_w_b_pred);
   /// The Tracker's state the loss policy reads and sets for this frame.
-  LossContext lossContext(bool was_lost);
+  LossContext lossContext(const map::Frame& frame, bool was_lost);
   /// A frame tracked (or recovered) with `inliers` pose inliers: map-point counters, the stretch,
   /// overlap, the constant-velocity model, the last frame.
   void recordTrackedFrame(map::Frame& frame, int inliers, bool was_lost);
@@ -416,6 +416,30 @@ class Tracker : private RecoverySteps {
   /// Held at rest at the last frame or the one before: the IMU links to the last frame (its state
   /// and the rest prior), not to the keyframe from before the stop.
   bool link_last_frame_after_rest_ = false;
+
+  // ---- occluded start (issue 32; tracker_start.cc) ----
+  /// The points of `kf`, the first keyframe of a run's first map, made before any motion was seen,
+  /// become provisional for Tracking.StartProvisional seconds.
+  void makeStartPointsProvisional(const map::KeyFrame& kf);
+  /// After every frame with a pose: each provisional point is projected with it; where the frame's
+  /// depth there matches the point's, the cluster's gamma is a vote (dynamic or static); a point
+  /// with Tracking.StartDynamicVotes more dynamic votes than static ones is erased from the map.
+  void checkProvisionalPoints(const map::Frame& frame);
+  /// Tracking.StartReacquireSpeed: the position sigma of a lost frame's guided re-acquisition
+  /// before the IMU is initialised (infinity: none, or the IMU is initialised).
+  double startReacquireSigma(const map::Frame& frame) const;
+  /// Before the IMU is initialised, a lost frame's predicted rotation from the gyroscope
+  /// (Tracking.StartReacquireSpeed): R_w_b of the previous frame times the frame's delta R, the
+  /// camera centre kept. Returns `T_w_b_pred` unchanged otherwise.
+  SE3 startGyroRotation(const map::Frame& frame, const SE3& T_w_b_pred) const;
+  struct ProvisionalPoint {
+    map::MapPointId id;
+    int dynamic_votes = 0;
+    int static_votes = 0;
+  };
+  std::vector<ProvisionalPoint> provisional_points_;
+  double provisional_from_t_s_ = 0.0;   ///< the first keyframe's time
+  int provisional_erased_ = 0;          ///< erased so far
 };
 
 }  // namespace ltlo::tracking
