@@ -1,5 +1,5 @@
-// The boxes' schedule: the scenario's events, --occlusion-at, --occluded-start and --plain-movers;
-// their poses over time.
+// The boxes' schedule: the scenario's events, --occlusion-at, --occluded-start, --three-movers and
+// --plain-movers; their poses over time.
 #include <algorithm>
 #include <cmath>
 
@@ -69,6 +69,9 @@ void dropBoxesOverlapping(Scene* scene, double t0_s, double t1_s, bool carried_t
 void Scene::scheduleOcclusions(const SimOptions& options) {
   Scene& scene = *this;
   scene.boxes.clear();
+  scene.walkers.clear();
+  scene.doors.clear();
+  scene.door_frames.clear();
   std::mt19937_64 event_rng(options.seed * 6364136223846793005ULL + 1442695040888963407ULL);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(event_rng); };
@@ -134,6 +137,9 @@ void Scene::scheduleOcclusions(const SimOptions& options) {
   }
   addCrossingEvents(options);
   addOccludedStart(options, this);
+  addThreeMovers(options, this);
+  scheduleWalkers(options, this);
+  scheduleDoors(options, this);
   applyPlainMovers(options, this);
 }
 
@@ -195,6 +201,65 @@ double occludedStartEndS(const Scene& scene) {
   return end_s;
 }
 
+void addThreeMovers(const SimOptions& options, Scene* scene) {
+  if (!options.three_movers) return;
+  Draw draw(options.seed * 0xD1B54A32D192ED03ULL + 0x8CB92BA72F3D8DD7ULL);
+  const double t_start = std::max(clearTimeS(options), occludedStartEndS(*scene));
+  const double t_end = options.duration_s + 2.0 * kEnterS;  // the lead and the carried box stay on
+  dropBoxesOverlapping(scene, t_start, t_end, true);
+  // Depth order from the camera: carried (near face 0.5-0.55 m, far face <= 0.9 m), crossing
+  // (1.0-1.1 m, <= 1.45 m, sway 6 cm), lead (1.6-2.0 m): nothing passes through anything.
+  const double carried_side = draw.sign();
+  DynamicBox carried;
+  carried.size_m = Vec3(draw(0.3, 0.35), draw(0.45, 0.6), draw(0.55, 0.7));
+  carried.texture = draw.dynamicTexture();
+  carried.distance_m = draw(0.5, 0.55);
+  carried.side = carried_side;
+  carried.carried = true;
+  carried.t_in_s = t_start;
+  carried.t_out_s = t_end;
+  // To one side: as far out as leaves it the drawn 20-30 % of the view.
+  const double target = draw(0.2, 0.3);
+  const PinholeCamera camera = options.camera();
+  const SE3 T_c_b = SimOptions::T_b_c().inverse();
+  const double body_height_m = TrajectoryParams{}.body_height_m;
+  const Vec3 t_b_c = SimOptions::T_b_c().translation();
+  const auto carriedShare = [&](double offset_m) {
+    const SE3 T_b_o(Quat::Identity(), Vec3(t_b_c.x() + carried.distance_m + 0.5 * carried.size_m.x(),
+                                           carried_side * offset_m, -body_height_m + 0.5 * carried.size_m.z() + 0.05));
+    return boxImageShare(camera, T_c_b * T_b_o, carried.size_m);
+  };
+  carried.lateral_m = carried_side * solveDecreasing(carriedShare, target, 0.0, 1.5);
+  scene->boxes.push_back(carried);
+
+  DynamicBox lead;
+  lead.size_m = Vec3(draw(0.5, 0.7), draw(0.6, 0.9), draw(0.7, 1.0));
+  lead.texture = draw.dynamicTexture();
+  lead.distance_m = draw(1.6, 2.0);
+  lead.lateral_m = -carried_side * draw(0.25, 0.45);
+  lead.side = -carried_side;
+  lead.sway_phase = draw(0.0, 2.0 * M_PI);
+  lead.t_in_s = t_start + draw(0.0, 1.0);
+  lead.t_out_s = t_end;
+  scene->boxes.push_back(lead);
+
+  // Crossing boxes one after another, held on the carried box's side above it.
+  for (double t = t_start + draw(0.5, 2.0); t < options.duration_s;) {
+    DynamicBox b;
+    b.size_m = Vec3(draw(0.3, 0.35), draw(0.5, 0.7), draw(0.6, 0.9));
+    b.texture = draw.dynamicTexture();
+    b.distance_m = draw(1.0, 1.1);
+    b.lateral_m = carried_side * draw(0.1, 0.35);
+    b.side = draw.sign();
+    b.crosses = true;
+    b.sway_phase = draw(0.0, 2.0 * M_PI);
+    b.t_in_s = t;
+    b.t_out_s = t + 2.0 * kEnterS + draw(2.0, 4.0);
+    scene->boxes.push_back(b);
+    t = b.t_out_s + draw(0.5, 2.0);
+  }
+}
+
 void applyPlainMovers(const SimOptions& options, Scene* scene) {
   if (!options.plain_movers) return;
   Draw draw(options.seed * 0xBF58476D1CE4E5B9ULL + 0x94D049BB133111EBULL);
@@ -210,6 +275,15 @@ void applyPlainMovers(const SimOptions& options, Scene* scene) {
     if (std::find(events.begin(), events.end(), b.event) == events.end()) continue;
     b.panel = true;
     b.size_m = Vec3(draw(0.03, 0.05), draw(1.0, 1.4), draw(1.5, 2.0));
+  }
+  for (Walker& w : scene->walkers) {
+    w.plain = true;
+    w.shirt_rgb = plainColour(draw);
+    w.trouser_rgb = 0.6 * plainColour(draw);
+  }
+  for (Door& door : scene->doors) {
+    door.plain = true;
+    door.plain_rgb = plainColour(draw);
   }
 }
 

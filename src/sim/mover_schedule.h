@@ -16,6 +16,12 @@ void dropBoxesOverlapping(Scene* scene, double t0_s, double t1_s, bool carried_t
 void addOccludedStart(const SimOptions& options, Scene* scene);
 /// When the occluded start's box has gone (0 without the option).
 double occludedStartEndS(const Scene& scene);
+/// --three-movers: a leading box, repeated crossing boxes and a carried box from t_clear on.
+void addThreeMovers(const SimOptions& options, Scene* scene);
+/// --walkers N (walkers.cc).
+void scheduleWalkers(const SimOptions& options, Scene* scene);
+/// --door (doors.cc): the leaves and their static frames.
+void scheduleDoors(const SimOptions& options, Scene* scene);
 /// --plain-movers: plain colours for every mover, half of the events' boxes become panels.
 void applyPlainMovers(const SimOptions& options, Scene* scene);
 

@@ -165,12 +165,24 @@ std::vector<std::vector<render::Mesh>> Scene::moverMeshes() const {
     if (box.plain) makePlain(&mesh, box.plain_rgb);
     meshes.push_back({std::move(mesh)});
   }
+  for (const Walker& walker : walkers) meshes.push_back(walkerMeshes(walker));
+  for (const Door& door : doors) meshes.push_back({doorLeafMesh(door)});
   return meshes;
 }
 
 std::vector<MoverPart> Scene::moverParts(double t_s, const RobotTrajectory& trajectory) const {
   std::vector<MoverPart> parts;
   for (const auto& [index, T_w_o] : dynamicPoses(t_s, trajectory)) parts.push_back({index, 0, T_w_o});
+  int mover = static_cast<int>(boxes.size());
+  for (const Walker& walker : walkers) {
+    if (const std::optional<WalkerState> state = walkerState(walker, t_s, trajectory)) {
+      const std::vector<SE3> T_f_p = walkerPartPoses(walker, state->phase_rad);
+      for (int part = 0; part < static_cast<int>(T_f_p.size()); ++part)
+        parts.push_back({mover, part, state->T_w_f * T_f_p[part]});
+    }
+    ++mover;
+  }
+  for (const Door& door : doors) parts.push_back({mover++, 0, doorLeafPose(door, t_s)});
   return parts;
 }
 
@@ -216,8 +228,12 @@ double boxImageShare(const PinholeCamera& camera, const SE3& T_c_o, const Vec3& 
 void Scene::writePly(const std::string& path) const {
   std::ofstream out(path);
   if (!out) throw InputError(path, 0, "cannot open for writing");
+  std::vector<const render::Mesh*> meshes;
+  for (const render::Mesh& mesh : static_meshes) meshes.push_back(&mesh);
+  for (const render::Mesh& mesh : door_frames) meshes.push_back(&mesh);
   size_t num_vertices = 0, num_triangles = 0;
-  for (const render::Mesh& mesh : static_meshes) {
+  for (const render::Mesh* mesh_ptr : meshes) {
+    const render::Mesh& mesh = *mesh_ptr;
     num_vertices += mesh.positions_o.size();
     num_triangles += mesh.triangles.size() / 3;
   }
@@ -226,11 +242,12 @@ void Scene::writePly(const std::string& path) const {
       << "\nproperty float x\nproperty float y\nproperty float z\n"
       << "element face " << num_triangles
       << "\nproperty list uchar int vertex_indices\nend_header\n";
-  for (const render::Mesh& mesh : static_meshes)
-    for (const Eigen::Vector3f& p : mesh.positions_o)
+  for (const render::Mesh* mesh : meshes)
+    for (const Eigen::Vector3f& p : mesh->positions_o)
       out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
   size_t offset = 0;
-  for (const render::Mesh& mesh : static_meshes) {
+  for (const render::Mesh* mesh_ptr : meshes) {
+    const render::Mesh& mesh = *mesh_ptr;
     for (size_t k = 0; k + 2 < mesh.triangles.size(); k += 3)
       out << "3 " << offset + mesh.triangles[k] << ' ' << offset + mesh.triangles[k + 1] << ' '
           << offset + mesh.triangles[k + 2] << '\n';

@@ -149,6 +149,8 @@ Simulator::Simulator(const SimOptions& options, Scene room)
   for (const cv::Mat& texture : scene_.textures) renderer_->addTexture(texture);
   for (const render::Mesh& mesh : scene_.static_meshes)
     static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
+  for (const render::Mesh& mesh : scene_.door_frames)
+    static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
   for (const std::vector<render::Mesh>& parts : scene_.moverMeshes()) {
     mover_drawables_.emplace_back();
     for (const render::Mesh& mesh : parts) mover_drawables_.back().push_back(renderer_->addMesh(mesh));
@@ -349,7 +351,8 @@ void logSequenceStart(const Simulator& sim) {
             sim.scene().photo_textures
                 ? std::to_string(sim.scene().photo_paths.size()) + " photographs"
                 : "procedural",
-            ", ", sim.scene().boxes.size(), " dynamic boxes");
+            ", ", sim.scene().boxes.size(), " dynamic boxes, ", sim.scene().walkers.size(), " walkers, ",
+            sim.scene().doors.size(), " doors");
 }
 
 bool inImuGap(const SimOptions& options, double t_s) {
@@ -522,6 +525,14 @@ void writeHarderWorldStats(const Simulator& sim, std::ostream& out) {
     if (b.start_move != StartMove::kNone)
       out << "\noccluded_start " << (b.start_move == StartMove::kAway ? "away" : "towards") << " (moves at "
           << b.t_move_s << " s, gone at " << b.t_out_s << " s, near face " << b.distance_m << " m)";
+  if (options.walkers > 0) {
+    const auto leading = std::count_if(scene.walkers.begin(), scene.walkers.end(),
+                                       [](const Walker& w) { return w.kind == Walker::Kind::kLeading; });
+    out << "\nwalkers " << scene.walkers.size() << " (" << leading << " leading, " << scene.walkers.size() - leading
+        << " crossing)";
+  }
+  if (options.doors) out << "\ndoors " << scene.doors.size();
+  if (options.three_movers) out << "\nthree_movers 1";
 }
 
 void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std::string& dir) {

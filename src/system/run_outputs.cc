@@ -342,6 +342,7 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
     metrics.set("viewer_rendered", static_cast<int64_t>(report.viewer_rendered));
     metrics.set("viewer_dropped", static_cast<int64_t>(report.viewer_dropped));
     metrics.set("viewer_video_frames", static_cast<int64_t>(report.viewer_video_frames));
+    metrics.set("viewer_video_held", static_cast<int64_t>(report.viewer_video_held));
     metrics.set("viewer_png_frames", static_cast<int64_t>(report.viewer_png_frames));
     metrics.set("viewer_http_frames", static_cast<int64_t>(report.viewer_http_frames));
     metrics.set("viewer_poses", static_cast<int64_t>(report.viewer_poses));

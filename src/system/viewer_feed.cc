@@ -108,6 +108,7 @@ void ViewerFeed::addCounts(RunReport& report) const {
   report.viewer_rendered = viewer.rendered;
   report.viewer_dropped = viewer.dropped;
   report.viewer_video_frames = viewer.video_frames;
+  report.viewer_video_held = viewer.video_held;
   report.viewer_png_frames = viewer.png_frames;
   report.viewer_http_frames = viewer.http_frames;
   report.viewer_poses = viewer.poses;

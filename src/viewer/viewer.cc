@@ -88,6 +88,7 @@ void Viewer::post(ViewerFrame frame) {
       if (!spare_) spare_ = std::move(pending_);
     }
     pending_ = std::move(frame);
+    pending_ordinal_ = counts_.posted - 1;
   }
   wake_.notify_one();
 }
@@ -160,11 +161,13 @@ void Viewer::run() {
   int flash_pictures_left = 0;
   while (true) {
     std::optional<ViewerFrame> frame;
+    std::uint64_t ordinal = 0;
     {
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait(lock, [this] { return pending_.has_value() || stopping_; });
       if (!pending_) return;  // stopping with nothing left
       frame = std::move(pending_);
+      ordinal = pending_ordinal_;
       pending_.reset();
     }
     if (!renderer) continue;
@@ -188,7 +191,7 @@ void Viewer::run() {
     if (flash_pictures_left > 0) --flash_pictures_left;
     try {
       state.map = map_source_(state.frame.map);
-      write(renderer->render(state).bgr, state.frame.index);
+      write(renderer->render(state).bgr, state.frame.index, ordinal);
     } catch (const std::exception& e) {
       log::error("viewer: ", e.what(), "; picture of frame ", state.frame.index, " lost");
     }
@@ -198,15 +201,25 @@ void Viewer::run() {
   }
 }
 
-void Viewer::write(const cv::Mat& picture, int frame_index) {
+void Viewer::write(const cv::Mat& picture, int frame_index, std::uint64_t post_ordinal) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counts_.rendered;
   }
   if (video_) {
+    // One video frame per posted state, so the video plays at the run's pace: a state dropped
+    // because the viewer was behind is stood in for by the picture before it (by this one when
+    // nothing came before), as a screen recorder repeats a window that did not redraw.
+    const std::uint64_t first_missing = video_last_ordinal_ ? *video_last_ordinal_ + 1 : 0;
+    const std::uint64_t held = post_ordinal > first_missing ? post_ordinal - first_missing : 0;
+    const cv::Mat& stand_in = video_last_.empty() ? picture : video_last_;
+    for (std::uint64_t k = 0; k < held; ++k) video_->write(stand_in);
     video_->write(picture);
+    picture.copyTo(video_last_);
+    video_last_ordinal_ = post_ordinal;
     std::lock_guard<std::mutex> lock(mutex_);
-    ++counts_.video_frames;
+    counts_.video_frames += held + 1;
+    counts_.video_held += held;
   }
   if (!outputs_.png_dir.empty()) {
     char name[32];

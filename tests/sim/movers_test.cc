@@ -1,4 +1,5 @@
-// The movers of issue 32's harder worlds: plain movers and panels, the occluded start.
+// The movers of issue 32's harder worlds: plain movers and panels, the occluded start, walking
+// figures, swinging doors and three movers at once.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -220,6 +221,262 @@ TEST(OccludedStart, StandsStillWithTheRobotAndClearsTheScenarioStart) {
     const SE3 T_w_o = sim.scene().dynamicPoses(t, sim.trajectory())[0].second;
     EXPECT_EQ((T_w_o.translation() - T_w_o0.translation()).norm(), 0.0) << t;
   }
+}
+
+// ---- walkers -------------------------------------------------------------------------------------
+
+double pitchOf(const SE3& T) {  // forward swing of a part hanging along -z
+  const Vec3 down = T.rotationMatrix() * Vec3(0, 0, -1);
+  return std::atan2(down.x(), -down.z());
+}
+
+double lowestFootZ(const std::vector<render::Mesh>& meshes, const std::vector<SE3>& T_x_p) {
+  double lowest = 1e9;
+  for (const int part : {kFootLeft, kFootRight})
+    for (const Eigen::Vector3f& p : meshes[part].positions_o)
+      lowest = std::min(lowest, (T_x_p[part] * p.cast<double>()).z());
+  return lowest;
+}
+
+// Over a gait cycle the hips swing +-25 deg, the knees bend 0-60 deg, each arm swings opposite to
+// the leg of its side; one foot's sole is always on the floor and the pelvis bobs a few cm.
+TEST(WalkerGait, LimbsSwingRelativeToTheTorsoAndAFootStaysOnTheFloor) {
+  Walker walker;
+  walker.height_m = 1.75;
+  const std::vector<render::Mesh> meshes = walkerMeshes(walker);
+  double hip_min = 1e9, hip_max = -1e9, knee_min = 1e9, knee_max = -1e9, pelvis_min = 1e9, pelvis_max = -1e9;
+  double limb_motion_rad = 0.0;
+  const std::vector<SE3> T0 = walkerPartPoses(walker, 0.0);
+  for (int k = 0; k < 96; ++k) {
+    const double phase = 2.0 * M_PI * k / 96;
+    const std::vector<SE3> T = walkerPartPoses(walker, phase);
+    ASSERT_EQ(T.size(), static_cast<size_t>(kNumWalkerParts));
+    const SE3 T_torso_inv = T[kTorso].inverse();
+    const double hip = pitchOf(T_torso_inv * T[kThighLeft]);
+    const double knee = hip - pitchOf(T_torso_inv * T[kShankLeft]);
+    hip_min = std::min(hip_min, hip);
+    hip_max = std::max(hip_max, hip);
+    knee_min = std::min(knee_min, knee);
+    knee_max = std::max(knee_max, knee);
+    EXPECT_LE(pitchOf(T_torso_inv * T[kUpperArmLeft]) * hip, 1e-12) << phase;  // opposite swings
+    EXPECT_LE(pitchOf(T_torso_inv * T[kUpperArmRight]) * pitchOf(T_torso_inv * T[kThighRight]), 1e-12);
+    EXPECT_NEAR(lowestFootZ(meshes, T), 0.0, 1e-6) << phase;
+    pelvis_min = std::min(pelvis_min, T[kTorso].translation().z());
+    pelvis_max = std::max(pelvis_max, T[kTorso].translation().z());
+    for (int part = kUpperArmLeft; part < kNumWalkerParts; ++part)  // non-rigid: limbs move on the torso
+      limb_motion_rad =
+          std::max(limb_motion_rad, so3Log((T0[kTorso].inverse() * T0[part]).rotationMatrix().transpose() *
+                                           (T_torso_inv * T[part]).rotationMatrix())
+                                        .norm());
+  }
+  EXPECT_NEAR(hip_max, 25.0 * kDeg, 0.1 * kDeg);
+  EXPECT_NEAR(hip_min, -25.0 * kDeg, 0.1 * kDeg);
+  EXPECT_NEAR(knee_min, 0.0, 1e-9);
+  EXPECT_NEAR(knee_max, 60.0 * kDeg, 0.5 * kDeg);
+  EXPECT_GT(limb_motion_rad, 40.0 * kDeg);
+  RecordProperty("pelvis_bob_mm", std::to_string(1e3 * (pelvis_max - pelvis_min)));
+  EXPECT_GT(pelvis_max - pelvis_min, 0.01);
+  EXPECT_LT(pelvis_max - pelvis_min, 0.1);
+  EXPECT_GT(pelvis_min, 0.8);  // legs about straight under a 1.75 m figure
+}
+
+// In the world: feet on the floor; a leading walker 1.0-2.5 m ahead of the camera walking with the
+// robot, a crossing one passing the optical axis perpendicular to the robot's heading at 1.0-1.4 m/s.
+TEST(Walkers, LeadAheadOrCrossTheViewWithTheirFeetOnTheFloor) {
+  int leading = 0, crossing = 0;
+  for (uint64_t seed : {1, 2, 3}) {
+    SimOptions o = smallOptions(Scenario::kStatic, 45.0, seed);
+    o.walkers = 6;
+    Simulator sim(o, sharedRoom());
+    const RobotTrajectory& trajectory = sim.trajectory();
+    ASSERT_EQ(sim.scene().walkers.size(), 6u);
+    for (const Walker& w : sim.scene().walkers) {
+      const std::vector<render::Mesh> meshes = walkerMeshes(w);
+      int present = 0;
+      for (double t = w.t_in_s; t < w.t_out_s; t += 0.1) {
+        const std::optional<WalkerState> state = walkerState(w, t, trajectory);
+        if (!state) continue;
+        ++present;
+        std::vector<SE3> T_w_p = walkerPartPoses(w, state->phase_rad);
+        for (SE3& T : T_w_p) T = state->T_w_f * T;
+        EXPECT_NEAR(lowestFootZ(meshes, T_w_p), 0.0, 1e-6) << t;
+        if (w.kind == Walker::Kind::kLeading && t > w.t_in_s + 2.0 && t < w.t_out_s - 2.0) {
+          const Vec3 p_floor = trajectory.T_w_floor(t).inverse() * state->T_w_f.translation();
+          const double ahead_m = p_floor.x() - SimOptions::T_b_c().translation().x();
+          EXPECT_GE(ahead_m, 1.0) << t;
+          EXPECT_LE(ahead_m, 2.5) << t;
+          EXPECT_LT(std::abs(p_floor.y()), 0.31) << t;
+          EXPECT_LT(state->speed_mps, 1.2) << t;
+        }
+      }
+      EXPECT_GT(present, 20);
+      if (w.kind == Walker::Kind::kLeading) {
+        ++leading;
+        continue;
+      }
+      ++crossing;
+      const std::optional<WalkerState> mid = walkerState(w, w.t_mid_s, trajectory);
+      ASSERT_TRUE(mid.has_value());
+      const SE3 T_floor_f = trajectory.T_w_floor(w.t_mid_s).inverse() * mid->T_w_f;
+      EXPECT_LT(std::abs(T_floor_f.rotationMatrix()(0, 0)), 1e-9);  // walks across the heading
+      EXPECT_NEAR(std::abs(T_floor_f.translation().y() - SimOptions::T_b_c().translation().y()), 0.0, 1e-9);
+      EXPECT_GE(T_floor_f.translation().x(), 1.2);
+      EXPECT_LE(T_floor_f.translation().x(), 3.2);
+      EXPECT_GE(mid->speed_mps, 1.0);
+      EXPECT_LE(mid->speed_mps, 1.4);
+    }
+  }
+  EXPECT_GE(leading, 3);
+  EXPECT_GE(crossing, 3);
+}
+
+// A figure of 12 parts is one mover: one label in the render of the movers, the mask exactly its
+// visible pixels and 0 elsewhere.
+TEST(Walkers, OneLabelPerFigureAndTheMaskIsExactlyItsVisiblePixels) {
+  SimOptions o = smallOptions(Scenario::kStatic, 20.0, 1);
+  o.width_px = 320;
+  o.height_px = 240;
+  o.walkers = 2;
+  Simulator sim(o, sharedRoom());
+  int checked = 0;
+  for (int i = 0; i < sim.numFrames(); i += 10) {
+    const render::RenderResult movers = sim.renderDynamicOnly(i);
+    const std::map<int, int> counts = labelCounts(movers.labels);
+    for (const auto& [label, count] : counts) EXPECT_TRUE(label == 1 || label == 2) << label;
+    if (counts.empty() || counts.begin()->second < static_cast<int>(movers.labels.total() / 50)) continue;
+    const SimFrame frame = sim.renderFrame(i);
+    const render::RenderResult room = sim.renderStaticOnly(i);
+    int wrong = 0;
+    for (int v = 0; v < frame.mask.rows; ++v)
+      for (int u = 0; u < frame.mask.cols; ++u) {
+        const float zd = movers.depth_m.at<float>(v, u), zs = room.depth_m.at<float>(v, u);
+        wrong += (zd > 0 && (zs == 0 || zd < zs)) != (frame.mask.at<uint8_t>(v, u) == 255);
+      }
+    EXPECT_EQ(wrong, 0) << "frame " << i;
+    ++checked;
+  }
+  EXPECT_GE(checked, 5);
+}
+
+// ---- doors ---------------------------------------------------------------------------------------
+
+// Distance in the floor plane from p to a leaf (a segment from its hinge, thickened by half its thickness).
+double distanceToLeaf(const Vec2& p, const Door& door, double angle_rad) {
+  const double yaw = door.closed_yaw_rad + door.open_sign * angle_rad;
+  const Vec2 hinge = door.hinge_w.head<2>(), tip = hinge + door.width_m * Vec2(std::cos(yaw), std::sin(yaw));
+  const double s = std::clamp((p - hinge).dot(tip - hinge) / (tip - hinge).squaredNorm(), 0.0, 1.0);
+  return (p - (hinge + s * (tip - hinge))).norm() - 0.5 * door.thickness_m;
+}
+
+// Each leaf swings between 0 and at most 100 deg, held at both ends, about a hinge edge fixed in the world.
+TEST(Doors, LeavesSwingWithinTheirBoundsAboutAFixedHingeEdge) {
+  SimOptions o = smallOptions(Scenario::kStatic, 60.0, 1);
+  o.doors = true;
+  Simulator sim(o, sharedRoom());
+  ASSERT_EQ(sim.scene().doors.size(), 3u);
+  EXPECT_EQ(sim.scene().door_frames.size(), 9u);
+  for (const Door& door : sim.scene().doors) {
+    EXPECT_LE(door.max_angle_rad, 100.0 * kDeg + 1e-12);
+    double closed_s = 0.0, open_s = 0.0, largest = 0.0;
+    for (double t = 0.0; t < o.duration_s; t += 0.01) {
+      const double angle = doorAngle(door, t);
+      ASSERT_GE(angle, 0.0);
+      ASSERT_LE(angle, door.max_angle_rad);
+      largest = std::max(largest, angle);
+      closed_s += angle == 0.0 ? 0.01 : 0.0;
+      open_s += angle == door.max_angle_rad ? 0.01 : 0.0;
+      const SE3 T_w_leaf = doorLeafPose(door, t);
+      for (const double z : {-0.5, 0.5}) {  // the hinge edge's ends
+        const Vec3 p_w = T_w_leaf * Vec3(-0.5 * door.width_m, 0.0, z * door.height_m);
+        EXPECT_LT((p_w.head<2>() - door.hinge_w.head<2>()).norm(), 1e-9) << t;
+      }
+    }
+    EXPECT_EQ(largest, door.max_angle_rad);
+    EXPECT_GT(closed_s, 5.0);
+    EXPECT_GT(open_s, 5.0);
+  }
+}
+
+// Where the leaves sweep is at least 0.3 m from the camera's path (seeds 1-5, two laps).
+TEST(Doors, LeavesNeverComeWithinThirtyCentimetresOfTheCameraPath) {
+  SimOptions o = smallOptions(Scenario::kStatic, 1.0, 1);
+  o.doors = true;
+  Simulator sim(o, sharedRoom());
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    const RobotTrajectory trajectory(TrajectoryParams{}, seed);
+    double closest_m = 1e9;
+    for (double t = 0.0; t < 70.0; t += 0.05) {
+      const Vec2 camera = (trajectory.state(t).T_w_b * SimOptions::T_b_c()).translation().head<2>();
+      for (const Door& door : sim.scene().doors)
+        for (double angle = 0.0; angle <= door.max_angle_rad; angle += 1.0 * kDeg)
+          closest_m = std::min(closest_m, distanceToLeaf(camera, door, angle));
+    }
+    RecordProperty("closest_mm_seed" + std::to_string(seed), std::to_string(1e3 * closest_m));
+    EXPECT_GT(closest_m, 0.3) << "seed " << seed;
+  }
+}
+
+// A leaf is a mover all the time: at rest (closed) it is in the mask as well; the leaves are in
+// view for a good share of the run.
+TEST(Doors, ALeafIsInTheMaskAlsoWhenAtRest) {
+  SimOptions o = smallOptions(Scenario::kStatic, 35.0, 1);
+  o.width_px = 80;
+  o.height_px = 60;
+  o.fps = 5.0;
+  o.doors = true;
+  Simulator sim(o, sharedRoom());
+  int in_view = 0, at_rest_in_mask = 0;
+  for (int i = 0; i < sim.numFrames(); ++i) {
+    const double t_s = sim.frameTime(i);
+    const SimFrame frame = sim.renderFrame(i);
+    const render::RenderResult movers = sim.renderDynamicOnly(i);
+    if (frame.dynamic_fraction > 0.01) ++in_view;
+    for (const auto& [label, count] : labelCounts(movers.labels)) {
+      const Door& door = sim.scene().doors[label - 1];
+      cv::Mat on;
+      cv::bitwise_and(frame.mask, movers.labels == label, on);
+      if (doorAngle(door, t_s) == 0.0 && cv::countNonZero(on) > 20) ++at_rest_in_mask;
+    }
+  }
+  RecordProperty("share_in_view", std::to_string(in_view / static_cast<double>(sim.numFrames())));
+  EXPECT_GT(at_rest_in_mask, 3);
+  EXPECT_GT(in_view, sim.numFrames() / 4);
+}
+
+// ---- three movers --------------------------------------------------------------------------------
+
+// From t_clear on: a lead box, crossing boxes and a carried box, three labels in view together in
+// most frames; the carried box alone covers 20-30 % of the view.
+TEST(ThreeMovers, ThreeLabelsAreInViewTogetherInMostFrames) {
+  SimOptions o = smallOptions(Scenario::kLtlo, 40.0, 2);
+  o.fps = 5.0;
+  o.three_movers = true;
+  Simulator sim(o, sharedRoom());
+  const std::vector<DynamicBox>& boxes = sim.scene().boxes;
+  ASSERT_GE(boxes.size(), 5u);
+  int carried = -1;
+  for (size_t k = 0; k < boxes.size(); ++k) {
+    EXPECT_GE(boxes[k].t_in_s, 3.0);
+    EXPECT_EQ(boxes[k].event, -1);  // the scenario's own events are gone
+    if (boxes[k].carried) carried = static_cast<int>(k);
+  }
+  ASSERT_GE(carried, 0);
+  int frames = 0, with_three = 0;
+  std::vector<double> carried_share;
+  for (int i = frameAt(sim, 5.0); i < sim.numFrames(); ++i) {
+    const render::RenderResult movers = sim.renderDynamicOnly(i);
+    int visible = 0;
+    for (const auto& [label, count] : labelCounts(movers.labels)) {
+      visible += count > static_cast<int>(movers.labels.total() / 200);
+      if (label == carried + 1) carried_share.push_back(count / static_cast<double>(movers.labels.total()));
+    }
+    ++frames;
+    with_three += visible >= 3;
+  }
+  RecordProperty("share_three_visible", std::to_string(with_three / static_cast<double>(frames)));
+  EXPECT_GT(with_three, frames / 2);
+  EXPECT_GT(percentile(carried_share, 0.5), 0.17);  // partly hidden by nothing: it is the nearest
+  EXPECT_LT(percentile(carried_share, 0.5), 0.33);
 }
 
 }  // namespace

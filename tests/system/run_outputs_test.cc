@@ -327,7 +327,7 @@ TEST_F(RunOutputs, MalformedGroundTruthFileIsAnEvaluationErrorNotAnException) {
   evaluation.ground_truth_path = path("bad.txt");
   WrittenOutputs bad;
   ASSERT_NO_THROW(bad = writeRunOutputs(path("run2"), report, evaluation, 0.5));
-  ASSERT_EQ(bad.files.size(), 5u);
+  ASSERT_EQ(bad.files.size(), 6u);  // trajectory, online, keyframes, mapping timeline, map, metrics
   for (const std::string& file : bad.files) EXPECT_TRUE(fs::is_regular_file(file)) << file;
   EXPECT_EQ(io::readTumTrajectory(path("run2/trajectory.txt")).size(), gt.size());
   EXPECT_EQ(bad.evaluation_error.rfind(path("bad.txt") + ":3: ", 0), 0u) << bad.evaluation_error;

@@ -4,12 +4,15 @@
 
 #include <unistd.h>
 
+#include <condition_variable>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <string>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/thread_names.h"
@@ -255,7 +258,8 @@ TEST_F(ViewerThread, PacesRendersWritesAndJoins) {
     EXPECT_EQ(counts.rendered + counts.dropped, counts.posted);
     EXPECT_GE(counts.rendered, 1u);
     EXPECT_EQ(counts.png_frames, counts.rendered);
-    EXPECT_EQ(counts.video_frames, counts.rendered);
+    EXPECT_EQ(counts.video_frames, counts.posted);  // one per posted state, dropped ones held
+    EXPECT_EQ(counts.video_held, counts.dropped);
     EXPECT_EQ(static_cast<std::uint64_t>(map_reads), counts.rendered);
     int pngs = 0;
     for (const fs::directory_entry& entry : fs::directory_iterator(outputs.png_dir)) {
@@ -270,6 +274,63 @@ TEST_F(ViewerThread, PacesRendersWritesAndJoins) {
   }
   EXPECT_GT(fs::file_size(outputs.video_path), 1000u);
   for (const std::string& name : runningNamedThreads()) EXPECT_EQ(name.find("viewer"), std::string::npos) << name;
+}
+
+// States dropped while the viewer is busy still get their video frames: the picture before them
+// stands in for each, so the video has one frame per posted state (the run's pace). The viewer is
+// held inside its first picture's map read while four more states are posted: the first three are
+// replaced (dropped), the fifth is rendered; the video holds pictures 0, 0, 0, 0, 0 and 5.
+TEST_F(ViewerThread, VideoRepeatsThePreviousPictureForEachDroppedState) {
+  ViewerOptions options;
+  options.panel_width = 160;
+  options.panel_height = 120;
+  ViewerOutputs outputs;
+  outputs.video_path = (dir_ / "viewer.avi").string();
+  std::mutex mutex;
+  std::condition_variable changed;
+  bool inside_first = false, release = false;
+  int reads = 0;
+  Viewer viewer(options, outputs, [&](std::uint64_t) {
+    std::unique_lock<std::mutex> lock(mutex);
+    if (reads++ == 0) {
+      inside_first = true;
+      changed.notify_all();
+      changed.wait(lock, [&] { return release; });
+    }
+    return knownState().map;
+  });
+  auto postAt = [&](int index, bool dynamic_left) {
+    ViewerFrame frame = knownState().frame;
+    frame.index = index;
+    frame.t_s = index / 10.0;
+    frame.dynamic_mask.setTo(dynamic_left ? 255 : 0);  // pictures 0 and 5 differ in the tint
+    viewer.post(std::move(frame));
+  };
+  postAt(0, true);
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    changed.wait(lock, [&] { return inside_first; });
+  }
+  for (int index = 1; index <= 5; ++index) postAt(index, false);
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    release = true;
+  }
+  changed.notify_all();
+  viewer.stop();
+  const ViewerCounts counts = viewer.counts();
+  EXPECT_EQ(counts.posted, 6u);
+  EXPECT_EQ(counts.rendered, 2u);
+  EXPECT_EQ(counts.dropped, 4u);
+  EXPECT_EQ(counts.video_frames, 6u);
+  EXPECT_EQ(counts.video_held, 4u);
+  cv::VideoCapture video(outputs.video_path);
+  ASSERT_TRUE(video.isOpened());
+  std::vector<cv::Mat> frames;
+  for (cv::Mat picture; video.read(picture);) frames.push_back(picture.clone());
+  ASSERT_EQ(frames.size(), 6u);
+  for (int k = 1; k <= 4; ++k) EXPECT_EQ(cv::norm(frames[k], frames[0], cv::NORM_INF), 0.0) << "frame " << k;
+  EXPECT_GT(cv::norm(frames[5], frames[0], cv::NORM_L1), 0.0);
 }
 
 // A frame the viewer is done with comes back for the next post with its buffers: the colour

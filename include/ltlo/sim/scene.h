@@ -15,6 +15,7 @@
 
 #include "ltlo/core/lie.h"
 #include "ltlo/render/offscreen_renderer.h"
+#include "ltlo/sim/movers.h"
 #include "ltlo/sim/robot_trajectory.h"
 #include "ltlo/sim/sim_options.h"
 
@@ -58,8 +59,11 @@ struct MoverPart {
 struct Scene {
   std::vector<cv::Mat> textures;            ///< CV_8UC3 BGR; mesh texture ids index this list
   std::vector<render::Mesh> static_meshes;  ///< world frame
-  /// Movers: the boxes.
+  std::vector<render::Mesh> door_frames;    ///< static posts and lintels of the doors (world frame)
+  /// Movers, numbered in this order: boxes, walkers, door leaves.
   std::vector<DynamicBox> boxes;
+  std::vector<Walker> walkers;
+  std::vector<Door> doors;
   bool photo_textures = false;           ///< false: procedural fallback was used
   std::vector<std::string> photo_paths;  ///< photographs used (for the log and stats.txt)
 
@@ -84,7 +88,8 @@ struct Scene {
   /// The parts of every mover present at t_s with their poses, movers in order.
   std::vector<MoverPart> moverParts(double t_s, const RobotTrajectory& trajectory) const;
 
-  /// Static geometry as an ASCII PLY (vertices and triangles, world frame, metres).
+  /// Static geometry (room, furniture, door frames) as an ASCII PLY (vertices and triangles, world
+  /// frame, metres).
   void writePly(const std::string& path) const;
 };
 

@@ -108,6 +108,12 @@ struct SimOptions {
   bool plain_movers = false;
   /// --occluded-start away|towards: a box covering 40-80 % of frame 0 leaves by 5 s.
   StartMove occluded_start = StartMove::kNone;
+  /// --walkers N: N walking figures over the run (leading the robot or crossing its view).
+  int walkers = 0;
+  /// --door: door leaves swinging at fixed places of the room.
+  bool doors = false;
+  /// --three-movers: from t_clear on a leading box, repeated crossing boxes and a carried box.
+  bool three_movers = false;
 
   // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
   // noise_free, which turns off noise, biases, holes and exposure jitter only.

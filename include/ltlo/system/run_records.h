@@ -93,6 +93,7 @@ struct RunReport {
   std::uint64_t viewer_rendered = 0;
   std::uint64_t viewer_dropped = 0;
   std::uint64_t viewer_video_frames = 0;
+  std::uint64_t viewer_video_held = 0;  ///< of the video frames, repeats for dropped states
   std::uint64_t viewer_png_frames = 0;
   std::uint64_t viewer_http_frames = 0;
   std::uint64_t viewer_poses = 0;

@@ -52,7 +52,10 @@ struct ViewerCounts {
   std::uint64_t posted = 0;    ///< frames handed over by tracking
   std::uint64_t rendered = 0;  ///< pictures rendered
   std::uint64_t dropped = 0;   ///< posted frames replaced before the viewer took them
+  /// video frames written: every rendered picture, plus the previous picture once more for each
+  /// dropped state, so the video keeps sequence time (Viewer.Fps frames per second of the run)
   std::uint64_t video_frames = 0;
+  std::uint64_t video_held = 0;  ///< of video_frames, repeats standing in for dropped states
   std::uint64_t png_frames = 0;
   std::uint64_t http_frames = 0;  ///< pictures published to the HTTP server
   std::uint64_t poses = 0;        ///< poses published on /poses
@@ -101,8 +104,9 @@ class Viewer {
 
  private:
   void run();
-  /// Viewer thread: one rendered picture to every output.
-  void write(const cv::Mat& picture, int frame_index);
+  /// Viewer thread: one rendered picture to every output; `post_ordinal` is its state's place
+  /// among the posted ones (the video repeats the previous picture for the states dropped before it).
+  void write(const cv::Mat& picture, int frame_index, std::uint64_t post_ordinal);
 
   const ViewerOptions options_;
   const ViewerOutputs outputs_;
@@ -115,12 +119,16 @@ class Viewer {
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::optional<ViewerFrame> pending_;
+  std::uint64_t pending_ordinal_ = 0;  ///< pending_'s place among the posted frames (0-based)
   std::optional<ViewerFrame> spare_;  ///< a frame done with, for recycledFrame()
   bool stopping_ = false;
   ViewerCounts counts_;
   std::atomic<bool> loop_flash_{false};
   std::thread thread_;
   bool stopped_ = false;  ///< caller's thread only (stop())
+  // Viewer thread only: the last picture in the video and its post ordinal (none yet: no value).
+  cv::Mat video_last_;
+  std::optional<std::uint64_t> video_last_ordinal_;
 };
 
 }  // namespace ltlo::viewer
