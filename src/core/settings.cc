@@ -101,6 +101,7 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.StartProvisional", o.start_provisional_s, 0.0, 1000.0);
   v.integer("Tracking.StartDynamicVotes", o.start_dynamic_votes, 1, 100);
   v.real("Tracking.StartReacquireSpeed", o.start_reacquire_speed_m_s, 0.0, 10.0);
+  v.boolean("Tracking.StartRecoveryCutsImu", o.start_recovery_cuts_imu);
 }
 
 template <typename O, typename V>

@@ -1,6 +1,7 @@
 #include "ltlo/tracking/tracker.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "ltlo/core/assert.h"
@@ -85,6 +86,7 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
       loss_.recover(frame, matched, lossContext(frame, was_lost), *this, T_w_b_pred, v_w_b_pred);
   if (!decision.tracked()) return state_;
   recordTrackedFrame(frame, decision.inliers, was_lost);
+  if (stats_.relocalised) cutImuChainAtStartRecovery(frame);
   if (velocity_unknown_) estimateStartVelocity(frame, was_lost || stats_.relocalised);
   if (needNewKeyFrame()) {
     createKeyFrame();
@@ -269,9 +271,22 @@ void Tracker::refreshAfterMapChange(map::Map& map) {
 TrackingState Tracker::initialise(map::Frame& frame) {
   const int with_depth = staticKeypointsWithDepth(frame);
   if (with_depth < options_.min_init_features) {
-    log::debug("initialisation: ", with_depth, " static keypoints with depth, ", options_.min_init_features,
-               " needed");
+    // The view is too poor to start a map (issue 32: say why, once per wait, at info level).
+    if (std::isnan(init_wait_since_t_s_)) {
+      init_wait_since_t_s_ = frame.t_s();
+      log::info("initialisation waits at t = ", frame.t_s(), " s: the view is too poor to start a map, ", with_depth,
+                " static keypoints with depth of ", frame.numKeypoints(), " keypoints (", options_.min_init_features,
+                " needed); no pose until it starts");
+    } else {
+      log::debug("initialisation: ", with_depth, " static keypoints with depth, ", options_.min_init_features,
+                 " needed");
+    }
     return TrackingState::kNotInitialised;
+  }
+  if (!std::isnan(init_wait_since_t_s_)) {
+    log::info("initialisation waited ", frame.t_s() - init_wait_since_t_s_, " s for a view with ", with_depth,
+              " static keypoints with depth");
+    init_wait_since_t_s_ = std::numeric_limits<double>::quiet_NaN();
   }
   if (!frame.hasPose()) frame.setPose_T_w_b(SE3());
   clearMatches(frame);

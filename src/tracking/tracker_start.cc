@@ -1,4 +1,4 @@
-// Tracker, part 8: the occluded start (issue 32). A box may cover most of the view from the first
+// Tracker, part 9: the occluded start (issue 32). A box may cover most of the view from the first
 // frame and move with the robot for seconds before it is pushed away. The map's first keyframe is
 // made before any motion was seen, so the box's points enter the map with the world's; while the
 // box moves with the camera, tracking and every recovery can match them and take the box as the
@@ -51,6 +51,7 @@ void Tracker::makeStartPointsProvisional(const map::KeyFrame& kf) {
     if (id.valid()) provisional_points_.push_back(ProvisionalPoint{id});
   }
   provisional_from_t_s_ = kf.t_s();
+  start_window_end_t_s_ = kf.t_s() + options_.tracking.start_provisional_s;
   provisional_erased_ = 0;
   log::info("occluded start: the ", provisional_points_.size(), " points of ", kf.id(),
             " are provisional for ", options_.tracking.start_provisional_s,
@@ -110,6 +111,21 @@ void Tracker::checkProvisionalPoints(const map::Frame& frame) {
     log::info("occluded start: ", erased, " of the first keyframe's points erased at t = ", t_s,
               " s, seen on dynamic clusters (", provisional_erased_, " so far)");
   }
+}
+
+void Tracker::cutImuChainAtStartRecovery(const map::Frame& frame) {
+  if (!options_.tracking.start_recovery_cuts_imu || imu_initialised_ || frame.t_s() > start_window_end_t_s_ ||
+      !imu_since_keyframe_) {
+    return;
+  }
+  // The pose jumped back onto the map's world points: until here tracking may have followed a mover
+  // that held most of the view, and the keyframes it made carry that motion (ltlo's occluded start
+  // with the box over 61 % of the view: the first 0.37 s of motion missed, 0.18 m, and the IMU
+  // initialised 19 deg off over them). Their IMU chain ends here; the initialisation uses the next.
+  imu_since_keyframe_.reset();
+  imu_chain_broken_ = true;
+  log::info("occluded start: recovered at t = ", frame.t_s(), " s before the IMU initialisation: the next keyframe ",
+            "starts a new IMU chain (the keyframes before were posed while a mover may have held the view)");
 }
 
 double Tracker::startReacquireSigma(const map::Frame& frame) const {

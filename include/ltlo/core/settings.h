@@ -263,6 +263,12 @@ struct TrackingOptions {
   /// about the robot's speed (Tracking.StartReacquireSpeed, m/s, [0, 10]; 0: no re-acquisition
   /// before the IMU is initialised, and lost frames keep the constant-velocity rotation)
   double start_reacquire_speed_m_s = 0.0;
+  /// Within Tracking.StartProvisional of the first keyframe and before the IMU is initialised, a
+  /// frame recovered by relocalisation or re-acquisition cuts the keyframes' IMU chain there: the
+  /// keyframes before it were posed while a mover moving with the camera may have held the view,
+  /// and the IMU initialisation (which uses the chain ending at the newest keyframe) starts after
+  /// them (Tracking.StartRecoveryCutsImu, 0/1)
+  bool start_recovery_cuts_imu = false;
 
   static TrackingOptions load(const SettingsFile& file);
 };

@@ -26,6 +26,7 @@
 /// does not track.
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -447,6 +448,9 @@ class Tracker : private RecoverySteps {
   /// (Tracking.StartReacquireSpeed): R_w_b of the previous frame times the frame's delta R, the
   /// camera centre kept. Returns `T_w_b_pred` unchanged otherwise.
   SE3 startGyroRotation(const map::Frame& frame, const SE3& T_w_b_pred) const;
+  /// Tracking.StartRecoveryCutsImu: after a frame recovered (relocalised or re-acquired) within the
+  /// start window, before the IMU is initialised, the next keyframe starts a new IMU chain.
+  void cutImuChainAtStartRecovery(const map::Frame& frame);
   struct ProvisionalPoint {
     map::MapPointId id;
     int dynamic_votes = 0;
@@ -454,6 +458,10 @@ class Tracker : private RecoverySteps {
   };
   std::vector<ProvisionalPoint> provisional_points_;
   double provisional_from_t_s_ = 0.0;   ///< the first keyframe's time
+  /// End of the start window (the first keyframe's time + Tracking.StartProvisional; -infinity: none)
+  double start_window_end_t_s_ = -std::numeric_limits<double>::infinity();
+  /// The first frame of the current wait for a view good enough to start a map (NaN: not waiting).
+  double init_wait_since_t_s_ = std::numeric_limits<double>::quiet_NaN();
   int provisional_erased_ = 0;          ///< erased so far
 };
 
