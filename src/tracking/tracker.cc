@@ -52,6 +52,7 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   frame_tracked_ = false;
   frame_information_ = StateInformation();
   imu_prediction_ = ImuPrediction();
+  start_predicted_T_w_b_.reset();
   updateStandstill(frame);
   if (state_ == TrackingState::kNotInitialised) {
     segment(frame, MotionPrior());

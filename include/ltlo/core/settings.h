@@ -269,6 +269,11 @@ struct TrackingOptions {
   /// and the IMU initialisation (which uses the chain ending at the newest keyframe) starts after
   /// them (Tracking.StartRecoveryCutsImu, 0/1)
   bool start_recovery_cuts_imu = false;
+  /// Before the IMU is initialised, frames lost with the gyroscope's prediction
+  /// (Tracking.StartReacquireSpeed) form a carried stretch of the final trajectory like the IMU's
+  /// (system/carried_stretch.h): once a frame is tracked again, its difference to the prediction is
+  /// spread over them (Tracking.StartCarriedLost, 0/1; the online poses are unchanged)
+  bool start_carried_lost = false;
 
   static TrackingOptions load(const SettingsFile& file);
 };

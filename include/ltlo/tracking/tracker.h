@@ -108,8 +108,10 @@ class Tracker : private RecoverySteps {
   int numFramesLocalisedInMap() const { return frames_localised_in_map_; }
   /// The IMU's prediction of the last frame's body pose, from the previous frame's state, before
   /// vision refined it (absent when the IMU did not predict: no IMU, not initialised, no samples).
+  /// Before the IMU is initialised, with Tracking.StartCarriedLost, a lost frame's (and the next
+  /// tracked frame's) prediction with the gyroscope's rotation stands for it.
   std::optional<SE3> imuPredicted_T_w_b() const {
-    return imu_prediction_.valid ? std::optional<SE3>(imu_prediction_.state.T_w_b) : std::nullopt;
+    return imu_prediction_.valid ? std::optional<SE3>(imu_prediction_.state.T_w_b) : start_predicted_T_w_b_;
   }
   /// Camera pose of the last frame given to track() (tracked or predicted; identity before
   /// initialisation).
@@ -460,6 +462,9 @@ class Tracker : private RecoverySteps {
   double provisional_from_t_s_ = 0.0;   ///< the first keyframe's time
   /// End of the start window (the first keyframe's time + Tracking.StartProvisional; -infinity: none)
   double start_window_end_t_s_ = -std::numeric_limits<double>::infinity();
+  /// This frame's prediction with the gyroscope's rotation while lost before the IMU is
+  /// initialised (Tracking.StartCarriedLost; set afresh every frame)
+  std::optional<SE3> start_predicted_T_w_b_;
   /// The first frame of the current wait for a view good enough to start a map (NaN: not waiting).
   double init_wait_since_t_s_ = std::numeric_limits<double>::quiet_NaN();
   int provisional_erased_ = 0;          ///< erased so far
