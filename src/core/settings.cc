@@ -98,6 +98,11 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.ZuptThreshold", o.zupt_threshold, 1.0, 100.0);
   v.boolean("Tracking.ZuptVisualCheck", o.zupt_visual_check);
   v.real("Tracking.ZuptMaxDisplacement", o.zupt_max_displacement_px, 0.1, 100.0);
+  v.real("Tracking.StartProvisional", o.start_provisional_s, 0.0, 1000.0);
+  v.integer("Tracking.StartDynamicVotes", o.start_dynamic_votes, 1, 100);
+  v.real("Tracking.StartReacquireSpeed", o.start_reacquire_speed_m_s, 0.0, 10.0);
+  v.boolean("Tracking.StartRecoveryCutsImu", o.start_recovery_cuts_imu);
+  v.boolean("Tracking.StartCarriedLost", o.start_carried_lost);
 }
 
 template <typename O, typename V>

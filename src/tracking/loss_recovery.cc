@@ -18,9 +18,14 @@ using detail::staticKeypointsWithDepth;
 LossDecision LossRecovery::recover(map::Frame& frame, int inliers, const LossContext& context, RecoverySteps& steps,
                                    const SE3& T_w_b_pred, const Vec3& v_w_b_pred) {
   TrackingStats& stats = context.stats;
-  if (inliers < context.min_inliers && context.was_lost && options_.tracking.reacquire && context.imu_link) {
+  if (inliers < context.min_inliers && context.was_lost && options_.tracking.reacquire &&
+      (context.imu_link || std::isfinite(context.start_reacquire_sigma_m))) {
     // The IMU knows roughly where the camera is: look for the map there before anything else.
-    const int reacquired = steps.reacquire(frame, context.T_w_b_imu, carried_position_sigma_m_);
+    // Before it is initialised, the gyroscope knows the rotation and the robot's speed bounds the
+    // position (an occluded start: tracking lost behind a box that moved with the camera).
+    const int reacquired = context.imu_link
+                               ? steps.reacquire(frame, context.T_w_b_imu, carried_position_sigma_m_)
+                               : steps.reacquire(frame, T_w_b_pred, context.start_reacquire_sigma_m);
     if (reacquired > 0) {
       inliers = reacquired;
       stats.relocalised = true;

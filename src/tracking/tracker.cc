@@ -1,6 +1,7 @@
 #include "ltlo/tracking/tracker.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "ltlo/core/assert.h"
@@ -40,6 +41,7 @@ void Tracker::forceLost() {
 
 TrackingState Tracker::track(map::Frame& frame) {
   const TrackingState state = trackFrame(frame);
+  if (!provisional_points_.empty() && state != TrackingState::kNotInitialised) checkProvisionalPoints(frame);
   if (options_.tracking.localisation_only) updateLocalisationImu(frame, frame_map_localised_);
   return state;
 }
@@ -50,11 +52,17 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   frame_tracked_ = false;
   frame_information_ = StateInformation();
   imu_prediction_ = ImuPrediction();
+  start_predicted_T_w_b_.reset();
   updateStandstill(frame);
   if (state_ == TrackingState::kNotInitialised) {
     segment(frame, MotionPrior());
+    const bool plain_start = !loaded_start_pending_;
     state_ = loaded_start_pending_ ? startInLoadedAtlas(frame) : initialise(frame);
     frame_tracked_ = state_ == TrackingState::kOk;
+    // The map's first keyframe was made without any motion seen: its points are provisional.
+    if (frame_tracked_ && plain_start && reference_kf_ptr_) {
+      makeStartPointsProvisional(*reference_kf_ptr_);
+    }
     return state_;
   }
   LTLO_ASSERT(last_frame_.has_value(), "tracking without a last frame");
@@ -76,9 +84,10 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   const int matched = trackWithMotionModel(frame, T_w_b_start);
   if (hold && stillConfirmedByView(frame)) return trackStill(frame, matched, was_lost);
   const LossDecision decision =
-      loss_.recover(frame, matched, lossContext(was_lost), *this, T_w_b_pred, v_w_b_pred);
+      loss_.recover(frame, matched, lossContext(frame, was_lost), *this, T_w_b_pred, v_w_b_pred);
   if (!decision.tracked()) return state_;
   recordTrackedFrame(frame, decision.inliers, was_lost);
+  if (stats_.relocalised) cutImuChainAtStartRecovery(frame);
   if (velocity_unknown_) estimateStartVelocity(frame, was_lost || stats_.relocalised);
   if (needNewKeyFrame()) {
     createKeyFrame();
@@ -127,7 +136,7 @@ SE3 Tracker::segmentAtPrediction(map::Frame& frame, const SE3& T_w_b_pred) {
   return T_w_b_pred;
 }
 
-LossContext Tracker::lossContext(bool was_lost) {
+LossContext Tracker::lossContext(const map::Frame& frame, bool was_lost) {
   LossContext context{atlas_, state_, stats_, frame_tracked_, reference_kf_, last_kf_, last_kf_ptr_,
                       imu_since_keyframe_, imu_chain_broken_};
   context.was_lost = was_lost;
@@ -137,6 +146,7 @@ LossContext Tracker::lossContext(bool was_lost) {
   context.imu_link = imu_prediction_.link.has_value();
   context.T_w_b_imu = imu_prediction_.state.T_w_b;
   context.last_tracked_t_s = last_tracked_t_s_;
+  context.start_reacquire_sigma_m = startReacquireSigma(frame);
   return context;
 }
 
@@ -262,9 +272,22 @@ void Tracker::refreshAfterMapChange(map::Map& map) {
 TrackingState Tracker::initialise(map::Frame& frame) {
   const int with_depth = staticKeypointsWithDepth(frame);
   if (with_depth < options_.min_init_features) {
-    log::debug("initialisation: ", with_depth, " static keypoints with depth, ", options_.min_init_features,
-               " needed");
+    // The view is too poor to start a map (issue 32: say why, once per wait, at info level).
+    if (std::isnan(init_wait_since_t_s_)) {
+      init_wait_since_t_s_ = frame.t_s();
+      log::info("initialisation waits at t = ", frame.t_s(), " s: the view is too poor to start a map, ", with_depth,
+                " static keypoints with depth of ", frame.numKeypoints(), " keypoints (", options_.min_init_features,
+                " needed); no pose until it starts");
+    } else {
+      log::debug("initialisation: ", with_depth, " static keypoints with depth, ", options_.min_init_features,
+                 " needed");
+    }
     return TrackingState::kNotInitialised;
+  }
+  if (!std::isnan(init_wait_since_t_s_)) {
+    log::info("initialisation waited ", frame.t_s() - init_wait_since_t_s_, " s for a view with ", with_depth,
+              " static keypoints with depth");
+    init_wait_since_t_s_ = std::numeric_limits<double>::quiet_NaN();
   }
   if (!frame.hasPose()) frame.setPose_T_w_b(SE3());
   clearMatches(frame);

@@ -112,7 +112,12 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
                                           : T_w_c * SE3::exp(ratio * velocity_T_last_cur_->log());
   }
   frame.setVelocity(keep_moving ? prev_v_w_b_ : Vec3::Zero());
-  return T_w_c * frame.T_b_c().inverse();
+  const SE3 T_w_b_pred = startGyroRotation(frame, T_w_c * frame.T_b_c().inverse());
+  if (options_.tracking.start_carried_lost && state_ == TrackingState::kLost && !imu_initialised_ &&
+      options_.tracking.start_reacquire_speed_m_s > 0.0 && frame.imu_from_last_frame) {
+    start_predicted_T_w_b_ = T_w_b_pred;
+  }
+  return T_w_b_pred;
 }
 
 MotionPrior Tracker::motionPrior(const map::Frame& frame, const SE3& T_w_b_pred) const {

@@ -3,9 +3,11 @@
 // frame exactly as the saved run would have. Written: every member a later frame reads (the last
 // frame whole, the motion models, the inertial link's state and marginal, the keyframe references,
 // the loss policy, the loaded-atlas start, localisation only's odometry and IMU window, the
-// standstill test). Not written: what each frame sets afresh before reading it (stats_,
-// frame_information_, imu_prediction_, segmentation_outcome_, the odometry's per-frame buffers)
-// and pure statistics (num_keyframes_, frames_localised_in_map_).
+// standstill test, the occluded start's provisional points). Not written: what each frame sets
+// afresh before reading it (stats_, frame_information_, imu_prediction_, segmentation_outcome_, the
+// odometry's per-frame buffers), pure statistics (num_keyframes_, frames_localised_in_map_) and the
+// initialisation's wait (logging only).
+#include <cmath>
 #include <limits>
 #include <string>
 
@@ -145,6 +147,17 @@ void Tracker::writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const {
   map::writeBias(still_bias_, out);
   out.boolean(rest_keyframe_made_);
   out.boolean(link_last_frame_after_rest_);
+
+  // Occluded start (tracker_start.cc).
+  out.u64(provisional_points_.size());
+  for (const ProvisionalPoint& point : provisional_points_) {
+    out.u64(point.id.value);
+    out.i32(point.dynamic_votes);
+    out.i32(point.static_votes);
+  }
+  out.f64(provisional_from_t_s_);
+  out.f64(start_window_end_t_s_);
+  out.i32(provisional_erased_);
 }
 
 void Tracker::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes) {
@@ -272,6 +285,22 @@ void Tracker::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes)
   still_bias_ = map::readBias(in, "still bias");
   rest_keyframe_made_ = in.boolean("rest keyframe made");
   link_last_frame_after_rest_ = in.boolean("link to the last frame after rest");
+
+  constexpr std::int32_t kMaxCount = std::numeric_limits<std::int32_t>::max();
+  provisional_points_.resize(in.count("provisional points", kIdBytes + 8));
+  for (ProvisionalPoint& point : provisional_points_) {
+    point.id = map::MapPointId(in.u64("provisional point"));
+    point.dynamic_votes = in.i32InRange("provisional point's dynamic votes", 0, kMaxCount);
+    point.static_votes = in.i32InRange("provisional point's static votes", 0, kMaxCount);
+  }
+  provisional_from_t_s_ = in.finiteF64("provisional from");
+  // -infinity without a start window, like the live value.
+  const std::uint64_t window_offset = in.fileOffset();
+  start_window_end_t_s_ = in.f64("start window end");
+  if (std::isnan(start_window_end_t_s_) || start_window_end_t_s_ == std::numeric_limits<double>::infinity()) {
+    in.failAt(window_offset, "start window end is not a time", map::exactNumberText(start_window_end_t_s_));
+  }
+  provisional_erased_ = in.i32InRange("provisional points erased", 0, kMaxCount);
 }
 
 }  // namespace ltlo::tracking

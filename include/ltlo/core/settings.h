@@ -245,6 +245,35 @@ struct TrackingOptions {
   /// Median reprojection error of the static matches at the held pose that still confirms rest, px
   /// (Tracking.ZuptMaxDisplacement, [0.1, 100])
   double zupt_max_displacement_px = 2.0;
+  /// Occluded start (issue 32). The first keyframe of a run's first map is made before any motion
+  /// was seen, so its points may lie on a mover that covers the view from the first frame. For this
+  /// long after it, s, they are provisional: every later frame projects them with its pose and a
+  /// point that lands, with its depth matching the frame's, on clusters the segmentation (with the
+  /// gyroscope's or the IMU's motion prior) calls dynamic in Tracking.StartDynamicVotes frames more
+  /// than on static ones is erased, so that neither tracking nor a recovery can take the mover as
+  /// the world (Tracking.StartProvisional, [0, 1000]; 0: the first keyframe's points are final)
+  double start_provisional_s = 0.0;
+  /// Frames a provisional point must be seen on dynamic clusters, beyond those it was seen on
+  /// static ones, to be erased (Tracking.StartDynamicVotes, [1, 100])
+  int start_dynamic_votes = 3;
+  /// Before the IMU is initialised, a lost frame re-acquires the map by the guided search
+  /// (Tracking.Reacquire) around its prediction, whose rotation is the gyroscope's, in windows of a
+  /// position standard deviation of 0.05 m plus this speed times the time since the last tracked
+  /// frame: the velocity is unknown, and the tracking lost under an occluded start lags behind by
+  /// about the robot's speed (Tracking.StartReacquireSpeed, m/s, [0, 10]; 0: no re-acquisition
+  /// before the IMU is initialised, and lost frames keep the constant-velocity rotation)
+  double start_reacquire_speed_m_s = 0.0;
+  /// Within Tracking.StartProvisional of the first keyframe and before the IMU is initialised, a
+  /// frame recovered by relocalisation or re-acquisition cuts the keyframes' IMU chain there: the
+  /// keyframes before it were posed while a mover moving with the camera may have held the view,
+  /// and the IMU initialisation (which uses the chain ending at the newest keyframe) starts after
+  /// them (Tracking.StartRecoveryCutsImu, 0/1)
+  bool start_recovery_cuts_imu = false;
+  /// Before the IMU is initialised, frames lost with the gyroscope's prediction
+  /// (Tracking.StartReacquireSpeed) form a carried stretch of the final trajectory like the IMU's
+  /// (system/carried_stretch.h): once a frame is tracked again, its difference to the prediction is
+  /// spread over them (Tracking.StartCarriedLost, 0/1; the online poses are unchanged)
+  bool start_carried_lost = false;
 
   static TrackingOptions load(const SettingsFile& file);
 };

@@ -60,6 +60,10 @@ struct LossContext {
   bool imu_link = false;         ///< ... with the inertial link (and the prediction's information)
   SE3 T_w_b_imu = SE3();         ///< the IMU's prediction (with imu_predicted)
   double last_tracked_t_s = 0.0;
+  /// Before the IMU is initialised (Tracking.StartReacquireSpeed): the position standard deviation
+  /// of the lost frame's prediction (its rotation the gyroscope's) for the guided re-acquisition;
+  /// infinity: none.
+  double start_reacquire_sigma_m = std::numeric_limits<double>::infinity();
 };
 
 /// The Tracker's steps the loss policy runs: the searches of a lost frame (tracker_reacquire.cc)

@@ -26,6 +26,7 @@
 /// does not track.
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -107,8 +108,10 @@ class Tracker : private RecoverySteps {
   int numFramesLocalisedInMap() const { return frames_localised_in_map_; }
   /// The IMU's prediction of the last frame's body pose, from the previous frame's state, before
   /// vision refined it (absent when the IMU did not predict: no IMU, not initialised, no samples).
+  /// Before the IMU is initialised, with Tracking.StartCarriedLost, a lost frame's (and the next
+  /// tracked frame's) prediction with the gyroscope's rotation stands for it.
   std::optional<SE3> imuPredicted_T_w_b() const {
-    return imu_prediction_.valid ? std::optional<SE3>(imu_prediction_.state.T_w_b) : std::nullopt;
+    return imu_prediction_.valid ? std::optional<SE3>(imu_prediction_.state.T_w_b) : start_predicted_T_w_b_;
   }
   /// Camera pose of the last frame given to track() (tracked or predicted; identity before
   /// initialisation).
@@ -201,7 +204,7 @@ class Tracker : private RecoverySteps {
   /// Segmentation step at the prediction; returns the prediction, refined by it where it applies.
   SE3 segmentAtPrediction(map::Frame& frame, const SE3& T_w_b_pred);
   /// The Tracker's state the loss policy reads and sets for this frame.
-  LossContext lossContext(bool was_lost);
+  LossContext lossContext(const map::Frame& frame, bool was_lost);
   /// A frame tracked (or recovered) with `inliers` pose inliers: map-point counters, the stretch,
   /// overlap, the constant-velocity model, the last frame.
   void recordTrackedFrame(map::Frame& frame, int inliers, bool was_lost);
@@ -431,6 +434,40 @@ class Tracker : private RecoverySteps {
   /// Held at rest at the last frame or the one before: the IMU links to the last frame (its state
   /// and the rest prior), not to the keyframe from before the stop.
   bool link_last_frame_after_rest_ = false;
+
+  // ---- occluded start (issue 32; tracker_start.cc) ----
+  /// The points of `kf`, the first keyframe of a run's first map, made before any motion was seen,
+  /// become provisional for Tracking.StartProvisional seconds.
+  void makeStartPointsProvisional(const map::KeyFrame& kf);
+  /// After every frame with a pose: each provisional point is projected with it; where the frame's
+  /// depth there matches the point's, the cluster's gamma is a vote (dynamic or static); a point
+  /// with Tracking.StartDynamicVotes more dynamic votes than static ones is erased from the map.
+  void checkProvisionalPoints(const map::Frame& frame);
+  /// Tracking.StartReacquireSpeed: the position sigma of a lost frame's guided re-acquisition
+  /// before the IMU is initialised (infinity: none, or the IMU is initialised).
+  double startReacquireSigma(const map::Frame& frame) const;
+  /// Before the IMU is initialised, a lost frame's predicted rotation from the gyroscope
+  /// (Tracking.StartReacquireSpeed): R_w_b of the previous frame times the frame's delta R, the
+  /// camera centre kept. Returns `T_w_b_pred` unchanged otherwise.
+  SE3 startGyroRotation(const map::Frame& frame, const SE3& T_w_b_pred) const;
+  /// Tracking.StartRecoveryCutsImu: after a frame recovered (relocalised or re-acquired) within the
+  /// start window, before the IMU is initialised, the next keyframe starts a new IMU chain.
+  void cutImuChainAtStartRecovery(const map::Frame& frame);
+  struct ProvisionalPoint {
+    map::MapPointId id;
+    int dynamic_votes = 0;
+    int static_votes = 0;
+  };
+  std::vector<ProvisionalPoint> provisional_points_;
+  double provisional_from_t_s_ = 0.0;   ///< the first keyframe's time
+  /// End of the start window (the first keyframe's time + Tracking.StartProvisional; -infinity: none)
+  double start_window_end_t_s_ = -std::numeric_limits<double>::infinity();
+  /// This frame's prediction with the gyroscope's rotation while lost before the IMU is
+  /// initialised (Tracking.StartCarriedLost; set afresh every frame)
+  std::optional<SE3> start_predicted_T_w_b_;
+  /// The first frame of the current wait for a view good enough to start a map (NaN: not waiting).
+  double init_wait_since_t_s_ = std::numeric_limits<double>::quiet_NaN();
+  int provisional_erased_ = 0;          ///< erased so far
 };
 
 }  // namespace ltlo::tracking
