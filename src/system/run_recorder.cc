@@ -34,7 +34,8 @@ std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector
 
 }  // namespace
 
-RunRecorder::RunRecorder(map::Atlas& atlas, const TrackingOptions& tracking) : atlas_(atlas), tracking_(tracking) {}
+RunRecorder::RunRecorder(map::Atlas& atlas, const TrackingOptions& tracking)
+    : atlas_(atlas), tracking_(tracking), imu_retention_(tracking.carried_bridge_margin_s) {}
 
 void RunRecorder::recordKeyFrameColours(const map::KeyFrame& kf, const cv::Mat& color_bgr,
                                         const Undistorter& undistorter) {
@@ -66,9 +67,22 @@ std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Fra
   recorded.tracked = record.tracked;
   recorded.carried = record.carried;
   recorded.map = record.map_online;
+  std::shared_ptr<CarriedImu> imu;
+  if (tracker.imuInitialised() && frame.imu_from_last_frame) {
+    imu = std::make_shared<CarriedImu>();
+    imu->from_previous = std::make_shared<const imu::Preintegrated>(*frame.imu_from_last_frame);
+    imu->v_w_b = frame.v_w_b();
+    imu->bias = frame.bias();
+    imu->g_w = tracker.g_w();
+    imu->T_b_c = frame.T_b_c();
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     records_.push_back(std::move(record));
+    for (auto& [index, kept] :
+         imu_retention_.add(records_.size() - 1, t_s, recorded.carried, recorded.map.value, std::move(imu))) {
+      records_[index].imu = std::move(kept);
+    }
   }
   return recorded;
 }
@@ -154,7 +168,7 @@ std::unordered_map<map::MapId, map::MapId> RunRecorder::floatingMaps(const std::
   return floatingMapWorlds(maps, kFloatingMapMaxSpan_s, kFloatingMapMaxDepth);
 }
 
-std::vector<FramePose> RunRecorder::trajectory(bool smooth_carried_frames) const {
+std::vector<FramePose> RunRecorder::trajectory(CarriedCorrection correction) const {
   std::vector<FrameRecord> records;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -198,11 +212,27 @@ std::vector<FramePose> RunRecorder::trajectory(bool smooth_carried_frames) const
     sample.t_s = pose.t_s;
     sample.T_w_c = pose.T_w_c;
     sample.carried = record.carried || (record.reference && floating.count(pose.map) > 0);
+    sample.world = record.reference ? world_of(pose.map).value : map::MapId::kInvalid;
+    if (record.imu && record.reference) {
+      // Velocity and gravity turned with the reference keyframe since the frame was tracked.
+      const Mat3 R_w_ref_then = (record.T_w_c_online * record.T_refb_c.inverse()).rotationMatrix();
+      const Mat3 R_now_then = map::latestPose_T_w_b(*record.reference).rotationMatrix() * R_w_ref_then.transpose();
+      auto imu = std::make_shared<CarriedImu>(*record.imu);
+      imu->v_w_b = R_now_then * imu->v_w_b;
+      imu->g_w = R_now_then * imu->g_w;
+      sample.imu = std::move(imu);
+    }
     poses.push_back(pose);
     samples.push_back(std::move(sample));
   }
-  if (smooth_carried_frames) {
-    smoothCarriedStretches(samples, tracking_.carried_velocity_sigma_m_s, tracking_.acc_bias_sigma_m_s2);
+  if (correction != CarriedCorrection::kNone) {
+    CarriedCorrectionOptions options;
+    options.bridge = correction == CarriedCorrection::kBridge;
+    options.velocity_sigma_m_s = tracking_.carried_velocity_sigma_m_s;
+    options.acc_bias_sigma_m_s2 = tracking_.acc_bias_sigma_m_s2;
+    options.gyro_bias_sigma_rad_s = tracking_.carried_gyro_bias_sigma_rad_s;
+    options.margin_s = tracking_.carried_bridge_margin_s;
+    correctCarriedStretches(samples, options);
     for (std::size_t i = 0; i < poses.size(); ++i) poses[i].T_w_c = samples[i].T_w_c;
   }
   return poses;
