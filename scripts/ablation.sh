@@ -3,6 +3,10 @@
 #
 #   scripts/ablation.sh SEQ OUT [extra rgbd_inertial arguments...]
 #
+# SEQ is a sequence folder, or a name <scenario>_s<seed> of scripts/scenarios.sh's catalogue (a
+# profile such as ltlo_s1 or a harder world such as long_mtlo_s2, standstill_s1): the sequence in
+# SEQ_ROOT (default /work/seqs) when it holds a DONE file, else generated there first
+# (SECONDS_PER_SEQUENCE, default 45, unless the catalogue says --seconds).
 # Variants (each the full settings with one component off, via --set; "full" turns the
 # segmentation on, Seg.Enable = 1, whatever the settings file says):
 #   full             Seg.Enable = 1, Seg.DenseInit = 1, Mapping.RobustBeta = 1, IMU
@@ -14,7 +18,8 @@
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
 # table: ATE RMSE (m), RPE (m/s, deg/s), static IoU (when the run wrote masks), maps, loops, merges,
-# false loops/merges, share of map points on moving objects, FPS. Also written to OUT/table.md.
+# false loops/merges, share of map points on moving objects, FPS, keyframes, peak memory and the mapping
+# time per keyframe of the last minute over the first (runs of two minutes or more). Also written to OUT/table.md.
 # Environment: SETTINGS (default config_yaml/synthetic.yaml), BUILD_DIR (default build),
 # VARIANTS (default "full seg_off dense_init_off robust_beta_off no_imu").
 set -euo pipefail
@@ -31,7 +36,21 @@ BUILD_DIR=${BUILD_DIR:-build}
 VARIANTS=${VARIANTS:-"full seg_off dense_init_off robust_beta_off no_imu"}
 BIN="$BUILD_DIR/bin/rgbd_inertial"
 [ -x "$BIN" ] || { echo "ablation.sh: $BIN not built (scripts/build.sh)" >&2; exit 2; }
-[ -d "$SEQ" ] || { echo "ablation.sh: no sequence folder $SEQ" >&2; exit 2; }
+if [ ! -d "$SEQ" ]; then
+  # shellcheck source=scripts/scenarios.sh
+  source scripts/scenarios.sh
+  read -r scenario seed <<<"$(sequence_scenario "$(basename "$SEQ")")"
+  [ -n "${seed:-}" ] || { echo "ablation.sh: no sequence folder $SEQ (nor a name <scenario>_s<seed>)" >&2; exit 2; }
+  read -r -a sim_args <<<"$(simulate_options "$scenario" "${SECONDS_PER_SEQUENCE:-45}")" || exit 2
+  SEQ=${SEQ_ROOT:-/work/seqs}/$(basename "$SEQ")
+  if [ ! -f "$SEQ/DONE" ]; then
+    echo "ablation.sh: simulate ${sim_args[*]} --seed $seed -> $SEQ" >&2
+    rm -rf "$SEQ" && mkdir -p "$(dirname "$SEQ")"
+    "$BUILD_DIR/bin/simulate" "${sim_args[@]}" --seed "$seed" --out "$SEQ" --progress-every 900 >"$SEQ.log" 2>&1 ||
+      { echo "ablation.sh: simulate failed (see $SEQ.log)" >&2; exit 1; }
+    touch "$SEQ/DONE"
+  fi
+fi
 mkdir -p "$OUT"
 
 variant_args() {
@@ -67,8 +86,8 @@ import json, os, sys
 out, variants = sys.argv[1], sys.argv[2:]
 def number(d, key, fmt):
     return fmt.format(d[key]) if key in d and d[key] is not None else "n/a"
-rows = ["| variant | ATE (m) | RPE (m/s) | RPE (deg/s) | static IoU | maps | loops | merges | false | moving pts | FPS | exit |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+rows = ["| variant | ATE (m) | RPE (m/s) | RPE (deg/s) | static IoU | maps | loops | merges | false | moving pts | FPS | keyframes | peak MB | mapping last/first min | exit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for v in variants:
     metrics = {}
     path = os.path.join(out, v, "metrics.json")
@@ -85,11 +104,13 @@ for v in variants:
             if line.startswith("moving_share"):
                 moving = "{:.2%}".format(float(line.split()[1]))
     status = open(os.path.join(out, v + ".status")).read().strip() if os.path.exists(os.path.join(out, v + ".status")) else "?"
-    rows.append("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |".format(
+    rows.append("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |".format(
         v, number(metrics, "ate_rmse_m", "{:.4f}"), number(metrics, "rpe_trans_rmse_m_s", "{:.4f}"),
         number(metrics, "rpe_rot_rmse_deg_s", "{:.3f}"), number(metrics, "static_iou", "{:.3f}"),
         number(metrics, "maps", "{}"), number(metrics, "loops", "{}"), number(metrics, "merges", "{}"), false,
-        moving, number(metrics, "fps", "{:.1f}"), status))
+        moving, number(metrics, "fps", "{:.1f}"), number(metrics, "keyframes", "{}"),
+        number(metrics, "peak_memory_mb", "{:.0f}"), number(metrics, "mapping_keyframe_last_to_first_minute", "{:.2f}"),
+        status))
 table = "\n".join(rows)
 print(table)
 open(os.path.join(out, "table.md"), "w").write(table + "\n")

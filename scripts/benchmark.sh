@@ -6,6 +6,8 @@
 #
 # Environment (defaults in brackets):
 #   SCENARIOS ["static stlo mtlo ltlo carried"]   SEEDS ["1 2 3"]   SECONDS_PER_SEQUENCE [45]
+#             besides the five profiles, any harder world of scripts/scenarios.sh's catalogue
+#             (e.g. SCENARIOS="long_mtlo standstill"); the report gives those a section of their own
 #   VARIANTS  ["rgbd_inertial rgbd_only seg_off"]  rgbd_inertial: the full system;
 #             rgbd_only: --no-imu; seg_off: Seg.Enable = 0 (every pixel static)
 #   SEQ_ROOT  [/work/seqs]  sequences <scenario>_s<seed> that hold a DONE file are used from there;
@@ -30,6 +32,10 @@ SECONDS_PER_SEQUENCE=${SECONDS_PER_SEQUENCE:-45}
 SETTINGS=${SETTINGS:-config_yaml/synthetic.yaml}
 RECON=${RECON:-1}
 BIN=build/bin
+# shellcheck source=scripts/scenarios.sh
+source scripts/scenarios.sh
+read -r -a scenarios <<<"$SCENARIOS"
+for scenario in "${scenarios[@]}"; do simulate_options "$scenario" "$SECONDS_PER_SEQUENCE" >/dev/null || exit 2; done
 
 if [ "${BUILD:-1}" = 1 ]; then scripts/build.sh; fi
 mkdir -p "$OUT/runs" "$OUT/sequences" "$OUT/settings"
@@ -56,7 +62,6 @@ variant_args() {
 }
 json_value() { sed -n "s/.*\"$1\": *\([-0-9.eE+]*\).*/\1/p" "$2" | head -1; }
 
-read -r -a scenarios <<<"$SCENARIOS"
 read -r -a seeds <<<"$SEEDS"
 read -r -a variants <<<"$VARIANTS"
 total=$((${#scenarios[@]} * ${#seeds[@]} * ${#variants[@]}))
@@ -70,10 +75,11 @@ for scenario in "${scenarios[@]}"; do
     if [ ! -f "$seq/DONE" ]; then
       seq=$OUT/sequences/$name
       if [ ! -f "$seq/DONE" ]; then
-        echo "== simulate $name ($SECONDS_PER_SEQUENCE s) -> $seq"
+        read -r -a sim_args <<<"$(simulate_options "$scenario" "$SECONDS_PER_SEQUENCE")"
+        echo "== simulate $name (${sim_args[*]}) -> $seq"
         rm -rf "$seq"
-        "$BIN/simulate" --scenario "$scenario" --seed "$seed" --seconds "$SECONDS_PER_SEQUENCE" \
-          --out "$seq" --progress-every 300 >"$OUT/sequences/$name.log" 2>&1
+        "$BIN/simulate" "${sim_args[@]}" --seed "$seed" --out "$seq" --progress-every 300 \
+          >"$OUT/sequences/$name.log" 2>&1
         touch "$seq/DONE"
       fi
     fi
@@ -106,6 +112,10 @@ for scenario in "${scenarios[@]}"; do
           failed=$((failed + 1))
           continue
         fi
+      fi
+      if [ -f "$seq/groundtruth.txt" ] && ! python3 scripts/check_loops.py "$run" "$seq" "$run/slam.log" \
+        >"$run/check_loops.txt" 2>&1; then
+        printf ', FALSE loops (see %s)' "$run/check_loops.txt"
       fi
       touch "$run/DONE"
       ate=$(json_value ate_rmse_m "$run/metrics.json")

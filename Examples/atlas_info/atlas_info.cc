@@ -51,6 +51,14 @@ void printSummary(const map::AtlasFileSummary& summary) {
     std::printf("map %" PRIu64 " extent_min %.4f %.4f %.4f extent_max %.4f %.4f %.4f\n", m.id.value, m.extent_min.x(),
                 m.extent_min.y(), m.extent_min.z(), m.extent_max.x(), m.extent_max.y(), m.extent_max.z());
   }
+  if (summary.run) {
+    // A run's state to resume (format 2): the frame it goes on at and the atlas part's contents.
+    std::printf("run_next_frame %" PRIu64 "\n", summary.run->next_frame_index);
+    std::printf("run_last_frame_t_s %.6f\n", summary.run->last_frame_t_s);
+    std::printf("run_merged_maps %zu\nrun_culled_keyframes %zu\nrun_database_keyframes %zu\n", summary.run->merged_maps,
+                summary.run->culled_keyframes, summary.run->database_keyframes);
+    std::printf("run_stage_bytes %" PRIu64 "\n", summary.run->stage_bytes);
+  }
   for (const map::AtlasFileSummary::Section& section : summary.sections) {
     std::printf("section %s offset %" PRIu64 " bytes %" PRIu64 "\n", section.name.c_str(), section.offset,
                 section.bytes);

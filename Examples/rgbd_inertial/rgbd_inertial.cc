@@ -4,7 +4,7 @@
 //                 [--single-thread] [--first-frame N] [--max-frames N] [--progress-every N] [--oracle-masks]
 //                 [--set Key=Value]... [--viewer-video FILE] [--viewer-dir DIR]
 //                 [--viewer-http PORT [--viewer-bind ADDRESS] [--pose-stream]]
-//                 [--save-atlas FILE] [--load-atlas FILE [--localisation-only]]
+//                 [--save-atlas FILE] [--load-atlas FILE [--localisation-only | --resume]]
 //   rgbd_inertial --settings YAML --bag FILE [--bag-preset tum|realsense|realsense-unite|openloris]
 //                 [--rgb-topic T] [--depth-topic T] [--imu-topic T | --accel-topic T --gyro-topic T]
 //                 [--camera-info-topic T] [--calib FILE] [--groundtruth FILE] --out DIR [options as above]
@@ -37,8 +37,10 @@
 // --save-atlas FILE writes the maps at the end (also after Ctrl-C or an error part-way: what was
 // mapped until then); --load-atlas FILE starts the run lost in a saved atlas, relocalises in it and
 // tracks in its world frame (trajectory.txt then needs no alignment to the earlier run's), extending
-// it; --localisation-only adds nothing to it (Tracking.LocalisationOnly). A bad atlas file (truncated,
-// corrupt, another vocabulary or camera) is bad input: exit 2 naming the file, section and byte.
+// it; --localisation-only adds nothing to it (Tracking.LocalisationOnly); --resume continues the run
+// that saved it instead (its run state: tracking, mapping, loop closing and the records go on at its
+// next frame; --first-frame defaults to that frame). A bad atlas file (truncated, corrupt, another
+// vocabulary or camera, no run state to resume) is bad input: exit 2 naming the file, section and byte.
 #include <unistd.h>
 
 #include <atomic>
@@ -120,6 +122,8 @@ struct Arguments {
   std::string save_atlas;  ///< --save-atlas FILE
   std::string load_atlas;  ///< --load-atlas FILE
   bool localisation_only = false;
+  bool resume = false;             ///< --resume: continue the run the loaded atlas saved
+  bool first_frame_given = false;  ///< --first-frame was on the command line
 };
 
 /// The shipped vocabulary: $LTLO_SOURCE_DIR, then next to the executable's build tree
@@ -216,6 +220,34 @@ std::string frameName(const io::SequenceReader& reader, int index) {
   return "frame " + std::to_string(index) + " (t = " + std::to_string(files.t_s) + " s, " + files.color_path + ")";
 }
 
+/// --resume: the frame the saved run goes on at (--first-frame, when given, must name it), checked
+/// against the sequence (the saved run's last frame must be the one before); the segmenter's
+/// previous frame rebuilt from that frame's images.
+long resumeAt(const Arguments& args, io::SequenceReader& reader, const system::ResumePoint& resume,
+              system::System& slam) {
+  const long next = static_cast<long>(resume.next_frame_index);
+  if (args.first_frame_given && args.first_frame != next) {
+    throw InputError(args.load_atlas, 0,
+                     "its run goes on at frame " + std::to_string(next) + ", not at --first-frame " +
+                         std::to_string(args.first_frame));
+  }
+  if (next > reader.frameCount()) {
+    throw InputError(reader.directory(), 0,
+                     "has " + std::to_string(reader.frameCount()) + " frames; the run saved in " + args.load_atlas +
+                         " goes on at frame " + std::to_string(next));
+  }
+  if (next > 0 && reader.frameTime(static_cast<int>(next) - 1) != resume.last_frame_t_s) {
+    throw InputError(reader.directory(), 0,
+                     "frame " + std::to_string(next - 1) + " is at t = " +
+                         std::to_string(reader.frameTime(static_cast<int>(next) - 1)) + " s, the last frame of the run "
+                         "saved in " + args.load_atlas + " at t = " + std::to_string(resume.last_frame_t_s) +
+                         " s: another sequence");
+  }
+  if (resume.previous_frame_t_s) slam.restorePreviousFrame(reader.load(static_cast<int>(next) - 1));
+  log::info(kProgram, ": resuming the run of ", args.load_atlas, " at frame ", next);
+  return next;
+}
+
 int run(const Arguments& args) {
   const auto start = std::chrono::steady_clock::now();
   RunSetup setup = loadSetup(args);
@@ -243,13 +275,16 @@ int run(const Arguments& args) {
   options.viewer_http_bind = args.viewer_bind;
   options.viewer_pose_stream = args.pose_stream;
   options.load_atlas_path = args.load_atlas;
+  options.resume = args.resume;
   if (options.use_imu) requireImu(reader, setup.settings);
   system::System slam(setup.settings, vocabulary, options);
 
   log::setThreadName("tracking");
 
-  reader.seek(static_cast<int>(std::min<long>(args.first_frame, reader.frameCount() + 1L)));
-  const long remaining = reader.frameCount() - args.first_frame;
+  long first_frame = args.first_frame;
+  if (const std::optional<system::ResumePoint> resume = slam.resumePoint()) first_frame = resumeAt(args, reader, *resume, slam);
+  reader.seek(static_cast<int>(std::min<long>(first_frame, reader.frameCount() + 1L)));
+  const long remaining = reader.frameCount() - first_frame;
   const long total = args.max_frames > 0 ? std::min<long>(args.max_frames, remaining) : remaining;
   ProgressReporter progress({"frames", total, ProgressReporter::Style::kSilent});
   int exit_code = 0;
@@ -272,13 +307,13 @@ int run(const Arguments& args) {
       }
     }
   } catch (const InputError& e) {
-    failure = "bad input at " + frameName(reader, static_cast<int>(args.first_frame) + frames) + ": " + e.what();
+    failure = "bad input at " + frameName(reader, static_cast<int>(first_frame) + frames) + ": " + e.what();
     exit_code = 2;
   } catch (const ConfigError& e) {
-    failure = "bad settings at " + frameName(reader, static_cast<int>(args.first_frame) + frames) + ": " + e.what();
+    failure = "bad settings at " + frameName(reader, static_cast<int>(first_frame) + frames) + ": " + e.what();
     exit_code = 2;
   } catch (const std::exception& e) {
-    failure = "error at " + frameName(reader, static_cast<int>(args.first_frame) + frames) + ": " + e.what();
+    failure = "error at " + frameName(reader, static_cast<int>(first_frame) + frames) + ": " + e.what();
     exit_code = 1;
   }
   prefetcher.stop();  // the reader is the prefetch thread's until joined
@@ -392,8 +427,9 @@ int main(int argc, char** argv) {
   app.add_flag("--oracle-masks", args.oracle_masks,
                "diagnostic ablation: the sequence's ground-truth masks (masks/) replace the segmentation");
   app.add_option("--max-frames", args.max_frames, "stop after N frames (0: all)")->check(CLI::NonNegativeNumber);
-  app.add_option("--first-frame", args.first_frame, "start at frame N of the sequence (0: the first)")
-      ->check(CLI::NonNegativeNumber);
+  CLI::Option* first_frame_option =
+      app.add_option("--first-frame", args.first_frame, "start at frame N of the sequence (0: the first)")
+          ->check(CLI::NonNegativeNumber);
   app.add_option("--progress-every", args.progress_every, "progress line every N frames (0: none)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--set", args.overrides,
@@ -420,11 +456,16 @@ int main(int argc, char** argv) {
   app.add_flag("--localisation-only", args.localisation_only,
                "with --load-atlas: track in the loaded maps only, add no keyframe, point or map")
       ->needs(load_atlas_option);
+  app.add_flag("--resume", args.resume,
+               "with --load-atlas: continue the run that saved it at its next frame (its tracking, mapping and "
+               "loop-closing state), instead of starting lost in its maps")
+      ->needs(load_atlas_option);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
+  args.first_frame_given = first_frame_option->count() > 0;
   log::initFromEnvironment();
   if (args.pose_stream && args.viewer_http < 0) {
     std::fprintf(stderr, "%s: --pose-stream needs --viewer-http PORT (the poses are served at /poses)\n", kProgram);

@@ -5,6 +5,7 @@
 //            [--sensor ideal|realsense|kinect|FILE.yaml] [--sensor-set KEY=VALUE]...
 //            [--time-offset S] [--lens none|radtan|radtan-strong|rational|kb]
 //            [--still START,DURATION]... [--occlusion-at T]...
+//            [--plain-movers] [--occluded-start away|towards] [--walkers N] [--door] [--three-movers]
 // Exit status: 0 written, 2 bad input (options, config file, output folder), 1 any other error.
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -130,6 +131,21 @@ int main(int argc, char** argv) {
   app.add_option("--occlusion-at", occlusion_at,
                  "T (s): a box crosses the view from T (in from one side, held 2-4 s, out to the other); repeatable")
       ->check(CLI::Range(0.0, 1e6));
+  bool plain_movers = false, doors = false, three_movers = false;
+  std::string occluded_start;
+  int walkers = 0;
+  app.add_flag("--plain-movers", plain_movers,
+               "every mover one plain colour; half of the events are thin panels instead of boxes");
+  app.add_option("--occluded-start", occluded_start,
+                 "away|towards: a box covers 40-80 % of frame 0 and is pushed away or pulled towards the robot "
+                 "at 1.5-3.5 s, gone by 5 s")
+      ->check(CLI::IsMember({"away", "towards"}));
+  app.add_option("--walkers", walkers, "N walking figures over the run (leading the robot or crossing its view)")
+      ->check(CLI::Range(1, 100));
+  app.add_flag("--door", doors, "door leaves swinging open and closed at three places the path passes");
+  app.add_flag("--three-movers", three_movers,
+               "a leading box, repeated crossing boxes and a carried box at once from t_clear on")
+      ->excludes("--walkers");
   app.add_option("--progress-every", progress_every, "progress line every N frames")
       ->check(CLI::Range(1, 1000000));
   try {
@@ -188,6 +204,12 @@ int main(int argc, char** argv) {
       options.stills.push_back({parsed.start_s, parsed.duration_s});
     }
     options.occlusion_at_s = occlusion_at;
+    options.plain_movers = plain_movers;
+    if (!occluded_start.empty())
+      options.occluded_start = occluded_start == "away" ? ltlo::sim::StartMove::kAway : ltlo::sim::StartMove::kTowards;
+    options.walkers = walkers;
+    options.doors = doors;
+    options.three_movers = three_movers;
     ltlo::sim::writeSequence(options, out_dir, progress_every);
   } catch (const ltlo::ConfigError& e) {
     std::cerr << "simulate: " << e.what() << "\n";

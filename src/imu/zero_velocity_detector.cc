@@ -1,6 +1,7 @@
 #include "ltlo/imu/zero_velocity_detector.h"
 
 #include <cmath>
+#include <utility>
 
 #include "ltlo/core/assert.h"
 
@@ -25,6 +26,12 @@ void ZeroVelocityDetector::reset() {
   window_.clear();
   tested_ = false;
   statistics_ = ZeroVelocityStatistics();
+}
+
+void ZeroVelocityDetector::restore(State state) {
+  window_ = std::move(state.window);
+  tested_ = state.tested;
+  statistics_ = state.statistics;
 }
 
 Vec3 ZeroVelocityDetector::meanAcc() const {

@@ -17,6 +17,7 @@
 #include "ltlo/loop/map_merger.h"
 #include "ltlo/map/keyframe_database.h"
 #include "ltlo/place/pooled_place_match.h"
+#include "loop_closer_impl.h"
 
 namespace ltlo::loop {
 
@@ -33,9 +34,6 @@ using place::withinPredictionGate;
 
 namespace {
 
-/// Keyframes processed after a correction or merge before the next loop may be closed (ORB-SLAM
-/// waits 10 keyframes: the place just closed is still consistent for the next queries).
-constexpr int kKeyFramesBetweenLoops = 10;
 /// A merge candidate not (yet) consistent is accepted when its verification has this many times
 /// Loop.MinInliers (a map started after tracking loss should rejoin the old one soon).
 constexpr int kStrongMergeInlierFactor = 2;
@@ -60,8 +58,6 @@ constexpr double kMaxCorrectionYawSigma_rad = 0.5 * M_PI / 180.0;
 bool fixesYaw(const GuidedPlaceMatch& found) { return found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad; }
 /// Ancestors of a map's origin chain searched by the rejoin (the parent first).
 constexpr int kRejoinMaxAncestors = 4;
-/// Best covisibles forming a candidate's group (consistency) and setting the BoW score threshold.
-constexpr std::size_t kGroupSize = 10;
 
 /// Pauses local mapping, then holds tracking between two frames, for its lifetime (no-op functions
 /// when not wired).
@@ -137,92 +133,6 @@ LoopClosure closureOf(const map::KeyFrame& kf, const GuidedPlaceMatch& found) {
 }
 
 }  // namespace
-
-struct LoopCloser::Impl {
-  Impl(map::Atlas& atlas_in, const LoopCloserOptions& options_in, MappingControl mapping_in, TimingStats* timing_in)
-      : atlas(atlas_in),
-        options(options_in),
-        mapping(std::move(mapping_in)),
-        timing(timing_in),
-        queue(options_in.queue_capacity),
-        detector(options_in.loop, map::PlaceQueryOptions(), kGroupSize),
-        merge_consistency(options_in.loop.min_consistency) {}
-
-  // ---- loop thread (or the caller of processKeyFrame) ----
-  void process(const std::shared_ptr<map::KeyFrame>& kf);
-  /// Detection, verification and correction in kf's map; true when a loop was closed.
-  bool tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
-  /// Loop.Proximity: the guided search of kf's old, non-covisible neighbours in its own map
-  /// (gravity known); true when a loop was closed.
-  bool tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
-  /// The correction of an accepted loop (local mapping paused), the event, the full BA.
-  bool correct(const std::shared_ptr<map::KeyFrame>& kf, const std::shared_ptr<map::KeyFrame>& candidate,
-               const LoopClosure& loop, map::Map& map, bool proximity);
-  /// Merge detection against the other maps; true when kf's map was merged.
-  bool tryMerge(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
-  /// Loop.Rejoin: kf's map started at an IMU prediction in its parent's world (map::MapOrigin);
-  /// the parent's points around kf's pose, searched within the origin's uncertainty; true when
-  /// kf's map was merged into the parent.
-  bool tryRejoin(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
-  /// The guided search settings for kf (Loop.Rejoin's, refined pose) at the given sigmas.
-  GuidedPlaceMatchOptions guidedSearch(const map::KeyFrame& kf, double sigma_position_m, double sigma_rotation_rad,
-                                       std::uint32_t salt) const;
-  /// One rejoin search of kf (of `map`) in `target` with the given sigmas; merges on success.
-  bool rejoinAt(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map, map::Map& target, double sigma_position_m,
-                double sigma_rotation_rad);
-  /// The merge of kf's map into `accepted`'s, at `place` when given (else verified by BoW
-  /// matching), with local mapping paused, then the event, the detection reset and the full BA.
-  bool merge(const std::shared_ptr<map::KeyFrame>& kf, const std::shared_ptr<map::KeyFrame>& accepted,
-             std::optional<LoopClosure> place);
-  /// Forgets the consistency state (a correction or a map change).
-  void resetDetection();
-  void recordEvent(const LoopEvent& event);
-  /// Arms the refining full BA of `map` after a correction (Loop.RefineKeyFrames).
-  void scheduleRefinement(const map::Map& map);
-  /// Runs the armed refining full BA once Loop.RefineKeyFrames keyframes of its map followed.
-  void refineAfterCorrection(const std::shared_ptr<map::KeyFrame>& kf);
-
-  // ---- full BA ----
-  /// The IMU's gravity once initialised (nullopt before).
-  std::optional<Vec3> gravity() const { return mapping.gravity_w ? mapping.gravity_w() : std::nullopt; }
-  /// Starts the full BA of `map` (in its own thread from run(), else synchronously), visual-inertial
-  /// with g_w.
-  void startGlobalBa(map::Map& map, const std::optional<Vec3>& g_w);
-  /// Aborts a running full BA and joins its thread (before any correction writes the map).
-  void abortGlobalBa();
-  /// Joins the full-BA thread without aborting it.
-  void joinGlobalBa();
-  void globalBa(map::Map& map, const std::optional<Vec3>& g_w);
-
-  map::Atlas& atlas;
-  const LoopCloserOptions options;
-  const MappingControl mapping;
-  TimingStats* const timing;
-
-  BlockingQueue<std::shared_ptr<map::KeyFrame>> queue;
-  std::atomic<bool> in_run{false};  ///< run() is processing: the full BA goes to its own thread
-
-  // Owned by the thread that processes keyframes (the loop thread).
-  LoopDetector detector;
-  ConsistencyChecker merge_consistency;
-  map::MapId detection_map;  ///< map of the last query (the consistency state belongs to it)
-  int keyframes_since_correction = kKeyFramesBetweenLoops;
-  /// The map whose last correction still waits for its refining full BA (Loop.RefineKeyFrames).
-  map::MapId refine_map;
-  bool refine_pending = false;
-
-  // Full BA: the thread object is touched by the loop thread (start/abort) and run()/destructor.
-  std::thread ba_thread;
-  std::atomic<bool> ba_stop{false};
-  mutable std::mutex ba_mutex;  ///< guards ba_running
-  std::condition_variable ba_done;
-  bool ba_running = false;
-
-  mutable std::mutex events_mutex;  ///< guards events and the counters
-  std::vector<LoopEvent> events;
-  int num_loops = 0;
-  int num_merges = 0;
-};
 
 void LoopCloser::Impl::resetDetection() {
   detector = LoopDetector(options.loop, map::PlaceQueryOptions(), kGroupSize);
@@ -682,6 +592,8 @@ void LoopCloser::run() {
 }
 
 void LoopCloser::requestFinish() { impl_->queue.close(); }
+
+std::size_t LoopCloser::queuedKeyFrames() const { return impl_->queue.size(); }
 
 std::vector<LoopEvent> LoopCloser::events() const {
   std::lock_guard<std::mutex> lock(impl_->events_mutex);

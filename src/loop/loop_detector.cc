@@ -1,9 +1,11 @@
 #include "ltlo/loop/loop_detector.h"
 
 #include <algorithm>
+#include <limits>
 
 #include "bow/bow_vector.h"
 #include "ltlo/core/assert.h"
+#include "ltlo/map/binary_io.h"
 
 namespace ltlo::loop {
 
@@ -36,6 +38,25 @@ std::vector<map::KeyFrameId> ConsistencyChecker::update(const std::vector<Candid
   }
   previous_ = std::move(current);
   return accepted;
+}
+
+void ConsistencyChecker::writeState(map::ByteWriter& out) const {
+  out.u64(previous_.size());
+  for (const Tracked& tracked : previous_) {
+    out.i32(tracked.count);
+    out.u64(tracked.members.size());
+    for (const map::KeyFrameId id : tracked.members) out.u64(id.value);
+  }
+}
+
+void ConsistencyChecker::readState(map::ByteReader& in) {
+  const std::size_t n = in.count("consistency groups", 4 + 8);
+  previous_.assign(n, Tracked());
+  for (Tracked& tracked : previous_) {
+    tracked.count = in.i32InRange("consistency count", 1, std::numeric_limits<std::int32_t>::max());
+    const std::size_t members = in.count("consistency group members", 8);
+    for (std::size_t k = 0; k < members; ++k) tracked.members.insert(map::KeyFrameId(in.u64("consistency group member")));
+  }
 }
 
 LoopDetector::LoopDetector(const LoopOptions& options, const map::PlaceQueryOptions& query, std::size_t group_size)

@@ -23,11 +23,14 @@ namespace {
 constexpr std::size_t kNameBytes = 16;
 constexpr std::size_t kTableEntryBytes = kNameBytes + 8 + 8 + 4;
 constexpr std::size_t kFixedHeaderBytes = 8 + 4 + 4;
-/// The sections of a version-1 file, in file order.
+/// The sections of a file, in file order: version 1 has the first six, version 2 the six or all
+/// seven (the run state is optional).
 const std::vector<std::string>& sectionNames() {
-  static const std::vector<std::string> names = {"build", "imu", "maps", "keyframes", "points", "graph"};
+  static const std::vector<std::string> names = {"build", "imu", "maps", "keyframes", "points", "graph", "run"};
   return names;
 }
+constexpr std::size_t kMapSections = 6;
+constexpr std::size_t kRunSection = 6;
 
 std::string hex64(std::uint64_t v) {
   char text[24];
@@ -118,14 +121,16 @@ std::string printable(const std::string& bytes) {
   return text;
 }
 
-SectionEntry readTableEntry(ByteReader& in, const std::string& expected_name) {
+SectionEntry readTableEntry(ByteReader& in, const std::string& expected_name, std::uint32_t version) {
   const std::uint64_t offset = in.fileOffset();
   char name[kNameBytes];
   in.raw(name, kNameBytes, "section name");
   SectionEntry entry;
   entry.name.assign(name, strnlen(name, kNameBytes));
   if (entry.name != expected_name) {
-    in.failAt(offset, "section table names '" + printable(entry.name) + "' where version 1 has '" + expected_name + "'",
+    in.failAt(offset,
+              "section table names '" + printable(entry.name) + "' where version " + std::to_string(version) +
+                  " has '" + expected_name + "'",
               printable(entry.name));
   }
   entry.offset = in.u64("section offset");
@@ -143,16 +148,20 @@ std::vector<SectionEntry> readHeader(const std::string& bytes, const std::string
     in.failAt(0, "not an atlas file (magic is not " + std::string(kAtlasMagic) + ")", printable(std::string(magic, 8)));
   }
   const std::uint32_t version = in.u32("format version");
-  if (version != kAtlasFormatVersion) {
-    in.failAt(8, "unsupported format version, this build reads version " + std::to_string(kAtlasFormatVersion),
+  if (version < 1 || version > kAtlasFormatVersion) {
+    in.failAt(8, "unsupported format version, this build reads versions 1 to " + std::to_string(kAtlasFormatVersion),
               std::to_string(version));
   }
   const std::uint32_t count = in.u32("section count");
-  if (count != sectionNames().size()) {
-    in.failAt(12, "version 1 has " + std::to_string(sectionNames().size()) + " sections", std::to_string(count));
+  if (version == 1 && count != kMapSections) {
+    in.failAt(12, "version 1 has " + std::to_string(kMapSections) + " sections", std::to_string(count));
+  }
+  if (version == 2 && count != kMapSections && count != kMapSections + 1) {
+    in.failAt(12, "version 2 has " + std::to_string(kMapSections) + " or " + std::to_string(kMapSections + 1) +
+                      " sections", std::to_string(count));
   }
   std::vector<SectionEntry> sections;
-  for (const std::string& expected : sectionNames()) sections.push_back(readTableEntry(in, expected));
+  for (std::uint32_t k = 0; k < count; ++k) sections.push_back(readTableEntry(in, sectionNames()[k], version));
   const std::uint64_t crc_offset = in.fileOffset();
   const std::uint32_t header_crc = in.u32("header CRC");
   const std::uint32_t computed = crc32(bytes.data(), static_cast<std::size_t>(crc_offset));
@@ -174,7 +183,7 @@ std::vector<SectionEntry> readHeader(const std::string& bytes, const std::string
     expected_offset = section.offset + section.bytes;
   }
   if (expected_offset != bytes.size()) {
-    ByteReader(bytes.data(), 0, name, "graph", expected_offset)
+    ByteReader(bytes.data(), 0, name, sections.back().name, expected_offset)
         .fail("bytes after the last section", std::to_string(bytes.size() - expected_offset));
   }
   return sections;
@@ -235,6 +244,7 @@ struct ParsedFile {
   AtlasBuildInfo build;
   AtlasImuState imu;
   std::vector<SectionEntry> sections;
+  bool has_run_state() const { return sections.size() > kRunSection; }
 };
 
 /// Header, CRCs and build first (so a refused vocabulary costs no parsing), then every section.
@@ -258,6 +268,14 @@ ParsedFile parseAtlas(const std::string& bytes, const std::string& name, std::si
   ByteReader graph = section(5);
   readGraphSection(graph, parsed.restore);
   return parsed;
+}
+
+/// The run section's atlas part read against the parsed atlas (not applied); `stages` is left at
+/// the stages' parts.
+AtlasRunState readRunSection(const std::string& bytes, const std::string& name, ParsedFile& parsed,
+                             ByteReader* stages) {
+  *stages = sectionReader(bytes, name, parsed.sections[kRunSection]);
+  return readAtlasRunState(*stages, *parsed.restore.atlas);
 }
 
 AtlasFileSummary::MapSummary summariseMap(const Map& map) {
@@ -287,9 +305,9 @@ AtlasFileSummary::MapSummary summariseMap(const Map& map) {
   return summary;
 }
 
-AtlasFileSummary summarise(const ParsedFile& parsed, std::uint64_t file_bytes) {
+AtlasFileSummary summarise(const ParsedFile& parsed, std::uint64_t file_bytes, std::uint32_t format_version) {
   AtlasFileSummary summary;
-  summary.format_version = kAtlasFormatVersion;
+  summary.format_version = format_version;
   summary.build = parsed.build;
   summary.imu = parsed.imu;
   summary.active_map = parsed.restore.active;
@@ -299,6 +317,24 @@ AtlasFileSummary summarise(const ParsedFile& parsed, std::uint64_t file_bytes) {
   for (const SectionEntry& section : parsed.sections)
     summary.sections.push_back({section.name, section.offset, section.bytes});
   return summary;
+}
+
+/// The format version of a file whose header was read (readHeader checked it).
+std::uint32_t fileVersion(const std::string& bytes) {
+  std::uint32_t version = 0;
+  for (int k = 0; k < 4; ++k) version |= static_cast<std::uint32_t>(static_cast<std::uint8_t>(bytes[8 + k])) << (8 * k);
+  return version;
+}
+
+AtlasFileSummary::RunSummary runSummary(const AtlasRunState& state, std::size_t stage_bytes) {
+  AtlasFileSummary::RunSummary run;
+  run.next_frame_index = state.header.next_frame_index;
+  run.last_frame_t_s = state.header.last_frame_t_s;
+  run.merged_maps = state.merged.size();
+  run.culled_keyframes = state.culled.size();
+  run.database_keyframes = state.database.size();
+  run.stage_bytes = stage_bytes;
+  return run;
 }
 
 }  // namespace
@@ -340,19 +376,21 @@ AtlasBuildInfo makeAtlasBuildInfo(const bow::Vocabulary& vocabulary, const std::
   return build;
 }
 
-void saveAtlas(Atlas& atlas, const AtlasImuState& imu, const AtlasBuildInfo& build, const std::string& path) {
+void saveAtlas(Atlas& atlas, const AtlasImuState& imu, const AtlasBuildInfo& build, const std::string& path,
+               const std::string* run_state) {
   const AtlasSnapshot snapshot = snapshotAtlas(atlas);
   AtlasBuildInfo stored = build;
   stored.settings_hash = fnv1a64(build.settings_summary);  // the file's hash always matches its text
-  std::vector<ByteWriter> bodies(sectionNames().size());
+  std::vector<ByteWriter> bodies(run_state != nullptr ? kMapSections + 1 : kMapSections);
   writeBuildSection(stored, bodies[0]);
   writeImuSection(imu, bodies[1]);
   writeMapsSection(snapshot, bodies[2]);
   writeKeyFramesSection(snapshot, bodies[3]);
   writePointsSection(snapshot, bodies[4]);
   writeGraphSection(snapshot, bodies[5]);
+  if (run_state != nullptr) bodies[kRunSection].raw(run_state->data(), run_state->size());
   std::vector<SectionEntry> sections;
-  std::uint64_t offset = kFixedHeaderBytes + sectionNames().size() * kTableEntryBytes + 4;
+  std::uint64_t offset = kFixedHeaderBytes + bodies.size() * kTableEntryBytes + 4;
   for (std::size_t k = 0; k < bodies.size(); ++k) {
     const std::string& body = bodies[k].bytes();
     sections.push_back({sectionNames()[k], offset, body.size(), crc32(body.data(), body.size())});
@@ -380,8 +418,14 @@ void saveAtlas(Atlas& atlas, const AtlasImuState& imu, const AtlasBuildInfo& bui
 }
 
 LoadedAtlas loadAtlasFromBytes(const std::string& bytes, const std::string& name, const AtlasBuildInfo& expected,
-                               const bow::Vocabulary& vocabulary) {
+                               const bow::Vocabulary& vocabulary, bool restore_run_state) {
   ParsedFile parsed = parseAtlas(bytes, name, vocabulary.numWords(), &expected, &vocabulary);
+  if (restore_run_state && !parsed.has_run_state()) {
+    const SectionEntry& last = parsed.sections.back();
+    throw AtlasFileError(name, "run", last.offset + last.bytes,
+                         "no run state to resume from (the file was saved without one, or by a build before format "
+                         "version 2)");
+  }
   Atlas& atlas = *parsed.restore.atlas;
   KeyFrameId max_keyframe;
   MapPointId max_point;
@@ -397,20 +441,39 @@ LoadedAtlas loadAtlasFromBytes(const std::string& bytes, const std::string& name
   for (const auto& [id, point] : parsed.restore.points) max_point = max_point.valid() ? std::max(max_point, id) : id;
   AtlasFileAccess::ids(atlas).reserveAbove(max_keyframe, max_point, max_map);
   LoadedAtlas loaded;
-  loaded.summary = summarise(parsed, bytes.size());
+  loaded.summary = summarise(parsed, bytes.size(), fileVersion(bytes));
+  if (restore_run_state) {
+    ByteReader stages(bytes.data(), 0, name, "run", 0);
+    AtlasRunState state = readRunSection(bytes, name, parsed, &stages);
+    loaded.summary.run = runSummary(state, stages.remaining());
+    LoadedRunState run;
+    run.header = state.header;
+    run.keyframes = applyAtlasRunState(std::move(state), atlas);
+    run.file = name;
+    run.stage_offset = stages.fileOffset();
+    run.stage_bytes = bytes.substr(static_cast<std::size_t>(run.stage_offset), stages.remaining());
+    loaded.run = std::move(run);
+  }
   loaded.imu = parsed.imu;
   loaded.build = parsed.build;
   loaded.atlas = std::move(parsed.restore.atlas);
   return loaded;
 }
 
-LoadedAtlas loadAtlas(const std::string& path, const AtlasBuildInfo& expected, const bow::Vocabulary& vocabulary) {
-  return loadAtlasFromBytes(readWholeFile(path), path, expected, vocabulary);
+LoadedAtlas loadAtlas(const std::string& path, const AtlasBuildInfo& expected, const bow::Vocabulary& vocabulary,
+                      bool restore_run_state) {
+  return loadAtlasFromBytes(readWholeFile(path), path, expected, vocabulary, restore_run_state);
 }
 
 AtlasFileSummary readAtlasSummaryFromBytes(const std::string& bytes, const std::string& name) {
-  const ParsedFile parsed = parseAtlas(bytes, name, 0, nullptr, nullptr);
-  return summarise(parsed, bytes.size());
+  ParsedFile parsed = parseAtlas(bytes, name, 0, nullptr, nullptr);
+  AtlasFileSummary summary = summarise(parsed, bytes.size(), fileVersion(bytes));
+  if (parsed.has_run_state()) {
+    ByteReader stages(bytes.data(), 0, name, "run", 0);
+    const AtlasRunState state = readRunSection(bytes, name, parsed, &stages);
+    summary.run = runSummary(state, stages.remaining());
+  }
+  return summary;
 }
 
 AtlasFileSummary readAtlasSummary(const std::string& path) {

@@ -1,5 +1,7 @@
 #include "atlas_file_access.h"
 
+#include <algorithm>
+
 #include "ltlo/core/assert.h"
 
 namespace ltlo::map {
@@ -61,6 +63,46 @@ void AtlasFileAccess::setCounts(MapPoint& point, int num_visible, int num_found)
   std::lock_guard<std::mutex> lock(point.mutex_);
   point.num_visible_ = num_visible;
   point.num_found_ = num_found;
+}
+
+std::vector<MapId> AtlasFileAccess::allMapIds(const Atlas& atlas) {
+  std::lock_guard<std::mutex> lock(atlas.mutex_);
+  std::vector<MapId> ids;
+  for (const auto& entry : atlas.maps_) ids.push_back(entry.first);
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+std::vector<std::pair<MapId, MapId>> AtlasFileAccess::merges(const Atlas& atlas) {
+  std::lock_guard<std::mutex> lock(atlas.mutex_);
+  std::vector<std::pair<MapId, MapId>> merges;
+  for (const MapId source : atlas.merged_) merges.emplace_back(source, atlas.merged_into_.at(source));
+  return merges;
+}
+
+Map& AtlasFileAccess::addMergedMap(Atlas& atlas, MapId id, MapId target) {
+  Map& map = addMap(atlas, id);
+  std::lock_guard<std::mutex> lock(atlas.mutex_);
+  atlas.merged_.push_back(id);
+  atlas.merged_into_[id] = target;
+  return map;
+}
+
+void AtlasFileAccess::setVersion(Map& map, std::uint64_t version) { map.version_.store(version); }
+
+void AtlasFileAccess::setAtRest(KeyFrame& kf, bool at_rest) {
+  std::lock_guard<std::mutex> lock(kf.mutex_);
+  kf.at_rest_ = at_rest;
+}
+
+std::shared_ptr<KeyFrame> AtlasFileAccess::culledKeyFrame(KeyFrameId id, MapId map, const Frame& state) {
+  auto kf = std::make_shared<KeyFrame>(id, map, state);
+  kf->setBad();
+  return kf;
+}
+
+void AtlasFileAccess::setCulledParent(KeyFrame& kf, std::shared_ptr<KeyFrame> parent, const SE3& T_parent_this) {
+  kf.setCulledParent(std::move(parent), T_parent_this);
 }
 
 }  // namespace ltlo::map

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <memory>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "ltlo/map/atlas.h"
@@ -38,6 +39,21 @@ struct AtlasFileAccess {
 
   /// Tracking counters as saved (the public API only increments them).
   static void setCounts(MapPoint& point, int num_visible, int num_found);
+
+  // ---- the run state (run_state_io.h) ----
+  /// Every map the atlas holds, the merged-away ones included, by id.
+  static std::vector<MapId> allMapIds(const Atlas& atlas);
+  /// The merges in the order they happened: (source, target).
+  static std::vector<std::pair<MapId, MapId>> merges(const Atlas& atlas);
+  /// Adds an empty map `id` that was merged into `target` (Atlas::resolve follows it; mapIds()
+  /// leaves it out), appended to the merge order.
+  static Map& addMergedMap(Atlas& atlas, MapId id, MapId target);
+  static void setVersion(Map& map, std::uint64_t version);
+  static void setAtRest(KeyFrame& kf, bool at_rest);
+  /// A culled keyframe as a holder of it sees it: bad, with its culled parent and pose relative
+  /// to it, its map, time and state (no image data: a culled keyframe's is read by nobody).
+  static std::shared_ptr<KeyFrame> culledKeyFrame(KeyFrameId id, MapId map, const Frame& state);
+  static void setCulledParent(KeyFrame& kf, std::shared_ptr<KeyFrame> parent, const SE3& T_parent_this);
 };
 
 }  // namespace ltlo::map

@@ -8,7 +8,8 @@
 #include <unordered_set>
 #include <vector>
 
-#include "binary_io.h"
+#include "ltlo/map/binary_io.h"
+#include "ltlo/map/run_state_io.h"
 #include "ltlo/imu/preintegration.h"
 #include "ltlo/map/atlas.h"
 
@@ -49,10 +50,9 @@ void readPointsSection(ByteReader& in, AtlasRestore& restore);
 void writeGraphSection(const AtlasSnapshot& snapshot, ByteWriter& out);
 void readGraphSection(ByteReader& in, AtlasRestore& restore);
 
-/// An IMU preintegration as its bias, noise, end shifts and raw steps; read back by integrating the
-/// steps again (the same state bit for bit, see Preintegrated::steps).
-void writePreintegration(const imu::Preintegrated& preintegration, ByteWriter& out);
-imu::Preintegrated readPreintegration(ByteReader& in);
+/// A map's origin (map_io.cc); its ids are history and need not exist.
+void writeMapOrigin(const MapOrigin& origin, ByteWriter& out);
+MapOrigin readMapOrigin(ByteReader& in);
 
 /// A stored id: the raw value must not be the invalid marker unless `allow_invalid`.
 MapId readMapId(ByteReader& in, const char* what);

@@ -1,4 +1,4 @@
-#include "binary_io.h"
+#include "ltlo/map/binary_io.h"
 
 #include <array>
 #include <cmath>

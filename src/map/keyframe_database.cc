@@ -73,6 +73,28 @@ std::size_t KeyFrameDatabase::size() const {
   return entry_of_.size();
 }
 
+std::vector<KeyFrameId> KeyFrameDatabase::keyFrameIdsInOrder() const {
+  std::vector<std::pair<bow::EntryId, KeyFrameId>> entries;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    entries.reserve(entry_of_.size());
+    for (const auto& [id, entry] : entry_of_) entries.emplace_back(entry, id);
+  }
+  std::sort(entries.begin(), entries.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });  // entry ids grow with each add
+  std::vector<KeyFrameId> ids;
+  ids.reserve(entries.size());
+  for (const auto& [entry, id] : entries) ids.push_back(id);
+  return ids;
+}
+
+void KeyFrameDatabase::clear() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const auto& [id, entry] : entry_of_) database_.remove(entry);
+  entry_of_.clear();
+  keyframe_of_.clear();
+}
+
 std::vector<PlaceCandidate> KeyFrameDatabase::detectCandidates(const bow::BowVector& query, const Filter& accept,
                                                                const PlaceQueryOptions& options) const {
   // 1. Every keyframe sharing a word with the query, scored; copied out so the predicates (which

@@ -207,7 +207,7 @@ void Map::updateNormalAndDistances(MapPoint& point) {
   point.setNormalAndDistances(normal_sum.normalized(), min_distance_m, max_distance_m);
 }
 
-bool Map::eraseKeyFrame(KeyFrameId id) {
+bool Map::eraseKeyFrame(KeyFrameId id, ImuLink imu_link) {
   std::lock_guard<std::mutex> topology(topology_mutex_);
   const std::shared_ptr<KeyFrame> kf = keyFrame(id);
   if (!kf || isOrigin(id) || !kf->setBad()) return false;
@@ -268,7 +268,7 @@ bool Map::eraseKeyFrame(KeyFrameId id) {
   }
   if (parent) parent->eraseChild(id);
 
-  // IMU chain: previous -> next, with the two preintegrations merged into one.
+  // IMU chain: previous -> next, with the two preintegrations merged into one (or none: a cut).
   const KeyFrameId previous_id = kf->previousKeyFrame();
   const KeyFrameId next_id = kf->nextKeyFrame();
   const std::shared_ptr<KeyFrame> previous = keyFrame(previous_id);
@@ -278,7 +278,9 @@ bool Map::eraseKeyFrame(KeyFrameId id) {
     next->setPreviousKeyFrame(previous ? previous_id : KeyFrameId());
     const std::optional<imu::Preintegrated> first = kf->imuFromPrevious();
     const std::optional<imu::Preintegrated> second = next->imuFromPrevious();
-    if (previous && first && second) {
+    if (imu_link == ImuLink::kCut) {
+      next->setImuFromPrevious(std::nullopt);
+    } else if (previous && first && second) {
       next->setImuFromPrevious(imu::Preintegrated::merged(*first, *second));
     } else if (!previous) {
       next->setImuFromPrevious(std::nullopt);

@@ -80,34 +80,6 @@ void readKeyFrameLinks(ByteReader& in, AtlasRestore& restore, std::unordered_set
   for (const KeyFrameId other : readKnownKeyFrames(in, restore, "loop edges")) kf.addLoopEdge(other);
 }
 
-void writeMapOrigin(const MapOrigin& origin, ByteWriter& out) {
-  out.u64(origin.parent.value);
-  out.f64(origin.sigma_position_m);
-  out.f64(origin.sigma_rotation_rad);
-  out.f64(origin.t_s);
-  out.u64(origin.parent_keyframe.value);
-  out.u64(origin.first_keyframe.value);
-  out.boolean(origin.imu_across != nullptr);
-  if (origin.imu_across) writePreintegration(*origin.imu_across, out);
-  out.se3(origin.T_w_b_parent_keyframe);
-}
-
-/// The origin's ids are history (the map and keyframes the map started from; they may have been
-/// merged away or culled since), so they are not required to exist.
-MapOrigin readMapOrigin(ByteReader& in) {
-  MapOrigin origin;
-  origin.parent = MapId(in.u64("origin parent map"));
-  origin.sigma_position_m = in.finiteF64("origin position sigma");
-  origin.sigma_rotation_rad = in.finiteF64("origin rotation sigma");
-  origin.t_s = in.finiteF64("origin time");
-  origin.parent_keyframe = KeyFrameId(in.u64("origin parent keyframe"));
-  origin.first_keyframe = KeyFrameId(in.u64("origin first keyframe"));
-  if (in.boolean("origin has imu_across"))
-    origin.imu_across = std::make_shared<imu::Preintegrated>(readPreintegration(in));
-  origin.T_w_b_parent_keyframe = in.se3("origin T_w_b_parent_keyframe");
-  return origin;
-}
-
 void writeMapLinks(const AtlasSnapshot::MapEntry& entry, const AtlasSnapshot& snapshot, ByteWriter& out) {
   const Map& map = *entry.map;
   out.u64(map.id().value);
@@ -154,6 +126,34 @@ void checkTreeIsAcyclic(const ByteReader& in, const AtlasRestore& restore, std::
 }
 
 }  // namespace
+
+void writeMapOrigin(const MapOrigin& origin, ByteWriter& out) {
+  out.u64(origin.parent.value);
+  out.f64(origin.sigma_position_m);
+  out.f64(origin.sigma_rotation_rad);
+  out.f64(origin.t_s);
+  out.u64(origin.parent_keyframe.value);
+  out.u64(origin.first_keyframe.value);
+  out.boolean(origin.imu_across != nullptr);
+  if (origin.imu_across) writePreintegration(*origin.imu_across, out);
+  out.se3(origin.T_w_b_parent_keyframe);
+}
+
+/// The origin's ids are history (the map and keyframes the map started from; they may have been
+/// merged away or culled since), so they are not required to exist.
+MapOrigin readMapOrigin(ByteReader& in) {
+  MapOrigin origin;
+  origin.parent = MapId(in.u64("origin parent map"));
+  origin.sigma_position_m = in.finiteF64("origin position sigma");
+  origin.sigma_rotation_rad = in.finiteF64("origin rotation sigma");
+  origin.t_s = in.finiteF64("origin time");
+  origin.parent_keyframe = KeyFrameId(in.u64("origin parent keyframe"));
+  origin.first_keyframe = KeyFrameId(in.u64("origin first keyframe"));
+  if (in.boolean("origin has imu_across"))
+    origin.imu_across = std::make_shared<imu::Preintegrated>(readPreintegration(in));
+  origin.T_w_b_parent_keyframe = in.se3("origin T_w_b_parent_keyframe");
+  return origin;
+}
 
 AtlasSnapshot snapshotAtlas(Atlas& atlas) {
   AtlasSnapshot snapshot;

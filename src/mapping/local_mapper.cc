@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <limits>
 #include <utility>
 
 #include "bow/vocabulary.h"
@@ -11,6 +12,7 @@
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/process_memory.h"
+#include "ltlo/map/run_state_io.h"
 #include "ltlo/optim/bundle_adjust.h"
 #include "map_culling.h"
 #include "point_fusion.h"
@@ -133,10 +135,16 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     KeyFrameCullingOptions culling;
     culling.redundant_ratio = options.local_mapping.redundant_ratio;
     culling.use_imu = options.use_imu;
-    for (const map::KeyFrameId id : cullRedundantKeyFrames(*map, *kf, culling)) {
+    if (imu.initialised) {
+      culling.max_imu_span_s = options.local_mapping.cull_max_imu_span_s;
+      culling.cut_imu_min_age_s = options.local_mapping.cull_imu_cut_age_s;
+    }
+    int cut_links = 0;
+    for (const map::KeyFrameId id : cullRedundantKeyFrames(*map, *kf, culling, &cut_links)) {
       atlas.keyFrameDatabase().erase(id);
       ++delta.culled_keyframes;
     }
+    if (cut_links > 0) log::debug("culling at kf ", kf->id(), ": ", cut_links, " old keyframes culled, IMU chain cut");
 
     // 5. IMU initialisation and its refinements.
     if (options.use_imu && maybeInitialiseImu(*map, kf)) ++delta.imu_initialisations;
@@ -525,6 +533,77 @@ void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_m
   entry.resident_mb = currentResidentMb();
   std::lock_guard<std::mutex> lock(state_mutex);
   timeline.push_back(entry);
+}
+
+void LocalMapper::writeState(map::ByteWriter& out) const {
+  const Impl& impl = *impl_;
+  LTLO_ASSERT(impl.queue.size() == 0, "local mapping's state saved with keyframes queued");
+  {
+    std::lock_guard<std::mutex> lock(impl.state_mutex);
+    out.boolean(impl.imu_state.initialised);
+    map::writeBias(impl.imu_state.bias, out);
+    out.vec3(impl.imu_state.g_w);
+    out.mat3(impl.imu_state.acceleration_covariance_w);
+    out.u64(impl.imu_state.generation);
+    const TimeOffsetStatus& offset = impl.time_offset;
+    out.boolean(offset.estimated);
+    out.f64(offset.shift_s);
+    out.f64(offset.sigma_s);
+    out.i32(offset.updates);
+    out.i32(offset.boundaries_moved);
+    out.f64(offset.first_estimate_t_s);
+  }
+  out.f64(impl.time_shift_s.load());
+  impl.recent_points.writeState(out);
+  out.i32(impl.sequence);
+  out.f64(impl.first_imu_init_t_s);
+  out.f64(impl.rest_init_t_s);
+  out.f64(impl.last_imu_estimate_t_s);
+  out.f64(impl.last_imu_chain_end_t_s);
+  out.u64(impl.imu_refinements);
+  out.f64(impl.time_shift_logged_s);
+  out.boolean(impl.time_offset_warned);
+  out.boolean(impl.imu_consistency_warned);
+}
+
+void LocalMapper::readState(map::ByteReader& in) {
+  Impl& impl = *impl_;
+  ImuState imu;
+  imu.initialised = in.boolean("mapping IMU initialised");
+  imu.bias = map::readBias(in, "mapping bias");
+  imu.g_w = in.vec3("mapping gravity");
+  imu.acceleration_covariance_w = in.mat3("mapping acceleration covariance");
+  imu.generation = in.u64("mapping IMU generation");
+  TimeOffsetStatus offset;
+  offset.estimated = in.boolean("time offset estimated");
+  offset.shift_s = in.finiteF64("time offset shift");
+  offset.sigma_s = in.finiteF64("time offset sigma");
+  offset.updates = in.i32InRange("time offset updates", 0, std::numeric_limits<std::int32_t>::max());
+  offset.boundaries_moved = in.i32InRange("time offset boundaries moved", 0, std::numeric_limits<std::int32_t>::max());
+  offset.first_estimate_t_s = in.finiteF64("time offset first estimate");
+  {
+    std::lock_guard<std::mutex> lock(impl.state_mutex);
+    impl.imu_state = imu;
+    impl.time_offset = offset;
+  }
+  impl.time_shift_s.store(in.finiteF64("time shift"));
+  impl.recent_points.readState(in);
+  impl.sequence = in.i32InRange("mapping sequence", 0, std::numeric_limits<std::int32_t>::max());
+  impl.first_imu_init_t_s = in.finiteF64("first IMU initialisation time");
+  impl.rest_init_t_s = in.finiteF64("IMU initialisation at rest time");
+  impl.last_imu_estimate_t_s = in.finiteF64("last IMU estimate time");
+  impl.last_imu_chain_end_t_s = in.finiteF64("last IMU chain end");
+  const std::uint64_t refinements_offset = in.fileOffset();
+  const std::uint64_t refinements = in.u64("IMU refinements done");
+  if (refinements > impl.options.imu_refinement_delays_s.size()) {
+    in.failAt(refinements_offset,
+              "IMU refinements beyond the " + std::to_string(impl.options.imu_refinement_delays_s.size()) + " scheduled",
+              std::to_string(refinements));
+  }
+  impl.imu_refinements = static_cast<std::size_t>(refinements);
+  impl.time_shift_logged_s = in.finiteF64("time shift logged");
+  impl.time_offset_warned = in.boolean("time offset warned");
+  impl.imu_consistency_warned = in.boolean("IMU consistency warned");
 }
 
 std::vector<MappingTimelineEntry> LocalMapper::timeline() const {

@@ -1,6 +1,7 @@
 #include "map_culling.h"
 
 #include <algorithm>
+#include <optional>
 
 namespace ltlo::mapping {
 
@@ -11,6 +12,27 @@ void RecentPointCuller::addPointsOf(const map::Map& map, const map::KeyFrame& kf
     if (point && !point->isBad() && point->referenceKeyFrame() == kf.id()) {
       entries_.push_back({map.id(), id, sequence});
     }
+  }
+}
+
+void RecentPointCuller::writeState(map::ByteWriter& out) const {
+  out.u64(entries_.size());
+  for (const Entry& entry : entries_) {
+    out.u64(entry.map.value);
+    out.u64(entry.point.value);
+    out.i32(entry.created_at);
+  }
+}
+
+void RecentPointCuller::readState(map::ByteReader& in) {
+  const std::size_t n = in.count("recent map points", 8 + 8 + 4);
+  entries_.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    Entry entry;
+    entry.map = map::MapId(in.u64("recent point map"));
+    entry.point = map::MapPointId(in.u64("recent map point"));
+    entry.created_at = in.i32("recent point's keyframe");
+    entries_.push_back(entry);
   }
 }
 
@@ -46,14 +68,22 @@ int cullDynamicPoints(map::Map& map, const map::KeyFrame& kf, double min_point_b
 
 namespace {
 
-/// The IMU chain around `kf` can be bridged: both neighbours in time exist with preintegrations
-/// and span at most max_span_s.
-bool imuChainAllowsCulling(const map::Map& map, const map::KeyFrame& kf, double max_span_s) {
+/// What culling `kf` does to the IMU chain: bridge it (both neighbours in time exist with
+/// preintegrations spanning at most max_imu_span_s), cut it (kf and its next keyframe are at least
+/// cut_imu_min_age_s older than `current`), or nothing allows the cull.
+std::optional<map::Map::ImuLink> imuChainOnCulling(const map::Map& map, const map::KeyFrame& kf,
+                                                   const map::KeyFrame& current,
+                                                   const KeyFrameCullingOptions& options) {
   const std::shared_ptr<map::KeyFrame> previous = map.keyFrame(kf.previousKeyFrame());
   const std::shared_ptr<map::KeyFrame> next = map.keyFrame(kf.nextKeyFrame());
-  if (!previous || !next || previous->isBad() || next->isBad()) return false;
-  if (!kf.imuFromPrevious() || !next->imuFromPrevious()) return false;
-  return next->t_s() - previous->t_s() <= max_span_s;
+  if (!previous || !next || previous->isBad() || next->isBad()) return std::nullopt;
+  if (kf.imuFromPrevious() && next->imuFromPrevious() && next->t_s() - previous->t_s() <= options.max_imu_span_s) {
+    return map::Map::ImuLink::kMerge;
+  }
+  if (options.cut_imu_min_age_s > 0.0 && current.t_s() - next->t_s() >= options.cut_imu_min_age_s) {
+    return map::Map::ImuLink::kCut;
+  }
+  return std::nullopt;
 }
 
 /// Share of `kf`'s points with depth that min_other_observers other keyframes see at the same or a
@@ -88,7 +118,7 @@ double redundantShare(const map::Map& map, const map::KeyFrame& kf, int min_othe
 }  // namespace
 
 std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::KeyFrame& current,
-                                                    const KeyFrameCullingOptions& options) {
+                                                    const KeyFrameCullingOptions& options, int* cut_links) {
   std::vector<map::KeyFrameId> culled;
   if (map.numKeyFrames() <= options.min_map_keyframes) return culled;
   const std::vector<map::KeyFrameId> origins = map.originKeyFrames();
@@ -99,9 +129,17 @@ std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::Ke
     if (std::find(origins.begin(), origins.end(), id) != origins.end()) continue;
     const std::shared_ptr<map::KeyFrame> kf = map.keyFrame(id);
     if (!kf || kf->isBad()) continue;
-    if (options.use_imu && !imuChainAllowsCulling(map, *kf, options.max_imu_span_s)) continue;
+    map::Map::ImuLink imu_link = map::Map::ImuLink::kMerge;
+    if (options.use_imu) {
+      const std::optional<map::Map::ImuLink> allowed = imuChainOnCulling(map, *kf, current, options);
+      if (!allowed) continue;
+      imu_link = *allowed;
+    }
     if (redundantShare(map, *kf, options.min_other_observers) < options.redundant_ratio) continue;
-    if (map.eraseKeyFrame(id)) culled.push_back(id);
+    if (map.eraseKeyFrame(id, imu_link)) {
+      culled.push_back(id);
+      if (cut_links != nullptr && imu_link == map::Map::ImuLink::kCut) ++*cut_links;
+    }
     if (map.numKeyFrames() <= options.min_map_keyframes) break;
   }
   return culled;

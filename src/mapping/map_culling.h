@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "ltlo/map/atlas.h"
+#include "ltlo/map/binary_io.h"
 #include "ltlo/map/keyframe.h"
 #include "ltlo/map/map.h"
 
@@ -30,6 +31,9 @@ class RecentPointCuller {
   /// Checks the remembered points at processing index `sequence`; returns how many were erased.
   int cull(map::Atlas& atlas, int sequence);
   std::size_t size() const { return entries_.size(); }
+  /// The remembered points (a run resumed from an atlas file, LocalMapper::writeState).
+  void writeState(map::ByteWriter& out) const;
+  void readState(map::ByteReader& in);
 
  private:
   struct Entry {
@@ -53,12 +57,18 @@ struct KeyFrameCullingOptions {
   /// the merged preintegration stays short (ORB-SLAM3's rule).
   bool use_imu = true;
   double max_imu_span_s = 0.5;
+  /// With the IMU: a keyframe this much older than the current one (s), whose next keyframe is as
+  /// old, is culled even when its neighbours are further apart than max_imu_span_s; the chain is
+  /// then cut there (Map::ImuLink::kCut) rather than bridged by an ever longer preintegration. The
+  /// recent chain (local BA's inertial window, IMU refinements) keeps its links. 0: never.
+  double cut_imu_min_age_s = 0.0;
 };
 
 /// Culls the redundant covisibles of `current` (only keyframes older than `current`, never its
 /// predecessor in time or an origin keyframe): those whose points with depth are seen at the same or a finer scale by
-/// min_other_observers other keyframes for at least redundant_ratio of them. Returns the culled ids.
+/// min_other_observers other keyframes for at least redundant_ratio of them. Returns the culled ids;
+/// `cut_links` (optional) counts the culls that cut the IMU chain.
 std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::KeyFrame& current,
-                                                    const KeyFrameCullingOptions& options);
+                                                    const KeyFrameCullingOptions& options, int* cut_links = nullptr);
 
 }  // namespace ltlo::mapping

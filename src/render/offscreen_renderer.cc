@@ -79,6 +79,42 @@ Mesh makeBoxMesh(const Vec3& size_m, int texture, double uv_repeats_per_m) {
   return mesh;
 }
 
+Mesh makeCylinderMesh(double radius_m, double length_m, int sides, int texture) {
+  LTLO_ASSERT(sides >= 3 && radius_m > 0 && length_m > 0, "cylinder " << radius_m << " x " << length_m);
+  Mesh mesh;
+  mesh.texture = texture;
+  const float r = static_cast<float>(radius_m), h = static_cast<float>(0.5 * length_m);
+  auto corner = [&](int k) {
+    const double a = 2.0 * M_PI * k / sides;
+    return Eigen::Vector2f(r * static_cast<float>(std::cos(a)), r * static_cast<float>(std::sin(a)));
+  };
+  for (int k = 0; k < sides; ++k) {  // side faces
+    const Eigen::Vector2f a = corner(k), b = corner(k + 1);
+    const float u0 = static_cast<float>(k) / sides, u1 = static_cast<float>(k + 1) / sides;
+    const uint32_t base = static_cast<uint32_t>(mesh.positions_o.size());
+    mesh.positions_o.insert(mesh.positions_o.end(), {{a.x(), a.y(), -h}, {b.x(), b.y(), -h}, {b.x(), b.y(), h}, {a.x(), a.y(), h}});
+    mesh.uvs.insert(mesh.uvs.end(), {{u0, 1.0f}, {u1, 1.0f}, {u1, 0.0f}, {u0, 0.0f}});
+    mesh.triangles.insert(mesh.triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  }
+  for (const float z : {-h, h}) {  // caps: a fan around the centre
+    const uint32_t centre = static_cast<uint32_t>(mesh.positions_o.size());
+    mesh.positions_o.emplace_back(0.0f, 0.0f, z);
+    mesh.uvs.emplace_back(0.5f, 0.5f);
+    for (int k = 0; k < sides; ++k) {
+      const Eigen::Vector2f a = corner(k);
+      mesh.positions_o.emplace_back(a.x(), a.y(), z);
+      mesh.uvs.emplace_back(0.5f + 0.25f * a.x() / r, 0.5f + 0.25f * a.y() / r);
+    }
+    for (int k = 0; k < sides; ++k) {  // counter-clockwise seen from outside
+      const uint32_t here = centre + 1 + static_cast<uint32_t>(k);
+      const uint32_t next = centre + 1 + static_cast<uint32_t>((k + 1) % sides);
+      if (z > 0) mesh.triangles.insert(mesh.triangles.end(), {centre, here, next});
+      else mesh.triangles.insert(mesh.triangles.end(), {centre, next, here});
+    }
+  }
+  return mesh;
+}
+
 namespace {
 
 enum class DrawableKind { kMesh, kPoints, kLines, kSplats };

@@ -139,6 +139,12 @@ void RobotTrajectory::pathTime(double t_s, double* tau_s, double* rate, double* 
   *tau_s = t_s - lost_s;
 }
 
+double RobotTrajectory::pathTimeAt(double t_s) const {
+  double tau_s, rate, rate_dot;
+  pathTime(t_s, &tau_s, &rate, &rate_dot);
+  return tau_s;
+}
+
 SE3 RobotTrajectory::T_w_floor(double t_s) const {
   double tau_s, rate, rate_dot;
   pathTime(t_s, &tau_s, &rate, &rate_dot);

@@ -8,25 +8,13 @@
 
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "scene_layout.h"
 #include "textures.h"
 
 namespace ltlo::sim {
 namespace {
 
 constexpr uint64_t kSceneSeed = 20261122;  // the room is the same in every sequence
-constexpr double kRoomX = 4.0, kRoomY = 3.0, kRoomZ = 3.0;
-constexpr double kEnterS = 1.0;  // time a box takes to slide in (and out)
-constexpr double kSlideM = 2.5;  // lateral distance it slides over
-
-// Texture index ranges (Scene::textures).
-constexpr int kWallPanels = 14, kFloorTextures = 6, kFurnitureTextures = 8, kDynamicTextures = 6;
-constexpr int kFirstFloor = kWallPanels, kCeiling = kFirstFloor + kFloorTextures;
-constexpr int kFirstFurniture = kCeiling + 1, kFirstDynamic = kFirstFurniture + kFurnitureTextures;
-
-double smoothstep(double x) {
-  x = std::clamp(x, 0.0, 1.0);
-  return x * x * (3.0 - 2.0 * x);
-}
 
 // Quad with corners p0 (uv 0,0), p0 + e_u (1,0), p0 + e_u + e_v (1,1), p0 + e_v (0,1).
 render::Mesh quad(const Vec3& p0, const Vec3& e_u, const Vec3& e_v, int texture) {
@@ -78,10 +66,6 @@ void addShelf(std::vector<render::Mesh>* meshes, const Vec2& centre, double yaw,
   }
 }
 
-struct Profile {
-  double share, hold_min_s, hold_max_s;
-  int max_boxes;
-};
 
 }  // namespace
 
@@ -173,134 +157,83 @@ Scene Scene::buildRoom(const std::string& texture_dir) {
   return scene;
 }
 
-void Scene::scheduleOcclusions(const SimOptions& options) {
-  Scene& scene = *this;
-  scene.boxes.clear();
-  std::mt19937_64 event_rng(options.seed * 6364136223846793005ULL + 1442695040888963407ULL);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(event_rng); };
-  const double duration = options.duration_s;
-  const double t_clear = std::min(3.0, 0.1 * duration);
-  auto dynamicTexture = [&]() {
-    return kFirstDynamic + static_cast<int>(unit(event_rng) * kDynamicTextures);
+std::vector<std::vector<render::Mesh>> Scene::moverMeshes() const {
+  std::vector<std::vector<render::Mesh>> meshes;
+  for (const DynamicBox& box : boxes) {
+    render::Mesh mesh = render::makeBoxMesh(box.size_m, box.plain ? -1 : box.texture, 0.0);
+    bakeFlatShading(&mesh);
+    if (box.plain) makePlain(&mesh, box.plain_rgb);
+    meshes.push_back({std::move(mesh)});
+  }
+  for (const Walker& walker : walkers) meshes.push_back(walkerMeshes(walker));
+  for (const Door& door : doors) meshes.push_back({doorLeafMesh(door)});
+  return meshes;
+}
+
+std::vector<MoverPart> Scene::moverParts(double t_s, const RobotTrajectory& trajectory) const {
+  std::vector<MoverPart> parts;
+  for (const auto& [index, T_w_o] : dynamicPoses(t_s, trajectory)) parts.push_back({index, 0, T_w_o});
+  int mover = static_cast<int>(boxes.size());
+  for (const Walker& walker : walkers) {
+    if (const std::optional<WalkerState> state = walkerState(walker, t_s, trajectory)) {
+      const std::vector<SE3> T_f_p = walkerPartPoses(walker, state->phase_rad);
+      for (int part = 0; part < static_cast<int>(T_f_p.size()); ++part)
+        parts.push_back({mover, part, state->T_w_f * T_f_p[part]});
+    }
+    ++mover;
+  }
+  for (const Door& door : doors) parts.push_back({mover++, 0, doorLeafPose(door, t_s)});
+  return parts;
+}
+
+Vec3 plainColour(Draw& draw) {
+  // Greys and off-whites of painted boards and plastic, muted blue, green, red, ochre, brown.
+  static const Vec3 kPalette[] = {
+      {0.82, 0.82, 0.80}, {0.62, 0.62, 0.62}, {0.42, 0.42, 0.43}, {0.90, 0.88, 0.82}, {0.45, 0.52, 0.62},
+      {0.50, 0.60, 0.50}, {0.66, 0.44, 0.40}, {0.74, 0.64, 0.44}, {0.55, 0.45, 0.35}, {0.58, 0.56, 0.66},
   };
-  if (options.scenario == Scenario::kCarried) {
-    DynamicBox b;
-    b.size_m = Vec3(uniform(0.4, 0.6), uniform(0.75, 0.95), uniform(0.8, 0.95));
-    b.texture = dynamicTexture();
-    b.t_in_s = std::max(t_clear, 0.2 * duration);
-    b.t_out_s = 0.85 * duration;
-    b.distance_m = uniform(0.65, 0.9);
-    b.lateral_m = uniform(-0.15, 0.15);
-    b.side = unit(event_rng) < 0.5 ? -1.0 : 1.0;
-    b.carried = true;
-    b.enter_s = std::min(kEnterS, 0.25 * (b.t_out_s - b.t_in_s));
-    scene.boxes.push_back(b);
-  } else if (options.scenario != Scenario::kStatic) {
-    const Profile profile = options.scenario == Scenario::kStlo   ? Profile{0.17, 2.0, 4.0, 1}
-                            : options.scenario == Scenario::kMtlo ? Profile{0.33, 3.0, 6.0, 2}
-                                                                  : Profile{0.72, 8.0, 16.0, 3};
-    // Per event about hold + kEnterS seconds are largely occluded; gaps fill the rest.
-    const double occluded_mean = 0.5 * (profile.hold_min_s + profile.hold_max_s) + kEnterS;
-    const double gap_mean =
-        std::max(0.5, occluded_mean * (1.0 - profile.share) / profile.share - kEnterS);
-    double t = t_clear;
-    bool first = true;
-    while (true) {
-      const double gap = first ? uniform(0.0, 1.0) * gap_mean : uniform(0.6, 1.4) * gap_mean;
-      first = false;
-      const double t_in = t + gap;
-      if (t_in >= duration) break;
-      const double t_out = t_in + 2 * kEnterS + uniform(profile.hold_min_s, profile.hold_max_s);
-      const int num_boxes = 1 + static_cast<int>(unit(event_rng) * profile.max_boxes);
-      DynamicBox front;
-      front.size_m = Vec3(uniform(0.5, 0.8), uniform(0.75, 1.1), uniform(0.75, 1.1));
-      front.texture = dynamicTexture();
-      front.t_in_s = t_in;
-      front.t_out_s = t_out;
-      front.distance_m = uniform(0.55, 1.05);
-      front.lateral_m = uniform(-0.3, 0.3);
-      front.side = unit(event_rng) < 0.5 ? -1.0 : 1.0;
-      front.sway_phase = uniform(0.0, 2.0 * M_PI);
-      scene.boxes.push_back(front);
-      for (int k = 1; k < num_boxes; ++k) {  // further boxes behind, peeking out at the sides
-        DynamicBox b = front;
-        b.size_m = Vec3(uniform(0.5, 0.8), uniform(0.5, 1.0), uniform(0.6, 1.2));
-        b.texture = dynamicTexture();
-        b.t_in_s = t_in + uniform(0.0, 2.0);
-        b.t_out_s = std::max(b.t_in_s + 2 * kEnterS + 1.0, t_out - uniform(0.0, 2.0));
-        b.distance_m = front.distance_m + front.size_m.x() + uniform(0.2, 0.6);
-        const double sign = k == 1
-                                ? (unit(event_rng) < 0.5 ? -1.0 : 1.0)
-                                : -1.0 * (scene.boxes.back().lateral_m > front.lateral_m ? 1 : -1);
-        b.lateral_m = front.lateral_m + sign * uniform(0.55, 0.9);
-        b.side = sign;
-        b.sway_phase = uniform(0.0, 2.0 * M_PI);
-        scene.boxes.push_back(b);
-      }
-      t = t_out;
-    }
-  }
-  addCrossingEvents(options);
+  return kPalette[draw.index(static_cast<int>(std::size(kPalette)))];
 }
 
-void Scene::addCrossingEvents(const SimOptions& options) {
-  for (size_t k = 0; k < options.occlusion_at_s.size(); ++k) {
-    // Own stream per event, so the regular schedule's draws stay what they were.
-    std::mt19937_64 rng(options.seed * 2862933555777941757ULL + 3037000493ULL * (k + 1));
-    std::uniform_real_distribution<double> unit(0.0, 1.0);
-    auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
-    DynamicBox b;
-    b.size_m = Vec3(uniform(0.5, 0.8), uniform(0.75, 1.1), uniform(0.75, 1.1));
-    b.texture = kFirstDynamic + static_cast<int>(unit(rng) * kDynamicTextures);
-    b.t_in_s = options.occlusion_at_s[k];
-    b.t_out_s = b.t_in_s + 2 * kEnterS + uniform(2.0, 4.0);
-    b.distance_m = uniform(0.55, 1.05);
-    b.lateral_m = uniform(-0.2, 0.2);
-    b.side = unit(rng) < 0.5 ? -1.0 : 1.0;
-    b.crosses = true;
-    b.sway_phase = uniform(0.0, 2.0 * M_PI);
-    // Regular boxes present while it crosses would stand in its way: they are dropped.
-    boxes.erase(std::remove_if(boxes.begin(), boxes.end(),
-                               [&](const DynamicBox& other) {
-                                 return !other.carried && other.t_in_s < b.t_out_s && other.t_out_s > b.t_in_s;
-                               }),
-                boxes.end());
-    boxes.push_back(b);
-  }
+void makePlain(render::Mesh* mesh, const Vec3& rgb) {
+  mesh->texture = -1;
+  if (mesh->colours_rgb.empty()) mesh->colours_rgb.assign(mesh->positions_o.size(), Eigen::Vector3f::Ones());
+  for (Eigen::Vector3f& colour : mesh->colours_rgb) colour = colour.cwiseProduct(rgb.cast<float>());
 }
 
-std::vector<std::pair<int, SE3>> Scene::dynamicPoses(double t_s,
-                                                     const RobotTrajectory& trajectory) const {
-  std::vector<std::pair<int, SE3>> poses;
-  const Vec3 t_b_c = SimOptions::T_b_c().translation();
-  for (size_t i = 0; i < boxes.size(); ++i) {
-    const DynamicBox& b = boxes[i];
-    if (t_s < b.t_in_s || t_s >= b.t_out_s) continue;
-    const double slide_in = kSlideM * (1.0 - smoothstep((t_s - b.t_in_s) / b.enter_s));
-    const double slide_out = kSlideM * smoothstep((t_s - (b.t_out_s - b.enter_s)) / b.enter_s);
-    const double x = t_b_c.x() + b.distance_m + 0.5 * b.size_m.x();
-    const double y = b.lateral_m + b.side * slide_in + (b.crosses ? -b.side : b.side) * slide_out;
-    if (b.carried) {
-      const double z = -trajectory.state(0.0).T_w_b.translation().z() + 0.5 * b.size_m.z() + 0.05;
-      const SE3 T_b_o(Quat::Identity(), Vec3(x, y, z));
-      poses.emplace_back(static_cast<int>(i), trajectory.state(t_s).T_w_b * T_b_o);
-    } else {
-      const double p = b.sway_phase;
-      const SE3 T_floor_o(so3ExpQuat(Vec3(0, 0, 0.06 * std::sin(0.5 * t_s + 3 * p))),
-                          Vec3(x + 0.06 * std::sin(0.9 * t_s + p),
-                               y + 0.08 * std::sin(0.6 * t_s + 2 * p), 0.5 * b.size_m.z()));
-      poses.emplace_back(static_cast<int>(i), trajectory.T_w_floor(t_s) * T_floor_o);
-    }
+SE3 nominalT_floor_c() {
+  return SE3(Quat::Identity(), Vec3(0, 0, TrajectoryParams{}.body_height_m)) * SimOptions::T_b_c();
+}
+
+double boxImageShare(const PinholeCamera& camera, const SE3& T_c_o, const Vec3& size_m) {
+  const double factor = std::min(1.0, 160.0 / camera.width());
+  const PinholeCamera small = camera.scaled(factor);
+  std::vector<cv::Point> corners;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 p_o(0.5 * size_m.x() * (k & 1 ? 1 : -1), 0.5 * size_m.y() * (k & 2 ? 1 : -1),
+                   0.5 * size_m.z() * (k & 4 ? 1 : -1));
+    const Vec3 p_c = T_c_o * p_o;
+    if (p_c.z() < 0.01) return 1.0;
+    const Vec2 uv = small.project(p_c);
+    constexpr double kSub = 16.0;  // 4 fractional bits
+    corners.emplace_back(static_cast<int>(std::lround(uv.x() * kSub)), static_cast<int>(std::lround(uv.y() * kSub)));
   }
-  return poses;
+  std::vector<cv::Point> hull;
+  cv::convexHull(corners, hull);
+  cv::Mat covered = cv::Mat::zeros(small.height(), small.width(), CV_8U);
+  cv::fillConvexPoly(covered, hull, cv::Scalar(255), cv::LINE_8, 4);
+  return cv::countNonZero(covered) / static_cast<double>(covered.total());
 }
 
 void Scene::writePly(const std::string& path) const {
   std::ofstream out(path);
   if (!out) throw InputError(path, 0, "cannot open for writing");
+  std::vector<const render::Mesh*> meshes;
+  for (const render::Mesh& mesh : static_meshes) meshes.push_back(&mesh);
+  for (const render::Mesh& mesh : door_frames) meshes.push_back(&mesh);
   size_t num_vertices = 0, num_triangles = 0;
-  for (const render::Mesh& mesh : static_meshes) {
+  for (const render::Mesh* mesh_ptr : meshes) {
+    const render::Mesh& mesh = *mesh_ptr;
     num_vertices += mesh.positions_o.size();
     num_triangles += mesh.triangles.size() / 3;
   }
@@ -309,11 +242,12 @@ void Scene::writePly(const std::string& path) const {
       << "\nproperty float x\nproperty float y\nproperty float z\n"
       << "element face " << num_triangles
       << "\nproperty list uchar int vertex_indices\nend_header\n";
-  for (const render::Mesh& mesh : static_meshes)
-    for (const Eigen::Vector3f& p : mesh.positions_o)
+  for (const render::Mesh* mesh : meshes)
+    for (const Eigen::Vector3f& p : mesh->positions_o)
       out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
   size_t offset = 0;
-  for (const render::Mesh& mesh : static_meshes) {
+  for (const render::Mesh* mesh_ptr : meshes) {
+    const render::Mesh& mesh = *mesh_ptr;
     for (size_t k = 0; k + 2 < mesh.triangles.size(); k += 3)
       out << "3 " << offset + mesh.triangles[k] << ' ' << offset + mesh.triangles[k + 1] << ' '
           << offset + mesh.triangles[k + 2] << '\n';

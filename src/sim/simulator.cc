@@ -149,10 +149,11 @@ Simulator::Simulator(const SimOptions& options, Scene room)
   for (const cv::Mat& texture : scene_.textures) renderer_->addTexture(texture);
   for (const render::Mesh& mesh : scene_.static_meshes)
     static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
-  for (const DynamicBox& box : scene_.boxes) {
-    render::Mesh mesh = render::makeBoxMesh(box.size_m, box.texture, 0.0);
-    bakeFlatShading(&mesh);
-    box_drawables_.push_back(renderer_->addMesh(mesh));
+  for (const render::Mesh& mesh : scene_.door_frames)
+    static_items_.push_back({renderer_->addMesh(mesh), SE3(), 1.0f, 0});
+  for (const std::vector<render::Mesh>& parts : scene_.moverMeshes()) {
+    mover_drawables_.emplace_back();
+    for (const render::Mesh& mesh : parts) mover_drawables_.back().push_back(renderer_->addMesh(mesh));
   }
   exposure_phase_ = std::fmod(static_cast<double>(options.seed) * 0.618034, 1.0) * 2.0 * M_PI;
 }
@@ -188,9 +189,9 @@ io::Trajectory Simulator::groundTruth() const {
 
 std::vector<render::DrawItem> Simulator::dynamicItems(double t_s) const {
   std::vector<render::DrawItem> items;
-  for (const auto& [index, T_w_o] : scene_.dynamicPoses(t_s, trajectory_)) {
-    items.push_back(
-        {box_drawables_[index], T_w_o, 1.0f, static_cast<uint8_t>(std::min(index + 1, 255))});
+  for (const MoverPart& part : scene_.moverParts(t_s, trajectory_)) {
+    items.push_back({mover_drawables_[part.mover][part.part], part.T_w_o, 1.0f,
+                     static_cast<uint8_t>(std::min(part.mover + 1, 255))});
   }
   return items;
 }
@@ -350,7 +351,8 @@ void logSequenceStart(const Simulator& sim) {
             sim.scene().photo_textures
                 ? std::to_string(sim.scene().photo_paths.size()) + " photographs"
                 : "procedural",
-            ", ", sim.scene().boxes.size(), " dynamic boxes");
+            ", ", sim.scene().boxes.size(), " dynamic boxes, ", sim.scene().walkers.size(), " walkers, ",
+            sim.scene().doors.size(), " doors");
 }
 
 bool inImuGap(const SimOptions& options, double t_s) {
@@ -510,6 +512,29 @@ void renderFrames(Simulator& sim, int progress_every, FrameIndexFiles* index, Pn
   }
 }
 
+// The options of issue 32's harder worlds, one line each when used (without them stats.txt is what
+// it always was).
+void writeHarderWorldStats(const Simulator& sim, std::ostream& out) {
+  const SimOptions& options = sim.options();
+  const Scene& scene = sim.scene();
+  if (options.plain_movers) {
+    const auto panels = std::count_if(scene.boxes.begin(), scene.boxes.end(), [](const DynamicBox& b) { return b.panel; });
+    out << "\nplain_movers 1 (" << panels << " of " << scene.boxes.size() << " boxes are panels)";
+  }
+  for (const DynamicBox& b : scene.boxes)
+    if (b.start_move != StartMove::kNone)
+      out << "\noccluded_start " << (b.start_move == StartMove::kAway ? "away" : "towards") << " (moves at "
+          << b.t_move_s << " s, gone at " << b.t_out_s << " s, near face " << b.distance_m << " m)";
+  if (options.walkers > 0) {
+    const auto leading = std::count_if(scene.walkers.begin(), scene.walkers.end(),
+                                       [](const Walker& w) { return w.kind == Walker::Kind::kLeading; });
+    out << "\nwalkers " << scene.walkers.size() << " (" << leading << " leading, " << scene.walkers.size() - leading
+        << " crossing)";
+  }
+  if (options.doors) out << "\ndoors " << scene.doors.size();
+  if (options.three_movers) out << "\nthree_movers 1";
+}
+
 void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std::string& dir) {
   const SimOptions& options = sim.options();
   const SensorProfile& profile = options.sensor;
@@ -534,6 +559,7 @@ void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std:
   if (!profile.isIdeal())
     out << "\nsensor " << profile.describe() << " (" << stats.num_dropped << " of " << sim.numFrames()
         << " frames dropped; true values in sensor_truth.yaml)";
+  writeHarderWorldStats(sim, out);
   out << "\ntextures "
       << (sim.scene().photo_textures ? "photographs" : "procedural") << "\n";
   for (const std::string& path : sim.scene().photo_paths) out << "texture_photo " << path << "\n";

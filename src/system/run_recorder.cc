@@ -10,6 +10,7 @@
 #include "ltlo/loop/loop_closer.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/keyframe.h"
+#include "ltlo/map/run_state_io.h"
 #include "ltlo/system/carried_stretch.h"
 #include "ltlo/tracking/tracker.h"
 
@@ -120,7 +121,8 @@ void RunRecorder::countLossPolicy(const FrameRecord& record, const tracking::Tra
 
 double RunRecorder::firstPoseTime() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return records_.empty() ? std::numeric_limits<double>::quiet_NaN() : records_.front().t_s;
+  return records_.size() <= context_records_ ? std::numeric_limits<double>::quiet_NaN()
+                                             : records_[context_records_].t_s;
 }
 
 SystemCounts RunRecorder::counts(const tracking::Tracker& tracker, const loop::LoopCloser& closer) const {
@@ -128,7 +130,7 @@ SystemCounts RunRecorder::counts(const tracking::Tracker& tracker, const loop::L
   counts.frames = frames_;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    counts.frames_with_pose = static_cast<int>(records_.size());
+    counts.frames_with_pose = static_cast<int>(records_.size() - context_records_);
   }
   counts.frames_tracked = frames_tracked_;
   const std::vector<map::MapId> map_ids = atlas_.mapIds();
@@ -170,9 +172,11 @@ std::unordered_map<map::MapId, map::MapId> RunRecorder::floatingMaps(const std::
 
 std::vector<FramePose> RunRecorder::trajectory(CarriedCorrection correction) const {
   std::vector<FrameRecord> records;
+  std::size_t context = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     records = records_;
+    context = context_records_;
   }
   // Short maps started at the IMU's prediction and never merged: their coordinates are their
   // parent's world as the dead reckoning placed them, so their frames belong to the carried
@@ -235,14 +239,16 @@ std::vector<FramePose> RunRecorder::trajectory(CarriedCorrection correction) con
     correctCarriedStretches(samples, options);
     for (std::size_t i = 0; i < poses.size(); ++i) poses[i].T_w_c = samples[i].T_w_c;
   }
+  poses.erase(poses.begin(), poses.begin() + static_cast<std::ptrdiff_t>(context));  // a saved run's frames
   return poses;
 }
 
 std::vector<FramePose> RunRecorder::onlineTrajectory() const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<FramePose> poses;
-  poses.reserve(records_.size());
-  for (const FrameRecord& record : records_) {
+  poses.reserve(records_.size() - context_records_);
+  for (std::size_t k = context_records_; k < records_.size(); ++k) {
+    const FrameRecord& record = records_[k];
     FramePose pose;
     pose.t_s = record.t_s;
     pose.T_w_c = record.T_w_c_online;
@@ -328,6 +334,78 @@ std::vector<MapPointRecord> RunRecorder::mapPoints() const {
     points.push_back(source.record);
   }
   return points;
+}
+
+void RunRecorder::writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const {
+  std::vector<FrameRecord> records;
+  std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    records = records_;
+    colours = colours_;
+  }
+  out.u64(records.size());
+  for (const FrameRecord& record : records) {
+    out.f64(record.t_s);
+    refs.write(record.reference, out);
+    out.se3(record.T_refb_c);
+    out.se3(record.T_w_c);
+    out.boolean(record.tracked);
+    out.boolean(record.carried);
+    refs.write(record.stretch_reference, out);
+    out.se3(record.T_stretchrefb_c_predicted);
+    out.se3(record.T_w_c_online);
+    out.u64(record.map_online.value);
+  }
+  refs.write(carried_reference_, out);
+  // The colours of the keyframes that can still give a point its colour (those in the maps), by id.
+  std::vector<std::uint64_t> ids;
+  for (const map::MapId map_id : atlas_.mapIds()) {
+    for (const std::shared_ptr<map::KeyFrame>& kf : atlas_.map(map_id)->keyFrames()) {
+      if (!kf->isBad() && colours.count(kf->id().value) > 0) ids.push_back(kf->id().value);
+    }
+  }
+  std::sort(ids.begin(), ids.end());
+  out.u64(ids.size());
+  for (const std::uint64_t id : ids) {
+    const std::vector<cv::Vec3b>& keypoints = colours.at(id);
+    out.u64(id);
+    out.u64(keypoints.size());
+    for (const cv::Vec3b& bgr : keypoints) out.raw(&bgr[0], 3);
+  }
+}
+
+void RunRecorder::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes) {
+  constexpr std::size_t kRecordBytes = 8 + 8 + 56 + 56 + 1 + 1 + 8 + 56 + 56 + 8;
+  const std::size_t n = in.count("frame records", kRecordBytes);
+  std::vector<FrameRecord> records(n);
+  for (FrameRecord& record : records) {
+    record.t_s = in.finiteF64("frame record time");
+    record.reference = keyframes.read(in, "frame record reference");
+    record.T_refb_c = in.se3("frame record T_refb_c");
+    record.T_w_c = in.se3("frame record T_w_c");
+    record.tracked = in.boolean("frame record tracked");
+    record.carried = in.boolean("frame record carried");
+    record.stretch_reference = keyframes.read(in, "frame record stretch reference");
+    record.T_stretchrefb_c_predicted = in.se3("frame record stretch prediction");
+    record.T_w_c_online = in.se3("frame record online pose");
+    record.map_online = map::MapId(in.u64("frame record map"));
+  }
+  carried_reference_ = keyframes.read(in, "carried stretch reference");
+  const std::size_t num_colours = in.count("keyframe colours", 16);
+  std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours;
+  for (std::size_t k = 0; k < num_colours; ++k) {
+    const std::uint64_t offset = in.fileOffset();
+    const std::uint64_t id = in.u64("coloured keyframe");
+    std::vector<cv::Vec3b>& keypoints = colours[id];
+    if (!keypoints.empty()) in.failAt(offset, "keyframe colours given twice", std::to_string(id));
+    keypoints.resize(in.count("keypoint colours", 3));
+    for (cv::Vec3b& bgr : keypoints) in.raw(&bgr[0], 3, "keypoint colour");
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  records_ = std::move(records);
+  context_records_ = records_.size();
+  colours_ = std::move(colours);
 }
 
 }  // namespace ltlo::system

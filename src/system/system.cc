@@ -35,6 +35,9 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
   builder_ = std::make_unique<tracking::FrameBuilder>(settings_.orb, calib);
   std::optional<map::AtlasImuState> loaded_imu;
+  if (options_.resume && options_.load_atlas_path.empty()) {
+    throw ConfigError("resuming a run needs the atlas file it saved (--load-atlas FILE)");
+  }
   if (options_.load_atlas_path.empty()) {
     if (settings_.tracking.localisation_only) {
       throw ConfigError(settings_.config_path + ": Tracking.LocalisationOnly = 1 needs an atlas to localise in (--load-atlas FILE)");
@@ -47,7 +50,8 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   const std::vector<float> level_sigma2 = builder_->extractor().levelSigma2();
 
   tracking::TrackerOptions tracker_options = trackerOptions(settings_, use_imu_);
-  tracker_options.start_in_loaded_atlas = loaded_imu.has_value();
+  // A resumed run is not lost in the loaded maps: its tracker's state comes from the file.
+  tracker_options.start_in_loaded_atlas = loaded_imu.has_value() && !options_.resume;
   tracker_ = std::make_unique<tracking::Tracker>(*atlas_, tracker_options, level_sigma2);
   tracker_->setVocabulary(vocabulary_.get());
   tracker_->setSegmenter(makeSegmenter(settings_, options_.oracle_masks, &timing_, builder_->undistorter()));
@@ -61,7 +65,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
   mapper_ = std::make_unique<mapping::LocalMapper>(
       *atlas_, localMapperOptions(settings_, calib, vocabulary_, use_imu_), level_sigma2, &timing_);
-  if (use_imu_ && loaded_imu && loaded_imu->initialised) {
+  if (use_imu_ && loaded_imu && loaded_imu->initialised && !options_.resume) {
     // Gravity is the loaded world's, the biases those of the same sensor: this run refines them.
     mapper_->seedImuState(loaded_imu->bias, loaded_imu->g_w, loaded_imu->acceleration_covariance_w);
   }
@@ -81,6 +85,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
   closer_ = std::make_unique<loop::LoopCloser>(*atlas_, loopCloserOptions(settings_, tracker_options),
                                                std::move(mapping_control), &timing_);
 
+  if (options_.resume) restoreRunState();  // before any thread sees the stages
   if (!options_.segmentation_dir.empty()) {
     segmentation_writer_ =
         std::make_unique<SegmentationWriter>(options_.segmentation_dir, 128, builder_->undistorter());
@@ -179,8 +184,12 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
                            std::to_string(camera.height()));
     }
   }
+  if (resume_point_ && resume_point_->previous_frame_t_s && loaded_run_) {
+    throw std::logic_error("System::trackFrame of a resumed run before restorePreviousFrame()");
+  }
   ScopedTimer frame_timer(timing_, "tracking.frame");
   ScopedThreadCpuTimer frame_cpu_timer(timing_, "tracking.frame_cpu");
+  frame_in_progress_ = true;  // an exception from here on leaves the stages mid-frame
   pollImuState();
 
   // The segmenter starts on the images (possibly on its worker thread) while ORB is extracted here.
@@ -240,6 +249,8 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
     processPendingKeyFrames();
     pollImuState();
   }
+  last_input_ = std::make_pair(input.index, input.t_s);
+  frame_in_progress_ = false;
   return state;
 }
 
@@ -307,11 +318,12 @@ map::AtlasBuildInfo System::atlasBuildInfo() const {
 map::AtlasImuState System::loadAtlas() {
   const std::string& path = options_.load_atlas_path;
   const auto start = std::chrono::steady_clock::now();
-  map::LoadedAtlas loaded = map::loadAtlas(path, atlasBuildInfo(), *vocabulary_);
+  map::LoadedAtlas loaded = map::loadAtlas(path, atlasBuildInfo(), *vocabulary_, options_.resume);
   const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   atlas_ = std::move(loaded.atlas);
   loaded_.atlas_loaded = true;
-  if (settings_.loop.hold_loaded_map) {
+  loaded_run_ = std::move(loaded.run);
+  if (settings_.loop.hold_loaded_map && !options_.resume) {
     // Before any other thread sees them (Loop.HoldLoadedMap).
     for (const map::MapId id : atlas_->mapIds()) {
       for (const std::shared_ptr<map::KeyFrame>& kf : atlas_->map(id)->keyFrames()) kf->markAnchor();
@@ -324,11 +336,45 @@ map::AtlasImuState System::loadAtlas() {
   log::info("system: atlas ", path, " loaded: ", loaded.summary.maps.size(), " map(s), ", loaded_.keyframes_loaded,
             " keyframes, ", loaded_.map_points_loaded, " map points in ", load_s, " s (built with ", loaded.build.built_with, "); IMU ",
             loaded.imu.initialised ? "initialised" : "not initialised", settings_.tracking.localisation_only
-            ? "; localisation only" : "");
+            ? "; localisation only" : "", options_.resume ? "; resuming its run" : "");
   return loaded.imu;
 }
 
-void System::saveAtlas(const std::string& path) const {
+RunStages System::runStages() {
+  return RunStages{*tracker_, tracker_->segmenter(), *mapper_, *closer_, *recorder_, imu_shift_, imu_generation_};
+}
+
+std::uint64_t System::settingsFingerprint() const {
+  return runStateFingerprint(settings_.describe(), use_imu_, options_.oracle_masks);
+}
+
+void System::restoreRunState() {
+  LTLO_ASSERT(loaded_run_.has_value(), "restoreRunState without a loaded run state");
+  const std::uint64_t fingerprint = readRunState(*loaded_run_, runStages());
+  ResumePoint point;
+  point.next_frame_index = loaded_run_->header.next_frame_index;
+  point.last_frame_t_s = loaded_run_->header.last_frame_t_s;
+  if (tracking::FrameSegmenter* segmenter = tracker_->segmenter()) point.previous_frame_t_s = segmenter->previousFrameTime();
+  point.settings_differ = fingerprint != settingsFingerprint();
+  if (point.settings_differ) {
+    log::warn("system: the atlas's run was saved with other settings than this run's: the resumed run is not its "
+              "exact continuation");
+  }
+  log::info("system: resuming the saved run at frame ", point.next_frame_index, " (its last frame at t = ",
+            point.last_frame_t_s, " s), tracking ", tracking::trackingStateName(tracker_->state()));
+  resume_point_ = point;
+  if (!point.previous_frame_t_s) loaded_run_.reset();
+}
+
+void System::restorePreviousFrame(const io::RgbdImuFrame& previous) {
+  if (!resume_point_ || !resume_point_->previous_frame_t_s || !loaded_run_) {
+    throw std::logic_error("System::restorePreviousFrame: no resumed run waits for its previous frame");
+  }
+  tracker_->segmenter()->restorePreviousFrame(previous);
+  loaded_run_.reset();
+}
+
+void System::saveAtlas(const std::string& path) {
   if (!shut_down_) throw std::logic_error("System::saveAtlas before shutdown()");
   const mapping::ImuState imu = mapper_->imuState();
   map::AtlasImuState state;
@@ -337,7 +383,27 @@ void System::saveAtlas(const std::string& path) const {
   state.g_w = imu.g_w;
   state.acceleration_covariance_w = imu.acceleration_covariance_w;
   state.time_offset_s = settings_.calib.imu.time_offset_s + mapper_->timeOffset().shift_s;
-  map::saveAtlas(*atlas_, state, atlasBuildInfo(), path);
+  // The run state, unless a stage stopped part-way (an error inside a frame, local mapping or loop
+  // closing stopped with keyframes queued): the maps are saved all the same.
+  if (frame_in_progress_ || mapper_->queuedKeyFrames() > 0 || closer_->queuedKeyFrames() > 0 ||
+      closer_->globalBaRunning()) {
+    map::saveAtlas(*atlas_, state, atlasBuildInfo(), path);
+    log::warn("system: atlas saved to ", path, " without the run state (the run stopped part-way through a ",
+              frame_in_progress_ ? "frame" : "keyframe", "): it loads, but cannot be resumed");
+    return;
+  }
+  // The next frame follows the last one tracked (or, a resumed run that tracked none, the frame it
+  // would have resumed at).
+  map::RunStateHeader header;
+  if (last_input_) {
+    header.next_frame_index = static_cast<std::uint64_t>(last_input_->first) + 1;
+    header.last_frame_t_s = last_input_->second;
+  } else if (resume_point_) {
+    header.next_frame_index = resume_point_->next_frame_index;
+    header.last_frame_t_s = resume_point_->last_frame_t_s;
+  }
+  const std::string run_state = writeRunState(*atlas_, header, settingsFingerprint(), runStages());
+  map::saveAtlas(*atlas_, state, atlasBuildInfo(), path, &run_state);
   const SystemCounts c = counts();
   log::info("system: atlas saved to ", path, ": ", c.maps, " map(s), ", c.keyframes, " keyframes, ", c.map_points,
             " map points");

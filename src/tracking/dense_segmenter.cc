@@ -6,7 +6,9 @@
 #include <utility>
 
 #include "ltlo/core/assert.h"
+#include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
+#include "ltlo/map/binary_io.h"
 #include "prepared_frame.h"
 #include "segmentation_worker.h"
 
@@ -129,6 +131,7 @@ void DenseSegmenter::cancel() {
 
 SegmentationOutcome DenseSegmenter::segment(map::Frame& frame, const MotionPrior& prior) {
   LTLO_ASSERT(worker_->pending(), "DenseSegmenter::segment without begin()");
+  LTLO_ASSERT(!previous_pending_, "DenseSegmenter::segment of a resumed run before restorePreviousFrame()");
   worker_->wait();
   const PreparedFrame& current = *frames_[current_];
   const PreparedFrame& previous = *frames_[1 - current_];
@@ -170,9 +173,55 @@ SegmentationOutcome DenseSegmenter::segment(map::Frame& frame, const MotionPrior
   }
   frame.setSegmentation(std::move(seg), segmentation_.static_threshold);
   previous_gamma_ = std::move(gamma);
+  previous_t_s_ = current.t_s;
   has_previous_ = true;
   current_ = 1 - current_;
   return outcome;
+}
+
+void DenseSegmenter::writeState(map::ByteWriter& out) const {
+  out.boolean(has_previous_);
+  if (!has_previous_) return;
+  out.f64(previous_t_s_);
+  out.u64(previous_gamma_.size());
+  for (const double g : previous_gamma_) out.f64(g);
+}
+
+void DenseSegmenter::readState(map::ByteReader& in) {
+  has_previous_ = in.boolean("segmenter has a previous frame");
+  previous_gamma_.clear();
+  previous_pending_.reset();
+  if (!has_previous_) return;
+  previous_t_s_ = in.finiteF64("segmenter's previous frame time");
+  const std::uint64_t offset = in.fileOffset();
+  const std::size_t n = in.count("segmenter's previous scores", 8);
+  if (n < 1 || n > static_cast<std::size_t>(segmentation::kMaxClusters) + 1) {
+    in.failAt(offset, "segmenter's previous scores out of [1, " + std::to_string(segmentation::kMaxClusters + 1) + "]",
+              std::to_string(n));
+  }
+  previous_gamma_.resize(n);
+  for (double& g : previous_gamma_) g = in.f64InRange("segmenter's previous score", 0.0, 1.0);
+  previous_pending_ = previous_t_s_;
+}
+
+void DenseSegmenter::restorePreviousFrame(const io::RgbdImuFrame& previous) {
+  LTLO_ASSERT(previous_pending_.has_value(), "DenseSegmenter::restorePreviousFrame without a previous frame to restore");
+  if (previous.t_s != *previous_pending_) {
+    throw InputError(previous.color_path, 0,
+                     "the frame before the resumed one is at t = " + map::exactNumberText(previous.t_s) +
+                         " s, the saved run's at " + map::exactNumberText(*previous_pending_) + " s");
+  }
+  // Prepared as begin() would have: into the slot segment() then leaves as the previous one.
+  worker_->post(previous);
+  worker_->wait();
+  const PreparedFrame& prepared = *frames_[current_];
+  if (!prepared.valid || static_cast<std::size_t>(prepared.clusters.num_clusters) + 1 != previous_gamma_.size()) {
+    throw InputError(previous.color_path, 0,
+                     "the frame before the resumed one gives " + std::to_string(prepared.clusters.num_clusters) +
+                         " clusters, the saved run's scores are for " + std::to_string(previous_gamma_.size() - 1));
+  }
+  current_ = 1 - current_;
+  previous_pending_.reset();
 }
 
 }  // namespace ltlo::tracking

@@ -5,6 +5,7 @@
 
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
+#include "ltlo/map/binary_io.h"
 #include "ltlo/tracking/tracker.h"
 #include "tracker_util.h"
 
@@ -179,6 +180,36 @@ void LossRecovery::startNewMap(map::Frame& frame, const LossContext& context, Re
   anchored_t_s_ = frame.t_s();
   context.stats.new_map = true;
   context.frame_tracked = true;
+}
+
+void LossRecovery::writeState(map::ByteWriter& out) const {
+  out.f64(anchored_t_s_);
+  out.u64(carried_first_point_.value);
+  out.f64(carried_position_sigma_m_);
+  out.f64(carried_placement_sigma_m_);
+  out.f64(carried_fix_sigma_m_);
+  out.f64(carried_fix_t_s_);
+  out.f64(tracked_run_start_s_);
+}
+
+void LossRecovery::readState(map::ByteReader& in) {
+  anchored_t_s_ = in.finiteF64("anchored time");
+  carried_first_point_ = map::MapPointId(in.u64("carried stretch's first point"));
+  // Infinite before the first IMU prediction, like the live value.
+  const std::uint64_t sigma_offset = in.fileOffset();
+  carried_position_sigma_m_ = in.f64("carried position sigma");
+  if (std::isnan(carried_position_sigma_m_) || carried_position_sigma_m_ < 0.0) {
+    in.failAt(sigma_offset, "carried position sigma is not a sigma", map::exactNumberText(carried_position_sigma_m_));
+  }
+  carried_placement_sigma_m_ = in.finiteF64("carried placement sigma");
+  carried_fix_sigma_m_ = in.finiteF64("carried fix sigma");
+  carried_fix_t_s_ = in.finiteF64("carried fix time");
+  // NaN after a lost frame, like the live value.
+  const std::uint64_t start_offset = in.fileOffset();
+  tracked_run_start_s_ = in.f64("tracked run start");
+  if (std::isinf(tracked_run_start_s_)) {
+    in.failAt(start_offset, "tracked run start is infinite", map::exactNumberText(tracked_run_start_s_));
+  }
 }
 
 }  // namespace ltlo::tracking

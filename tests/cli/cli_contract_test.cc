@@ -105,6 +105,31 @@ class CliContract : public ::testing::Test {
   std::string settings_ = sourceDir() + "/config_yaml/synthetic.yaml";
 };
 
+// simulate's harder-world options (issue 32) exit 2 on bad values, naming the option and the value.
+TEST_F(CliContract, SimulateHarderWorldOptionsExitTwoNamingTheOptionAndValue) {
+  const auto simulate = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> argv = {programPath("simulate"), "--scenario", "static", "--seed", "1", "--seconds", "10",
+                                     "--width", "80", "--height", "60", "--out", (work_ / "seq").string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return runProgram(argv);
+  };
+  ProgramResult result;
+  result = simulate({"--occluded-start", "sideways"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--occluded-start"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("sideways"), std::string::npos) << result.err;
+  result = simulate({"--walkers", "0"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--walkers"), std::string::npos) << result.err;
+  result = simulate({"--walkers", "3"});  // 10 s hold one walker of 5 s after the first 1 s
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--walkers 3: each walker needs 5 s"), std::string::npos) << result.err;
+  result = simulate({"--walkers", "1", "--three-movers"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find("--three-movers"), std::string::npos) << result.err;
+  EXPECT_FALSE(fs::exists(work_ / "seq" / "stats.txt"));
+}
+
 TEST_F(CliContract, MissingOrGarbageVocabularyExitsTwoNamingTheFile) {
   const std::string missing = (work_ / "no_such.bin").string();
   ProgramResult result = slam(sharedSequence(), {"--vocabulary", missing});
@@ -174,6 +199,59 @@ TEST_F(CliContract, AtlasInfoSummarisesAFileAndNamesTheSectionOfABadOne) {
   EXPECT_EQ(result.exit_code, 2) << result.describe();
   EXPECT_NE(result.err.find("atlas_info: " + truncated + ": section keyframes at byte "), std::string::npos) << result.err;
   EXPECT_NE(result.err.find(": truncated: "), std::string::npos) << result.err;
+}
+
+/// A little-endian u64 of a file's bytes (the atlas file's section table).
+std::uint64_t u64At(const std::string& bytes, std::size_t at) {
+  std::uint64_t v = 0;
+  for (int k = 0; k < 8; ++k) v |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(bytes[at + k])) << (8 * k);
+  return v;
+}
+
+// rgbd_inertial --resume (issue 31): run 1 saves its atlas with the run state; a damaged or
+// truncated run section exits 2 naming the file, the section "run" and the byte; so does a
+// --first-frame other than the frame the saved run goes on at. atlas_info reports the run state.
+TEST_F(CliContract, AResumeFromABadRunStateExitsTwoNamingTheSection) {
+  const std::string atlas = (work_ / "run1.atlas").string();
+  ProgramResult result = slam(sharedSequence(), {"--single-thread", "--max-frames", "20", "--save-atlas", atlas});
+  ASSERT_EQ(result.exit_code, 0) << result.describe();
+  result = runProgram({programPath("atlas_info"), atlas});
+  EXPECT_EQ(result.exit_code, 0) << result.describe();
+  EXPECT_NE(result.out.find("format_version 2\n"), std::string::npos) << result.out;
+  EXPECT_NE(result.out.find("run_next_frame 20\n"), std::string::npos) << result.out;
+  EXPECT_NE(result.out.find("section run offset "), std::string::npos) << result.out;
+
+  const std::string bytes = readFile(atlas);
+  ASSERT_EQ(static_cast<std::uint8_t>(bytes[12]), 7u);  // seven sections, the run state last
+  const std::uint64_t run_offset = u64At(bytes, 16 + 6 * 36 + 16);
+  std::string damaged = bytes;
+  damaged[run_offset + 100] ^= 0x20;
+  const fs::path damaged_path = work_ / "damaged.atlas";
+  writeFile(damaged_path, damaged);
+  result = slam(sharedSequence(), {"--single-thread", "--load-atlas", damaged_path.string(), "--resume"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find(damaged_path.string() + ": section run at byte " + std::to_string(run_offset) +
+                            ": CRC mismatch"),
+            std::string::npos)
+      << result.err;
+
+  const fs::path truncated_path = work_ / "truncated.atlas";
+  writeFile(truncated_path, bytes.substr(0, bytes.size() - 1000));
+  result = slam(sharedSequence(), {"--single-thread", "--load-atlas", truncated_path.string(), "--resume"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find(truncated_path.string() + ": section run at byte " + std::to_string(run_offset) +
+                            ": truncated"),
+            std::string::npos)
+      << result.err;
+
+  result = slam(sharedSequence(), {"--single-thread", "--load-atlas", atlas, "--resume", "--first-frame", "7"});
+  EXPECT_EQ(result.exit_code, 2) << result.describe();
+  EXPECT_NE(result.err.find(atlas + ": its run goes on at frame 20, not at --first-frame 7"), std::string::npos)
+      << result.err;
+  // The run itself resumes (and writes the frames from 20 on).
+  result = slam(sharedSequence(), {"--single-thread", "--load-atlas", atlas, "--resume", "--max-frames", "5"});
+  EXPECT_EQ(result.exit_code, 0) << result.describe();
+  EXPECT_NE(result.out.find("frames 5\n"), std::string::npos) << result.out;
 }
 
 TEST_F(CliContract, AMalformedDistortionKeyExitsTwoNamingTheKey) {

@@ -175,6 +175,42 @@ TEST(KeyFrameCulling, WithTheImuKeepsKeyFramesWhoseNeighboursSpanMoreThanHalfASe
   EXPECT_NEAR(kf3->imuFromPrevious()->dt_s(), 0.3, 1e-9);
 }
 
+// LocalMapping.CullImuCutAge: keyframes old enough are culled whatever their neighbours' span, and
+// the chain is cut there instead of bridged; the younger ones keep the span rule.
+TEST(KeyFrameCulling, OldKeyFramesAreCulledWithTheirImuLinkCut) {
+  RedundantChain slow(2.0);  // neighbours 4 s apart: never bridged (0.5 s); kf6 at 12 s
+  KeyFrameCullingOptions options;
+  options.use_imu = true;
+  options.cut_imu_min_age_s = 6.0;  // kf1 (next kf2 at 4 s) and kf2 (next kf3 at 6 s) old enough, kf3 not
+  int cut_links = 0;
+  const std::vector<map::KeyFrameId> culled =
+      cullRedundantKeyFrames(slow.map, *slow.keyframes[6], options, &cut_links);
+  ASSERT_EQ(culled.size(), 2u);
+  EXPECT_EQ(cut_links, 2);
+  EXPECT_TRUE(slow.keyframes[1]->isBad());
+  EXPECT_TRUE(slow.keyframes[2]->isBad());
+  // kf3 follows kf0 in time with no preintegration (a gap); kf4..kf6 keep their 2 s links.
+  const auto& kf3 = slow.keyframes[3];
+  EXPECT_EQ(kf3->previousKeyFrame(), slow.keyframes[0]->id());
+  EXPECT_EQ(slow.keyframes[0]->nextKeyFrame(), kf3->id());
+  EXPECT_FALSE(kf3->imuFromPrevious().has_value());
+  for (int n = 4; n < 7; ++n) {
+    ASSERT_TRUE(slow.keyframes[static_cast<std::size_t>(n)]->imuFromPrevious().has_value());
+    EXPECT_NEAR(slow.keyframes[static_cast<std::size_t>(n)]->imuFromPrevious()->dt_s(), 2.0, 1e-9);
+  }
+
+  // Younger than the age (8 s): only kf1 (next kf2 at 4 s, 8 s before kf6) may go.
+  RedundantChain younger(2.0);
+  options.cut_imu_min_age_s = 8.0;
+  const std::vector<map::KeyFrameId> culled_young = cullRedundantKeyFrames(younger.map, *younger.keyframes[6], options);
+  ASSERT_EQ(culled_young.size(), 1u);
+  EXPECT_EQ(culled_young[0], younger.keyframes[1]->id());
+  // Off (0): the span rule alone, nothing culled.
+  RedundantChain off(2.0);
+  options.cut_imu_min_age_s = 0.0;
+  EXPECT_TRUE(cullRedundantKeyFrames(off.map, *off.keyframes[6], options).empty());
+}
+
 TEST(RecentPointCulling, ErasesPointsNotConfirmedByLaterKeyFrames) {
   std::mt19937 rng(5);
   const std::vector<Vec3> points_w = pointsAhead(rng, 4);

@@ -151,6 +151,36 @@ TEST(OffscreenRenderer, NearerSurfaceWinsAndBackgroundHasNoDepth) {
   EXPECT_EQ(r.labels.at<uint8_t>(50, 150), 0);
 }
 
+// A closed prism of n flat sides around z: every vertex on the radius (or the axis), outward faces,
+// and seen side-on it covers its width and lies between the prism's inner and outer radius.
+TEST(OffscreenRenderer, CylinderMeshIsAClosedPrismOfItsRadiusAndLength) {
+  const double r = 0.3, length = 1.0;
+  const int sides = 12;
+  const Mesh mesh = makeCylinderMesh(r, length, sides, -1);
+  ASSERT_EQ(mesh.triangles.size(), 3u * (2 * sides + 2 * sides));
+  for (const Eigen::Vector3f& p : mesh.positions_o) {
+    const double radial = std::hypot(p.x(), p.y());
+    EXPECT_TRUE(std::abs(radial - r) < 1e-6 || radial < 1e-9) << radial;
+    EXPECT_NEAR(std::abs(p.z()), 0.5 * length, 1e-6);
+  }
+  for (size_t k = 0; k < mesh.triangles.size(); k += 3) {  // normals point away from the centre
+    const Eigen::Vector3f a = mesh.positions_o[mesh.triangles[k]], b = mesh.positions_o[mesh.triangles[k + 1]],
+                          c = mesh.positions_o[mesh.triangles[k + 2]];
+    EXPECT_GT((b - a).cross(c - a).dot((a + b + c) / 3.0f), 0.0f) << k;
+  }
+  const PinholeCamera cam = testCamera();
+  OffscreenRenderer renderer(cam.width(), cam.height());
+  const int cylinder = renderer.addMesh(mesh);
+  const SE3 T_c_o(so3ExpQuat(Vec3(0, 0.5 * M_PI, 0)), Vec3(0, 0, 3.0));  // axis along the camera's x
+  const RenderResult result = renderer.render({cam, SE3(), 0.05, 50.0}, {{cylinder, T_c_o, 1.0f, 3}});
+  const float z_centre = result.depth_m.at<float>(62, 77);
+  EXPECT_GE(z_centre, 3.0 - r - 1e-4);
+  EXPECT_LE(z_centre, 3.0 - r * std::cos(M_PI / sides) + 1e-4);
+  int rows = 0;  // its height in pixels along the image column through the axis
+  for (int v = 0; v < cam.height(); ++v) rows += result.labels.at<uint8_t>(v, 77) == 3;
+  EXPECT_NEAR(rows, 2.0 * r * cam.fy() / 3.0, 3.0);
+}
+
 TEST(OffscreenRenderer, SplatsPointsAndLinesRender) {
   const PinholeCamera cam = testCamera();
   OffscreenRenderer renderer(cam.width(), cam.height());

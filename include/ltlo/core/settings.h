@@ -308,6 +308,19 @@ struct LocalMappingOptions {
   /// a keyframe is culled when this fraction of its points is seen by >= 3 other keyframes
   /// (LocalMapping.RedundantRatio, [0.5, 1])
   double redundant_ratio = 0.9;
+  /// With the IMU initialised, a keyframe is culled only when its neighbours in time are at most this
+  /// far apart (s), so the merged preintegration stays short; before the initialisation 0.5 s.
+  /// Longer spans let revisits cull the keyframes earlier passes made redundant, so a run of many laps
+  /// keeps a bounded map (LocalMapping.CullMaxImuSpan, [0.1, 10])
+  double cull_max_imu_span_s = 0.5;
+  /// With the IMU initialised, a keyframe at least this much older than the keyframe being processed
+  /// (s), and its next keyframe as old, is culled when redundant whatever the span of its neighbours
+  /// in time: its IMU link is cut instead of merged (a gap in the old chain; the keyframe's neighbours
+  /// stay held by their points). The recent chain (local BA's inertial window, the IMU refinements)
+  /// keeps every link. A robot revisiting a room then keeps a bounded number of keyframes per place
+  /// instead of about two a second (LocalMapping.CullImuCutAge, [0, 1e6]; 0: never, the span rule
+  /// holds for every keyframe)
+  double cull_imu_cut_age_s = 0.0;
   /// Estimate the camera-IMU time offset online (what IMU.TimeOffset left), from the keyframe
   /// rotations after each local BA against the gyroscope (mapping/time_offset_estimator.h); tracking
   /// cuts the frames' IMU intervals with it (LocalMapping.EstimateTimeOffset, 0/1)

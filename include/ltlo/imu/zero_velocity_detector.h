@@ -59,6 +59,15 @@ class ZeroVelocityDetector {
   /// sample since the start or reset().
   double windowStart_s() const { return window_.empty() ? 0.0 : window_.front().t_s; }
 
+  /// Everything the next update() depends on (a run resumed from its saved state, issue 31).
+  struct State {
+    std::deque<ImuSample> window;
+    bool tested = false;
+    ZeroVelocityStatistics statistics;
+  };
+  State state() const { return {window_, tested_, statistics_}; }
+  void restore(State state);
+
  private:
   ZeroVelocityOptions options_;
   std::deque<ImuSample> window_;

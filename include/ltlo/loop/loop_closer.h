@@ -30,6 +30,11 @@
 #include "ltlo/map/keyframe.h"
 #include "ltlo/place/guided_place_match.h"
 
+namespace ltlo::map {
+class ByteReader;
+class ByteWriter;
+}  // namespace ltlo::map
+
 namespace ltlo::loop {
 
 struct LoopCloserOptions {
@@ -105,12 +110,22 @@ class LoopCloser {
   void run();
   void requestFinish();
 
+  /// Keyframes waiting in the queue.
+  std::size_t queuedKeyFrames() const;
   std::vector<LoopEvent> events() const;
   int numLoops() const;   ///< same-map loops corrected
   int numMerges() const;  ///< maps merged
   bool globalBaRunning() const;
   /// Blocks until no full BA is running (tests; System before writing the map).
   void waitForGlobalBa();
+
+  /// Loop closing's state between two keyframes, with its queue empty and no full BA running
+  /// (single-threaded, or after run() returned): the candidates' consistency, the keyframes since
+  /// the last correction, a pending refinement (loop_closer_state.cc). For a run resumed from an
+  /// atlas file (system/run_state.h); events and counts stay this run's.
+  void writeState(map::ByteWriter& out) const;
+  /// Restores it before the first keyframe; throws AtlasFileError (file, section, byte).
+  void readState(map::ByteReader& in);
 
  private:
   struct Impl;

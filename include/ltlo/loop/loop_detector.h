@@ -11,6 +11,11 @@
 #include "ltlo/map/keyframe_database.h"
 #include "ltlo/map/map.h"
 
+namespace ltlo::map {
+class ByteReader;
+class ByteWriter;
+}  // namespace ltlo::map
+
 namespace ltlo::loop {
 
 /// A candidate keyframe and the keyframes forming its group (itself and its covisibles).
@@ -32,6 +37,9 @@ class ConsistencyChecker {
   void reset() { previous_.clear(); }
   /// Highest count among the groups kept from the last query (0 when none).
   int maxCount() const;
+  /// The groups kept from the last query (a run resumed from an atlas file, LoopCloser::writeState).
+  void writeState(map::ByteWriter& out) const;
+  void readState(map::ByteReader& in);
 
  private:
   struct Tracked {
@@ -55,6 +63,9 @@ class LoopDetector {
   std::vector<std::shared_ptr<map::KeyFrame>> detect(const map::KeyFrame& current, const map::Map& map,
                                                      const map::KeyFrameDatabase& database);
   const ConsistencyChecker& consistency() const { return consistency_; }
+  /// The consistency state (a run resumed from an atlas file).
+  void writeState(map::ByteWriter& out) const { consistency_.writeState(out); }
+  void readState(map::ByteReader& in) { consistency_.readState(in); }
 
  private:
   LoopOptions options_;

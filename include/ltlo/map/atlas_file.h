@@ -2,10 +2,10 @@
 /// The atlas file: every map of an Atlas with its keyframes, map points and graphs, the run's IMU
 /// state and what the atlas was built with, so a later run can load it (issue 31).
 ///
-/// Layout (version 1, little-endian throughout):
+/// Layout (version 2, little-endian throughout; version 1 is the same without the run section):
 ///   bytes 0-7    magic "LTLOATL1"
-///   8-11         uint32 format version (kAtlasFormatVersion)
-///   12-15        uint32 number of sections S
+///   8-11         uint32 format version (kAtlasFormatVersion; files of version 1 still load)
+///   12-15        uint32 number of sections S (6, or 7 with the run state)
 ///   16-          S entries of the section table: char[16] name (NUL-padded), uint64 offset,
 ///                uint64 length, uint32 CRC-32 of the section's bytes
 ///   then         uint32 CRC-32 of the header (bytes 0 up to here)
@@ -20,6 +20,8 @@
 ///                visible/found counts, beta, observations (keyframe -> keypoint)
 ///     graph      per keyframe: previous/next, parent, children, covisibility, loop edges; per map:
 ///                origin keyframes, MapOrigin, reference map points
+///     run        optional (version 2): the state of the run that saved the file at its last frame,
+///                for a run resumed from it (run_state_io.h; the stages' parts in system/run_state.h)
 /// Floats are stored as their IEEE bits, so a loaded atlas equals the saved one bit for bit. Every
 /// count is checked against the bytes left before anything is allocated; every referenced id must
 /// exist in the file. Derived per-image data (back-projected points, the keypoint grid, keypoint
@@ -30,6 +32,7 @@
 /// keyframe culled meanwhile, which the live system skips) are not written.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +42,7 @@
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/map/atlas.h"
 #include "ltlo/map/ids.h"
+#include "ltlo/map/run_state_io.h"
 
 namespace bow {
 class Vocabulary;
@@ -46,7 +50,7 @@ class Vocabulary;
 
 namespace ltlo::map {
 
-inline constexpr std::uint32_t kAtlasFormatVersion = 1;
+inline constexpr std::uint32_t kAtlasFormatVersion = 2;
 inline constexpr char kAtlasMagic[9] = "LTLOATL1";
 
 /// What the atlas was built with; a file built with another vocabulary or other map-relevant
@@ -92,6 +96,14 @@ struct AtlasFileSummary {
     double t_first_s = 0.0, t_last_s = 0.0;  ///< first and last keyframe time (0 if none)
   };
   std::vector<MapSummary> maps;
+  /// The run state (a version-2 file saved by a run): where it resumes and what it holds.
+  struct RunSummary {
+    std::uint64_t next_frame_index = 0;
+    double last_frame_t_s = 0.0;
+    std::size_t merged_maps = 0, culled_keyframes = 0, database_keyframes = 0;
+    std::uint64_t stage_bytes = 0;  ///< the stages' parts (tracking, mapping, loop closing, records)
+  };
+  std::optional<RunSummary> run;
   std::uint64_t file_bytes = 0;
   struct Section {
     std::string name;
@@ -121,15 +133,29 @@ class AtlasFileError : public InputError {
 
 /// Writes every map of `atlas` that is not merged away (with the active one) to `path`: to
 /// path + ".part" first, then renamed over `path`, so a reader sees the old file or the new one,
-/// whole. Throws InputError naming the path when it cannot be written. Call with the threads
-/// that change the atlas stopped or paused (it takes the maps' locks one object at a time).
-void saveAtlas(Atlas& atlas, const AtlasImuState& imu, const AtlasBuildInfo& build, const std::string& path);
+/// whole. `run_state`, when given, is the run section's bytes (writeAtlasRunState, then the
+/// stages' parts). Throws InputError naming the path when it cannot be written. Call with the
+/// threads that change the atlas stopped or paused (it takes the maps' locks one object at a time).
+void saveAtlas(Atlas& atlas, const AtlasImuState& imu, const AtlasBuildInfo& build, const std::string& path,
+               const std::string* run_state = nullptr);
+
+/// The run state of a loaded file, its atlas part applied (loadAtlas with restore_run_state).
+struct LoadedRunState {
+  RunStateHeader header;
+  RunKeyFrames keyframes;  ///< the keyframes the stages' parts may name
+  std::string file;
+  std::string stage_bytes;        ///< the stages' parts, after the atlas part
+  std::uint64_t stage_offset = 0;  ///< their byte offset in the file
+  /// A reader over the stages' parts (valid while this object lives).
+  ByteReader stages() const { return ByteReader(stage_bytes.data(), stage_bytes.size(), file, "run", stage_offset); }
+};
 
 struct LoadedAtlas {
   std::unique_ptr<Atlas> atlas;
   AtlasImuState imu;
   AtlasBuildInfo build;
   AtlasFileSummary summary;
+  std::optional<LoadedRunState> run;
 };
 
 /// Reads and validates `path` and rebuilds the atlas: maps with their ids, the active map, every
@@ -139,10 +165,15 @@ struct LoadedAtlas {
 /// another vocabulary than `vocabulary` ("built with vocabulary checksum X (N words), this run
 /// uses Y (M words)") or other settings than expected.settings_summary (the differing lines of
 /// both); an empty expected.settings_summary skips the settings check (tools).
-LoadedAtlas loadAtlas(const std::string& path, const AtlasBuildInfo& expected, const bow::Vocabulary& vocabulary);
+/// With `restore_run_state` the file must have a run section (else AtlasFileError naming it): its
+/// atlas part is read and applied (id counters, map versions, merged maps, the database's order,
+/// flags, culled keyframes) and LoadedAtlas::run returned; without, the section is only checked by
+/// its CRC and the atlas is loaded as from a version-1 file.
+LoadedAtlas loadAtlas(const std::string& path, const AtlasBuildInfo& expected, const bow::Vocabulary& vocabulary,
+                      bool restore_run_state = false);
 /// The same from bytes in memory; `name` stands for the file in messages (fuzzing, tests).
 LoadedAtlas loadAtlasFromBytes(const std::string& bytes, const std::string& name, const AtlasBuildInfo& expected,
-                               const bow::Vocabulary& vocabulary);
+                               const bow::Vocabulary& vocabulary, bool restore_run_state = false);
 
 /// Header and sections validated (CRCs, every record parsed), the counts and extents; needs no
 /// vocabulary. Throws AtlasFileError as loadAtlas.

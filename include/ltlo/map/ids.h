@@ -54,6 +54,20 @@ class IdSource {
     raiseTo(next_point_, point);
     raiseTo(next_map_, map);
   }
+  /// The next ids to be issued (a run's state in the atlas file: a resumed run issues the ids the
+  /// saved run would have issued next, culled and merged objects' ids included).
+  struct Counters {
+    std::uint64_t keyframe = 0;
+    std::uint64_t point = 0;
+    std::uint64_t map = 0;
+  };
+  Counters counters() const { return {next_keyframe_.load(), next_point_.load(), next_map_.load()}; }
+  /// Only before the ids are shared with other threads (a loaded atlas being restored).
+  void restore(const Counters& counters) {
+    next_keyframe_.store(counters.keyframe);
+    next_point_.store(counters.point);
+    next_map_.store(counters.map);
+  }
 
  private:
   template <typename Id>

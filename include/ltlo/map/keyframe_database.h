@@ -51,6 +51,11 @@ class KeyFrameDatabase {
   /// adds it later with the new vector) or has no BoW.
   bool replace(const std::shared_ptr<KeyFrame>& kf);
   std::size_t size() const;
+  /// The keyframes in the database in the order they were (last) added: queries break ties between
+  /// equal scores by it, so a resumed run rebuilds the database in this order (run_state_io.h).
+  std::vector<KeyFrameId> keyFrameIdsInOrder() const;
+  /// Empties the database (before a restored one is rebuilt in its saved order).
+  void clear();
 
   using Filter = std::function<bool(const KeyFrame&)>;
   /// Candidates for `query` among keyframes passing `accept`, best group first.

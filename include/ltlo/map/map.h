@@ -99,7 +99,10 @@ class Map {
   /// points, else to its parent), bridges the IMU chain (merged preintegration) and removes it from
   /// the map. Holders of its shared_ptr keep a valid (bad) object. Points left without observations
   /// are erased too. Returns false if the id is unknown, already bad, or an origin keyframe.
-  bool eraseKeyFrame(KeyFrameId id);
+  /// With `imu_link` kCut the chain is not bridged: the next keyframe loses its preintegration (a
+  /// gap in the chain; culling of old keyframes whose neighbours are too far apart in time to merge).
+  enum class ImuLink { kMerge, kCut };
+  bool eraseKeyFrame(KeyFrameId id, ImuLink imu_link = ImuLink::kMerge);
   /// Culls a map point: marks it bad, unlinks it from its keyframes, removes it from the map.
   bool eraseMapPoint(MapPointId id);
   /// Fusion: moves the observations of `old_id` to `replacement` (where the keyframe has no other

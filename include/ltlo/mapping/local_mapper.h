@@ -35,6 +35,11 @@ namespace bow {
 class Vocabulary;
 }
 
+namespace ltlo::map {
+class ByteReader;
+class ByteWriter;
+}  // namespace ltlo::map
+
 namespace ltlo::mapping {
 
 struct LocalMapperOptions {
@@ -150,6 +155,15 @@ class LocalMapper {
 
   /// Called in the mapping thread after each processed keyframe (System forwards it to loop closing).
   void setKeyFrameProcessedCallback(std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback);
+
+  // ---- a run resumed from an atlas file (system/run_state.h) ----
+  /// Local mapping's state between two keyframes, with its queue empty (single-threaded, or after
+  /// run() returned): the IMU estimate and its refinement schedule, the camera-IMU time offset, the
+  /// recent points under test, the processing index. Counters and the timeline are statistics and
+  /// stay this run's.
+  void writeState(map::ByteWriter& out) const;
+  /// Restores it before the first keyframe; throws AtlasFileError (file, section, byte).
+  void readState(map::ByteReader& in);
 
   LocalMapperCounters counters() const;
   /// One entry per processed keyframe, in processing order.

@@ -76,6 +76,11 @@ struct SplatSet {
 /// maps the whole texture once with `uv_scale` repeats per metre (0 = once per face).
 Mesh makeBoxMesh(const Vec3& size_m, int texture, double uv_repeats_per_m = 0.0);
 
+/// Closed cylinder along z, centred at the origin of its frame (z in [-length/2, length/2]), its
+/// side a prism of `sides` flat faces (own vertices per face, so baked flat shading works) and two
+/// caps. The side maps the texture once around (u) and along (v); each cap the texture's centre.
+Mesh makeCylinderMesh(double radius_m, double length_m, int sides, int texture);
+
 /// What to draw and how: one uploaded drawable at pose T_w_o.
 struct DrawItem {
   int drawable = -1;  ///< id from addMesh/addPoints/addLines

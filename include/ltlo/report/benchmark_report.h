@@ -29,6 +29,9 @@ struct RunRecord {
   FlatJson metrics;                     ///< metrics.json
   std::optional<FlatJson> recon;        ///< recon/reconstruct.json
   std::optional<FlatJson> recon_check;  ///< recon/check.json
+  /// Loops and merges scripts/check_loops.py found false (lines starting "FALSE" in check_loops.txt,
+  /// written by scripts/benchmark.sh); -1 without that file.
+  int false_loops = -1;
 };
 
 /// Finished runs (metrics.json and trajectory.txt present), sorted by scenario order (static,

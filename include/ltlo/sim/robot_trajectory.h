@@ -46,6 +46,9 @@ class RobotTrajectory {
   RobotState state(double t_s) const;
   /// Vibration-free pose on the floor (yaw only, z = 0): the frame pushed boxes move with.
   SE3 T_w_floor(double t_s) const;
+  /// Path time at sequence time t_s: t_s less the time lost in still intervals and their ramps
+  /// (what has stood still stays the same while the robot stands).
+  double pathTimeAt(double t_s) const;
   /// Path length of the body over [0, duration_s] (numerical, 1 ms steps).
   double pathLength(double duration_s) const;
 

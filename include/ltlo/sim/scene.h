@@ -15,6 +15,7 @@
 
 #include "ltlo/core/lie.h"
 #include "ltlo/render/offscreen_renderer.h"
+#include "ltlo/sim/movers.h"
 #include "ltlo/sim/robot_trajectory.h"
 #include "ltlo/sim/sim_options.h"
 
@@ -33,6 +34,12 @@ struct DynamicBox {
   bool crosses = false;     ///< leaves to the other side (-side) instead of back to `side`
   bool carried = false;     ///< rigidly attached to the (vibrating) body while held
   double sway_phase = 0.0;  ///< phase of the small sway of a pushed box
+  int event = -1;           ///< scheduling event (the boxes of one event enter and leave together)
+  bool panel = false;       ///< a thin board (--plain-movers): size_m = (thickness, width, height)
+  bool plain = false;       ///< one colour, no texture (--plain-movers)
+  Vec3 plain_rgb = Vec3::Ones();  ///< its colour (0..1) when plain
+  StartMove start_move = StartMove::kNone;  ///< --occluded-start: present from t = 0
+  double t_move_s = 0.0;    ///< occluded start: held in the floor frame until then, then leaves
 };
 
 /// Fixed lighting baked into vertex colours: each triangle is shaded 0.65 + 0.35 |n . l| for one
@@ -41,10 +48,22 @@ struct DynamicBox {
 /// and boxes).
 void bakeFlatShading(render::Mesh* mesh);
 
+/// One rigid part of a mover at a moment: mover index (its mask label is mover + 1), the part's
+/// index into Scene::moverMeshes()[mover], and its pose.
+struct MoverPart {
+  int mover = 0;
+  int part = 0;
+  SE3 T_w_o;
+};
+
 struct Scene {
   std::vector<cv::Mat> textures;            ///< CV_8UC3 BGR; mesh texture ids index this list
   std::vector<render::Mesh> static_meshes;  ///< world frame
+  std::vector<render::Mesh> door_frames;    ///< static posts and lintels of the doors (world frame)
+  /// Movers, numbered in this order: boxes, walkers, door leaves.
   std::vector<DynamicBox> boxes;
+  std::vector<Walker> walkers;
+  std::vector<Door> doors;
   bool photo_textures = false;           ///< false: procedural fallback was used
   std::vector<std::string> photo_paths;  ///< photographs used (for the log and stats.txt)
 
@@ -53,7 +72,9 @@ struct Scene {
   static Scene build(const SimOptions& options);
   /// The room and furniture only (the same for every seed and scenario; photos from texture_dir).
   static Scene buildRoom(const std::string& texture_dir);
-  /// Replaces `boxes` with the scenario's occlusion schedule for options.seed and duration.
+  /// Replaces the movers with the scenario's occlusion schedule for options.seed and duration and
+  /// the options of issue 32's harder worlds (each drawn from its own random stream, so without
+  /// them the schedule is what it always was).
   void scheduleOcclusions(const SimOptions& options);
   /// Adds the crossing boxes of options.occlusion_at_s (called by scheduleOcclusions).
   void addCrossingEvents(const SimOptions& options);
@@ -62,7 +83,13 @@ struct Scene {
   std::vector<std::pair<int, SE3>> dynamicPoses(double t_s,
                                                 const RobotTrajectory& trajectory) const;
 
-  /// Static geometry as an ASCII PLY (vertices and triangles, world frame, metres).
+  /// Per mover the meshes of its parts in their own frames (shading baked; plain or textured).
+  std::vector<std::vector<render::Mesh>> moverMeshes() const;
+  /// The parts of every mover present at t_s with their poses, movers in order.
+  std::vector<MoverPart> moverParts(double t_s, const RobotTrajectory& trajectory) const;
+
+  /// Static geometry (room, furniture, door frames) as an ASCII PLY (vertices and triangles, world
+  /// frame, metres).
   void writePly(const std::string& path) const;
 };
 

@@ -27,6 +27,13 @@ enum class Scenario {
 bool parseScenario(const std::string& text, Scenario* scenario);
 std::string scenarioName(Scenario scenario);
 
+/// How an occluded start's box leaves (simulate --occluded-start).
+enum class StartMove {
+  kNone,     ///< no occluded start
+  kAway,     ///< pushed away: its distance grows while it slides out to a side
+  kTowards,  ///< pulled towards the robot to about 0.35 m, then slid out to a side
+};
+
 /// A stretch of the sequence where one sensor fails: kBlack gives black colour and no depth (lens
 /// covered; forced tracking loss while the IMU runs), kNoDepth keeps colour without depth, kImuGap
 /// drops the IMU samples from imu.txt (a dropped driver buffer; imu_biases.txt keeps them).
@@ -94,6 +101,19 @@ struct SimOptions {
   /// --occlusion-at T: a box crosses the view at T (enters from one side, is held 2-4 s, leaves to
   /// the other side), drawn from its own random stream; regular events overlapping it are dropped.
   std::vector<double> occlusion_at_s;
+
+  // Harder worlds (command line only, issue 32); each draws from its own random stream.
+  /// --plain-movers: every mover one plain colour; half of the scenario's and --occlusion-at's
+  /// events are thin panels instead of boxes.
+  bool plain_movers = false;
+  /// --occluded-start away|towards: a box covering 40-80 % of frame 0 leaves by 5 s.
+  StartMove occluded_start = StartMove::kNone;
+  /// --walkers N: N walking figures over the run (leading the robot or crossing its view).
+  int walkers = 0;
+  /// --door: door leaves swinging at fixed places of the room.
+  bool doors = false;
+  /// --three-movers: from t_clear on a leading box, repeated crossing boxes and a carried box.
+  bool three_movers = false;
 
   // Faults of a real sensor (simulate --sensor; default: the ideal sensor). Independent of
   // noise_free, which turns off noise, biases, holes and exposure jitter only.

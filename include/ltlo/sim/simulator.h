@@ -81,7 +81,7 @@ class Simulator {
   io::Trajectory groundTruth() const;
 
   SimFrame renderFrame(int index);
-  /// Only the dynamic boxes (label = box index + 1), noise-free depth: for mask checks.
+  /// Only the movers (label = mover index + 1, Scene::moverParts), noise-free depth: for mask checks.
   render::RenderResult renderDynamicOnly(int index);
   /// Only the static room, noise-free.
   render::RenderResult renderStaticOnly(int index);
@@ -106,7 +106,7 @@ class Simulator {
   std::unique_ptr<RawFrameRenderer> raw_renderer_;  ///< null for a pinhole global-shutter camera
   std::unique_ptr<render::OffscreenRenderer> renderer_;
   std::vector<render::DrawItem> static_items_;
-  std::vector<int> box_drawables_;
+  std::vector<std::vector<int>> mover_drawables_;  ///< per mover (Scene::moverMeshes) its parts' drawables
   double exposure_phase_ = 0.0;
   double render_time_s_ = 0.0, effects_time_s_ = 0.0;
 };

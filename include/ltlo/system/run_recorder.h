@@ -38,8 +38,12 @@ class Undistorter;
 }
 namespace ltlo::map {
 class Atlas;
+class ByteReader;
+class ByteWriter;
 class Frame;
 class KeyFrame;
+class KeyFrameRefs;
+class RunKeyFrames;
 }  // namespace ltlo::map
 namespace ltlo::loop {
 class LoopCloser;
@@ -96,6 +100,15 @@ class RunRecorder {
   /// with a recorded colour (reference keyframe first). Reads the map, then takes mutex_.
   std::vector<MapPointRecord> mapPoints() const;
 
+  /// Tracking thread, for a run resumed from an atlas file (system/run_state.h): every frame record
+  /// (the final trajectory's carried stretches and floating maps reach across the resumed frame),
+  /// the open carried stretch, the keyframes' colours. The frame counters are statistics and stay
+  /// this run's.
+  void writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const;
+  /// Restores it before the first frame: the restored records are context, not output (the
+  /// trajectories, counts and first pose time are this run's frames'). Throws AtlasFileError.
+  void readState(map::ByteReader& in, const map::RunKeyFrames& keyframes);
+
  private:
   /// Per-frame record: the reference keyframe and the camera relative to its body frame
   /// (T_refb_c = T_w_b(ref)^-1 T_w_c at tracking time), or an absolute pose without one.
@@ -149,8 +162,11 @@ class RunRecorder {
   int reacquisitions_ = 0;
   CarriedImuRetention imu_retention_;
 
-  mutable std::mutex mutex_;  ///< guards records_ and colours_ (leaf lock)
+  mutable std::mutex mutex_;  ///< guards records_, context_records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;
+  /// The first records_ restored from a saved run (readState): context of the final trajectory,
+  /// not output.
+  std::size_t context_records_ = 0;
   /// BGR colour of every keypoint of each keyframe, sampled when the keyframe was created.
   std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours_;
 };

@@ -37,9 +37,11 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "ltlo/core/change_gate.h"
@@ -53,6 +55,7 @@
 #include "ltlo/mapping/local_mapper.h"
 #include "ltlo/system/carried_stretch.h"
 #include "ltlo/system/run_records.h"
+#include "ltlo/system/run_state.h"
 #include "ltlo/tracking/frame_builder.h"
 #include "ltlo/tracking/tracker.h"
 #include "ltlo/viewer/viewer_state.h"
@@ -109,6 +112,22 @@ struct SystemOptions {
   /// are in the loaded world frame. Its IMU state seeds this run's. Empty: a new atlas.
   /// Tracking.LocalisationOnly needs one.
   std::string load_atlas_path;
+  /// With load_atlas_path: the file's run state (its optional run section, map/run_state_io.h) is
+  /// restored as well, and the run goes on from the saved run's last frame (resumePoint) instead of
+  /// starting lost: tracker, segmenter, local mapping, loop closing and the records continue as the
+  /// saved run would have. The file must have a run state (AtlasFileError naming the section).
+  bool resume = false;
+};
+
+/// Where a resumed run goes on (System::resumePoint).
+struct ResumePoint {
+  std::uint64_t next_frame_index = 0;  ///< the sequence index of the resumed run's first frame
+  double last_frame_t_s = 0.0;         ///< the saved run's last frame (s): the sequence's frame before
+  /// The time of the previous frame whose images restorePreviousFrame needs (the segmenter rebuilds
+  /// its pyramid and clusters from them); nullopt when none is needed.
+  std::optional<double> previous_frame_t_s;
+  /// The saved run's settings differed from this run's (the continuation is then not exact).
+  bool settings_differ = false;
 };
 
 /// Not thread-safe as a whole: one thread (the caller, "tracking") calls trackFrame and shutdown;
@@ -163,9 +182,19 @@ class System {
   mapping::ImuState imuState() const;
 
   /// Writes the atlas (every map, keyframe and point, and the IMU state) to `path` (atomic:
-  /// written as path.part, then renamed), for a later run's load_atlas_path. Call after shutdown().
-  /// Throws InputError naming the file when it cannot be written.
-  void saveAtlas(const std::string& path) const;
+  /// written as path.part, then renamed), for a later run's load_atlas_path, with the run state a
+  /// resumed run continues from (system/run_state.h; the frame after the last one trackFrame
+  /// completed is the next; left out, with a warning, when a frame or a keyframe was left
+  /// part-way by an error). Call after shutdown(). Throws InputError naming the file when it
+  /// cannot be written.
+  void saveAtlas(const std::string& path);
+
+  /// A resumed run (SystemOptions::resume): where it goes on. nullopt otherwise.
+  std::optional<ResumePoint> resumePoint() const { return resume_point_; }
+  /// A resumed run whose ResumePoint::previous_frame_t_s is set: the images of that frame (the
+  /// sequence's frame next_frame_index - 1), from which the segmenter rebuilds its previous frame.
+  /// Call before the first trackFrame. Throws InputError when it is another frame.
+  void restorePreviousFrame(const io::RgbdImuFrame& previous);
 
   /// Stage durations of all threads ("tracking.*", "mapping.*", "loop.*").
   TimingStats& timing() { return timing_; }
@@ -178,8 +207,14 @@ class System {
   void processPendingKeyFrames();                                 // synchronous mode
   void pollImuState();
   void checkWorkers() const;
-  /// Replaces atlas_ by the file's (options_.load_atlas_path); returns its IMU state.
+  /// Replaces atlas_ by the file's (options_.load_atlas_path); returns its IMU state. With
+  /// options_.resume it keeps the file's run state in loaded_run_ (restoreRunState applies it).
   map::AtlasImuState loadAtlas();
+  /// The stages and System's own state the run section holds (system/run_state.h).
+  RunStages runStages();
+  std::uint64_t settingsFingerprint() const;
+  /// Restores the stages from loaded_run_ and sets resume_point_.
+  void restoreRunState();
   /// The vocabulary and the map-relevant settings an atlas file is checked against.
   map::AtlasBuildInfo atlasBuildInfo() const;
 
@@ -215,6 +250,14 @@ class System {
   /// or processed after the frame (synchronous mode).
   std::vector<std::shared_ptr<map::KeyFrame>> pending_keyframes_;
   std::uint64_t imu_generation_ = 0;
+  /// The last frame trackFrame completed (its sequence index and time), for the saved run state.
+  std::optional<std::pair<int, double>> last_input_;
+  /// trackFrame began a frame and did not complete it (it threw): the stages are mid-frame and
+  /// saveAtlas leaves the run state out.
+  bool frame_in_progress_ = false;
+  /// A resumed run: the run state read from the file (until applied), and where it goes on.
+  std::optional<map::LoadedRunState> loaded_run_;
+  std::optional<ResumePoint> resume_point_;
   /// The run's records, counters and results (run_recorder.h); declared last, so destroyed first as
   /// the records were.
   std::unique_ptr<RunRecorder> recorder_;

@@ -52,6 +52,13 @@ class DenseSegmenter final : public FrameSegmenter {
   void cancel() override;
   void finish() override;
   const char* name() const override { return "dense"; }
+  /// Whether a previous frame is held, its time and scores Gamma; its pyramid and clusters are
+  /// rebuilt from its images (restorePreviousFrame: the same DenseFrame and DepthKMeans code, the
+  /// same result bit for bit), a few hundred kB per frame not stored.
+  void writeState(map::ByteWriter& out) const override;
+  void readState(map::ByteReader& in) override;
+  std::optional<double> previousFrameTime() const override { return previous_pending_; }
+  void restorePreviousFrame(const io::RgbdImuFrame& previous) override;
 
   /// The last solve (diagnostics, tests); empty gamma before the second frame.
   const segmentation::DenseResult& lastResult() const { return last_result_; }
@@ -66,6 +73,9 @@ class DenseSegmenter final : public FrameSegmenter {
   int current_ = 0;
   bool has_previous_ = false;
   std::vector<double> previous_gamma_;
+  double previous_t_s_ = 0.0;  ///< time of the previous frame (when has_previous_)
+  /// Restored with a previous frame whose images restorePreviousFrame has not had yet: its time.
+  std::optional<double> previous_pending_;
   segmentation::DenseSolver solver_;
   segmentation::DenseResult last_result_;
   std::unique_ptr<SegmentationWorker> worker_;  // last: its thread stops before the rest goes

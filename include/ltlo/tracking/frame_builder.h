@@ -35,6 +35,8 @@ class ImuShiftRamp {
   explicit ImuShiftRamp(double max_step_s = 0.002) : max_step_s_(max_step_s) {}
   ImuCut next(double target_shift_s);
   double current_s() const { return shift_s_; }
+  /// Continues from a saved run's ramp (a run resumed from an atlas file).
+  void restore(double shift_s) { shift_s_ = shift_s; }
 
  private:
   double max_step_s_;

@@ -30,6 +30,11 @@
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/frame.h"
 
+namespace ltlo::map {
+class ByteReader;
+class ByteWriter;
+}  // namespace ltlo::map
+
 namespace ltlo::tracking {
 
 struct PreparedFrame;
@@ -94,6 +99,20 @@ class FrameSegmenter {
   virtual void finish() {}
   /// Short name for logs and metrics ("all-static", "clusters", "dense", "oracle-masks").
   virtual const char* name() const = 0;
+
+  // ---- a run resumed from an atlas file (system/run_state.h) ----
+  /// What the next frame's segmentation reads of the frames before (after the last segment()).
+  /// Default: nothing (each frame is segmented on its own).
+  virtual void writeState(map::ByteWriter& out) const { (void)out; }
+  /// Restores it; throws AtlasFileError (file, section, byte) on a malformed record.
+  virtual void readState(map::ByteReader& in) { (void)in; }
+  /// After readState: the time (s) of the previous frame whose images restorePreviousFrame needs
+  /// (what is rebuilt from them rather than stored: the dense pyramid and clusters), or nullopt
+  /// when none is needed.
+  virtual std::optional<double> previousFrameTime() const { return std::nullopt; }
+  /// Rebuilds the previous frame's image work from its input, as segment() left it; throws
+  /// InputError when `previous` is not the frame previousFrameTime() names.
+  virtual void restorePreviousFrame(const io::RgbdImuFrame& previous) { (void)previous; }
 };
 
 /// Seg.Enable = 0: every frame is one static cluster (the static core's behaviour, for ablations).

@@ -30,6 +30,11 @@
 #include "ltlo/map/keyframe.h"
 #include "ltlo/tracking/tracker_options.h"
 
+namespace ltlo::map {
+class ByteReader;
+class ByteWriter;
+}  // namespace ltlo::map
+
 namespace ltlo::tracking {
 
 enum class TrackingState;  // tracker.h
@@ -122,6 +127,12 @@ class LossRecovery {
 
   /// Maps started by the loss policy (the first map is not counted).
   int mapsCreated() const { return maps_created_; }
+
+  /// The policy's state between two frames (the IMU-carried stretch and the last tracked run; the
+  /// count of maps is a statistic and not part of it), for a run resumed from an atlas file
+  /// (Tracker::writeState).
+  void writeState(map::ByteWriter& out) const;
+  void readState(map::ByteReader& in);
 
  private:
   /// Lost frame: the predicted state, then a new map or a keyframe at the prediction when due.

@@ -45,6 +45,12 @@
 namespace bow {
 class Vocabulary;
 }
+namespace ltlo::map {
+class ByteReader;
+class ByteWriter;
+class KeyFrameRefs;
+class RunKeyFrames;
+}  // namespace ltlo::map
 
 namespace ltlo::tracking {
 
@@ -164,6 +170,15 @@ class Tracker : private RecoverySteps {
   /// Declares tracking lost (the next frame goes through the lost path: motion model with wide
   /// windows, relocalisation). For tests and resets; no-op before initialisation.
   void forceLost();
+
+  /// The tracker's state between two frames, for a run resumed from an atlas file
+  /// (map/run_state_io.h; tracker_state_io.cc): everything a later frame reads. The keyframes it
+  /// holds go through `refs` (culled ones included). The segmenter's state is its own.
+  void writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const;
+  /// Restores it on a tracker built with the saved run's options, in the restored atlas (before
+  /// its first frame); the last frame's BoW is recomputed with the vocabulary set before. Throws
+  /// AtlasFileError (file, section, byte) on a malformed record.
+  void readState(map::ByteReader& in, const map::RunKeyFrames& keyframes);
 
  private:
   /// What the IMU tells about the current frame before matching (tracker_inertial.cc).

@@ -1,6 +1,7 @@
 #pragma once
 /// Little-endian byte writing and bounded reading for the atlas file (atlas_file.h), CRC32 and
-/// FNV-1a 64. Private to ltlo_map.
+/// FNV-1a 64. Public: the stages above the map write and read their parts of the atlas file's run
+/// state with it (run_state_io.h).
 ///
 /// The reader is a cursor over one section of a file held in memory: it knows the file's name,
 /// the section's name and its offset in the file, and throws AtlasFileError naming all three and

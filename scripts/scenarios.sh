@@ -1,0 +1,33 @@
+# The scenario catalogue of scripts/benchmark.sh and scripts/ablation.sh (sourced, not run).
+#
+# A scenario is one of the simulator's five occlusion profiles (static stlo mtlo ltlo carried:
+# `simulate --scenario NAME`, SECONDS_PER_SEQUENCE long) or a named harder world below (issue 32):
+# its simulate options, with --seconds when it is not SECONDS_PER_SEQUENCE long. Sequences are
+# <scenario>_s<seed>. Add a harder world as one line: name, then its options.
+HARDER_WORLDS='
+long_mtlo           --scenario mtlo --seconds 300
+standstill          --scenario ltlo --still 20,10 --occlusion-at 21 --occlusion-at 27.1
+still_start         --scenario ltlo --still 0,3
+still_start_static  --scenario static --still 0,3 --occlusion-at 0.5
+'
+PROFILES="static stlo mtlo ltlo carried"
+
+# simulate_options SCENARIO SECONDS: the options of `simulate` (without --seed and --out) for one
+# scenario; SECONDS applies unless the catalogue line has --seconds. Exit 2 for an unknown name.
+simulate_options() {
+  local name=$1 seconds=$2 line
+  case " $PROFILES " in *" $name "*) echo "--scenario $name --seconds $seconds"; return 0 ;; esac
+  line=$(printf '%s\n' "$HARDER_WORLDS" | awk -v n="$name" '$1 == n { $1 = ""; print; exit }')
+  if [ -z "$line" ]; then
+    echo "unknown scenario $name (profiles: $PROFILES; harder worlds:$(printf '%s\n' "$HARDER_WORLDS" | awk 'NF { printf " %s", $1 }'))" >&2
+    return 2
+  fi
+  case " $line " in *" --seconds "*) echo "$line" ;; *) echo "$line --seconds $seconds" ;; esac
+}
+
+# sequence_scenario NAME: "<scenario> <seed>" of a sequence name <scenario>_s<seed> (nothing when
+# the name has no such form).
+sequence_scenario() {
+  local name=$1
+  [[ $name =~ ^(.+)_s([0-9]+)$ ]] && echo "${BASH_REMATCH[1]} ${BASH_REMATCH[2]}"
+}
