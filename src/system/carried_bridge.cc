@@ -3,6 +3,7 @@
 #include <cmath>
 #include <memory>
 
+#include <Eigen/Cholesky>
 #include <sparse_opt/graph.h>
 
 #include "ltlo/core/assert.h"
@@ -15,12 +16,20 @@
 namespace ltlo::system {
 namespace {
 
-/// Sample k has IMU data whose preintegration spans the time since sample k - 1.
+/// Sample k has IMU data whose preintegration spans the time since sample k - 1, with a usable
+/// covariance (positive definite: an inertial edge's information is its inverse) and finite state.
 bool linkedToPrevious(const std::vector<CarriedSample>& samples, std::size_t k) {
   if (k == 0 || !samples[k].imu || !samples[k].imu->from_previous || !samples[k - 1].imu) return false;
+  const CarriedImu& imu = *samples[k].imu;
+  const imu::Preintegrated& pim = *imu.from_previous;
   const double dt_s = samples[k].t_s - samples[k - 1].t_s;
-  const double pim_dt_s = samples[k].imu->from_previous->dt_s();
-  return dt_s > 0.0 && pim_dt_s > 0.0 && std::abs(pim_dt_s - dt_s) <= kMaxBridgeLinkMismatch_s;
+  if (!(dt_s > 0.0 && pim.dt_s() > 0.0 && std::abs(pim.dt_s() - dt_s) <= kMaxBridgeLinkMismatch_s)) return false;
+  if (!imu.v_w_b.allFinite() || !imu.g_w.allFinite() || !imu.bias.b_g.allFinite() || !imu.bias.b_a.allFinite() ||
+      !pim.deltaP().allFinite() || !pim.deltaV().allFinite() || !pim.deltaR().allFinite()) {
+    return false;
+  }
+  const Mat9 covariance = 0.5 * (pim.covariance() + pim.covariance().transpose());
+  return covariance.allFinite() && Eigen::LLT<Mat9>(covariance).info() == Eigen::Success;
 }
 
 SE3 bodyPose(const CarriedSample& sample) { return sample.T_w_c * sample.imu->T_b_c.inverse(); }

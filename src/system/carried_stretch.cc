@@ -96,28 +96,28 @@ std::vector<std::pair<std::size_t, std::shared_ptr<const CarriedImu>>> CarriedIm
     std::size_t index, double t_s, bool carried, std::uint64_t map, std::shared_ptr<const CarriedImu> imu) {
   std::vector<std::pair<std::size_t, std::shared_ptr<const CarriedImu>>> kept;
   if (carried) {
-    if (!stretch_open_) {
-      stretch_open_ = true;
-      stretch_map_ = recent_.empty() ? map : recent_.back().map;  // the last tracked frame's
+    if (!state_.stretch_open) {
+      state_.stretch_open = true;
+      state_.stretch_map = state_.recent.empty() ? map : state_.recent.back().map;  // the last tracked frame's
     }
-    for (Pending& pending : recent_) kept.emplace_back(pending.index, std::move(pending.imu));
-    recent_.clear();
+    for (Pending& pending : state_.recent) kept.emplace_back(pending.index, std::move(pending.imu));
+    state_.recent.clear();
     kept.emplace_back(index, std::move(imu));
-    last_carried_t_s_ = t_s;
-    keep_until_s_ = t_s + margin_s_;
+    state_.last_carried_t_s = t_s;
+    state_.keep_until_s = t_s + margin_s_;
     return kept;
   }
   // A frame tracked in another map soon after a stretch may lie in a floating map: part of it.
-  if (stretch_open_ && map != stretch_map_ && t_s - last_carried_t_s_ <= kFloatingSpan_s) {
-    keep_until_s_ = t_s + margin_s_;
+  if (state_.stretch_open && map != state_.stretch_map && t_s - state_.last_carried_t_s <= kFloatingSpan_s) {
+    state_.keep_until_s = t_s + margin_s_;
   }
-  if (t_s <= keep_until_s_) {
+  if (t_s <= state_.keep_until_s) {
     kept.emplace_back(index, std::move(imu));
     return kept;
   }
-  stretch_open_ = false;
-  recent_.push_back(Pending{index, t_s, map, std::move(imu)});
-  while (!recent_.empty() && t_s - recent_.front().t_s > margin_s_) recent_.pop_front();
+  state_.stretch_open = false;
+  state_.recent.push_back(Pending{index, t_s, map, std::move(imu)});
+  while (!state_.recent.empty() && t_s - state_.recent.front().t_s > margin_s_) state_.recent.pop_front();
   return kept;
 }
 

@@ -2,6 +2,9 @@
 //   - a turning robot dead-reckoned with a wrong accelerometer and gyroscope bias: the bridge
 //     recovers the stretch to a fraction of what the blend leaves (both numbers asserted), and
 //     finds the biases;
+//   - with the IMU's white noise (the default ImuNoise densities) it still does;
+//   - the two ends are held: an anchored frame off its true place pulls the stretch's end along
+//     and leaves its start at the last tracked frame;
 //   - without the margins it still beats the blend; with the IMU data of one frame missing the
 //     stretch falls back to the blend;
 //   - the recorder's retention keeps the IMU data of carried frames and their margins only.
@@ -9,6 +12,7 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 #include <vector>
 
 #include "ltlo/imu/inertial_residual.h"
@@ -44,8 +48,16 @@ struct TruePath {
 
 SE3 cameraInBody() { return SE3(so3Exp(Vec3(-M_PI / 2.0, 0.0, -M_PI / 2.0)), Vec3(0.05, 0.0, 0.12)); }
 
-/// Noise-free IMU samples of the path with biases `bias`, every kImuDt over [0, 4.1] s.
-ImuSamples imuSamples(const imu::ImuBias& bias) {
+/// IMU samples of the path with biases `bias`, every kImuDt over [0, 4.1] s; with noise_seed > 0
+/// white noise of the default ImuNoise densities (per sample sigma = density / sqrt(kImuDt)).
+ImuSamples imuSamples(const imu::ImuBias& bias, unsigned noise_seed = 0) {
+  const imu::ImuNoise noise;
+  std::mt19937 rng(noise_seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  auto white = [&](double density) {
+    const double sigma = noise_seed > 0 ? density / std::sqrt(kImuDt) : 0.0;
+    return Vec3(sigma * normal(rng), sigma * normal(rng), sigma * normal(rng));
+  };
   ImuSamples samples;
   for (int i = 0; i * kImuDt <= 4.1; ++i) {
     const double t = i * kImuDt;
@@ -53,6 +65,8 @@ ImuSamples imuSamples(const imu::ImuBias& bias) {
     s.t_s = t;
     s.gyro_rad_s = Vec3(0.0, 0.0, TruePath::yawRate(t)) + bias.b_g;
     s.acc_m_s2 = TruePath::R(t).transpose() * (TruePath::a(t) - kGravity) + bias.b_a;
+    s.gyro_rad_s += white(noise.gyro_density);
+    s.acc_m_s2 += white(noise.acc_density);
     samples.push_back(s);
   }
   return samples;
@@ -67,13 +81,14 @@ struct Scenario {
 /// Frames at 30 Hz; the ones of [1.0, 3.5) s carried: dead-reckoned from the last tracked frame's
 /// true state (its velocity off by `dv0`) with the estimated biases; the frame at 3.5 s anchored at
 /// its true pose, with its dead-reckoned pose for the blend. Every frame has its IMU data.
-Scenario turningStretch(const Vec3& acc_bias_error, const Vec3& gyro_bias_error, const Vec3& dv0) {
+Scenario turningStretch(const Vec3& acc_bias_error, const Vec3& gyro_bias_error, const Vec3& dv0,
+                        unsigned noise_seed = 0) {
   Scenario s;
   s.true_bias.b_g = Vec3(0.002, -0.001, 0.003);
   s.true_bias.b_a = Vec3(0.05, -0.08, 0.1);
   s.estimated_bias.b_g = s.true_bias.b_g - gyro_bias_error;
   s.estimated_bias.b_a = s.true_bias.b_a - acc_bias_error;
-  const ImuSamples imu_samples = imuSamples(s.true_bias);
+  const ImuSamples imu_samples = imuSamples(s.true_bias, noise_seed);
   const SE3 T_b_c = cameraInBody();
   imu::NavState dead_reckoned;
   for (int k = 0; k < kFrames; ++k) {
@@ -159,8 +174,8 @@ TEST(CarriedBridge, TurningStretchWithAnAccelerometerBiasErrorIsRecovered) {
   const double blend_m = maxPositionError_m(blended);
   const double bridge_m = maxPositionError_m(bridged);
   // The blend's world-frame quadratic cannot follow an error that turns with the robot.
-  EXPECT_GT(blend_m, 0.02);
-  EXPECT_LT(bridge_m, 0.002);
+  EXPECT_GT(blend_m, 0.02);    // 21.7 mm (dead reckoning 251 mm)
+  EXPECT_LT(bridge_m, 0.002);  // 0.12 mm
   EXPECT_LT(maxRotationError_deg(bridged), 0.02);
   EXPECT_GT(maxRotationError_deg(blended), 0.05);
   // The frames outside the stretch are untouched.
@@ -180,6 +195,40 @@ TEST(CarriedBridge, FindsTheBiasesOfTheStretch) {
   EXPECT_EQ(result->T_w_c.size(), static_cast<std::size_t>(kAnchored - kFirstCarried));
   EXPECT_LT((result->bias.b_a - scenario.true_bias.b_a).norm(), 0.1 * kAccBiasError.norm());
   EXPECT_LT((result->bias.b_g - scenario.true_bias.b_g).norm(), 0.1 * kGyroBiasError.norm());
+}
+
+TEST(CarriedBridge, NoisyImuStillBeatsTheBlend) {
+  for (unsigned seed = 1; seed <= 3; ++seed) {
+    const Scenario scenario = turningStretch(kAccBiasError, kGyroBiasError, Vec3(0.004, -0.003, 0.0), seed);
+    std::vector<CarriedSample> blended = scenario.samples;
+    correctCarriedStretches(blended, correction(false));
+    std::vector<CarriedSample> bridged = scenario.samples;
+    EXPECT_EQ(correctCarriedStretches(bridged, correction(true)).bridged, 1) << seed;
+    const double blend_m = maxPositionError_m(blended);
+    const double bridge_m = maxPositionError_m(bridged);
+    EXPECT_GT(blend_m, 0.015) << seed;  // 20-23 mm
+    EXPECT_LT(bridge_m, 0.004) << seed;  // 0.6-1.7 mm
+    EXPECT_LT(bridge_m, 0.25 * blend_m) << seed;
+  }
+}
+
+TEST(CarriedBridge, HoldsBothEnds) {
+  // The anchored frame 3 cm off its true place (the map's error there): the stretch ends there,
+  // and still starts at the last tracked frame.
+  Scenario scenario = turningStretch(kAccBiasError, kGyroBiasError, Vec3::Zero());
+  const Vec3 offset_w(0.03, -0.01, 0.0);
+  CarriedSample& anchored = scenario.samples[kAnchored];
+  anchored.T_w_c = SE3(anchored.T_w_c.rotationMatrix(), anchored.T_w_c.translation() + offset_w);
+  CarriedBridgeOptions options;
+  options.margin_s = 0.0;  // the margins after A would contradict it
+  const std::optional<CarriedBridgeResult> result =
+      bridgeCarriedStretch(scenario.samples, kFirstCarried, kAnchored, options);
+  ASSERT_TRUE(result.has_value());
+  auto truth = [](int k) { return (TruePath::T_w_b(k * kFrameDt) * cameraInBody()).translation(); };
+  const Vec3 first_error = result->T_w_c.front().translation() - truth(kFirstCarried);
+  const Vec3 last_error = result->T_w_c.back().translation() - truth(kAnchored - 1);
+  EXPECT_LT(first_error.norm(), 0.002);
+  EXPECT_LT((last_error - offset_w).norm(), 0.004);
 }
 
 TEST(CarriedBridge, WithoutMarginsStillBeatsTheBlend) {
@@ -212,7 +261,9 @@ TEST(CarriedBridge, MissingImuDataFallsBackToTheBlend) {
 }
 
 TEST(CarriedBridge, RetentionKeepsCarriedFramesAndTheirMarginsOnly) {
-  CarriedImuRetention retention(0.5);
+  // 0.49 s: 14.7 frame intervals, so no frame lies on a margin's edge (0.5 s would put one there,
+  // kept or not as the rounding of k / 30 goes).
+  CarriedImuRetention retention(0.49);
   std::vector<bool> kept(300, false);
   auto add = [&](std::size_t k, bool carried, std::uint64_t map) {
     for (const auto& entry : retention.add(k, k * kFrameDt, carried, map, std::make_shared<CarriedImu>())) {
@@ -233,13 +284,13 @@ TEST(CarriedBridge, RetentionKeepsCarriedFramesAndTheirMarginsOnly) {
     return n;
   };
   EXPECT_EQ(count(0, 85), 0);     // long before the stretch
-  EXPECT_EQ(count(85, 100), 15);  // the margin before it (0.5 s), the last tracked frame included
+  EXPECT_EQ(count(85, 100), 15);  // the margin before it, the last tracked frame included
   EXPECT_EQ(count(100, 130), 30);
-  EXPECT_EQ(count(130, 145), 15);  // the margin after it
-  EXPECT_EQ(count(145, 185), 0);
+  EXPECT_EQ(count(130, 144), 14);  // the margin after it
+  EXPECT_EQ(count(144, 185), 0);
   EXPECT_EQ(count(185, 240), 55);  // margin, carried, the other map's frames
-  EXPECT_EQ(count(240, 255), 15);  // and the margin after them
-  EXPECT_EQ(count(255, 300), 0);
+  EXPECT_EQ(count(240, 254), 14);  // and the margin after them
+  EXPECT_EQ(count(254, 300), 0);
 }
 
 }  // namespace

@@ -104,31 +104,40 @@ CarriedCorrectionCounts correctCarriedStretches(std::vector<CarriedSample>& samp
 /// RunRecorder feeds every frame with a pose; not thread-safe.
 class CarriedImuRetention {
  public:
-  explicit CarriedImuRetention(double margin_s) : margin_s_(margin_s) {}
-  /// Frame number `index` (the recorder's record index) at t_s, carried or not, tracked in map
-  /// `map`, with its IMU data (may be null). Returns the records that keep their data now.
-  std::vector<std::pair<std::size_t, std::shared_ptr<const CarriedImu>>> add(
-      std::size_t index, double t_s, bool carried, std::uint64_t map, std::shared_ptr<const CarriedImu> imu);
-  /// Records held back in case a stretch follows (at most margin_s of frames).
-  std::size_t numPending() const { return recent_.size(); }
-
-  /// Longest time after a stretch's last carried frame over which frames tracked in another map
-  /// keep their data (the recorder's longest floating map, RunRecorder::kFloatingMapMaxSpan_s).
-  static constexpr double kFloatingSpan_s = 5.0;
-
- private:
+  /// A frame held back in case a stretch follows.
   struct Pending {
     std::size_t index = 0;
     double t_s = 0.0;
     std::uint64_t map = 0;
     std::shared_ptr<const CarriedImu> imu;
   };
+  /// Everything add() remembers between frames (a resumed run's recorder restores it, so its
+  /// stretches keep the same IMU data as the continuous run's).
+  struct State {
+    std::deque<Pending> recent;
+    bool stretch_open = false;
+    std::uint64_t stretch_map = 0;
+    double last_carried_t_s = 0.0;
+    double keep_until_s = -1.0;
+  };
+
+  explicit CarriedImuRetention(double margin_s) : margin_s_(margin_s) {}
+  /// Frame number `index` (the recorder's record index) at t_s, carried or not, tracked in map
+  /// `map`, with its IMU data (may be null). Returns the records that keep their data now.
+  std::vector<std::pair<std::size_t, std::shared_ptr<const CarriedImu>>> add(
+      std::size_t index, double t_s, bool carried, std::uint64_t map, std::shared_ptr<const CarriedImu> imu);
+  /// Records held back in case a stretch follows (at most margin_s of frames).
+  std::size_t numPending() const { return state_.recent.size(); }
+  const State& state() const { return state_; }
+  void restore(State state) { state_ = std::move(state); }
+
+  /// Longest time after a stretch's last carried frame over which frames tracked in another map
+  /// keep their data (the recorder's longest floating map, RunRecorder::kFloatingMapMaxSpan_s).
+  static constexpr double kFloatingSpan_s = 5.0;
+
+ private:
   double margin_s_;
-  std::deque<Pending> recent_;
-  bool stretch_open_ = false;
-  std::uint64_t stretch_map_ = 0;
-  double last_carried_t_s_ = 0.0;
-  double keep_until_s_ = -1.0;
+  State state_;
 };
 
 /// A map holding frames at the end of a run: its frames' time span and, when it was started at the

@@ -102,7 +102,8 @@ class RunRecorder {
 
   /// Tracking thread, for a run resumed from an atlas file (system/run_state.h): every frame record
   /// (the final trajectory's carried stretches and floating maps reach across the resumed frame),
-  /// the open carried stretch, the keyframes' colours. The frame counters are statistics and stay
+  /// with the IMU data kept for the inertial bridge, the open carried stretch, the frames held back
+  /// in case a stretch follows (CarriedImuRetention's state), the keyframes' colours. The frame counters are statistics and stay
   /// this run's.
   void writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const;
   /// Restores it before the first frame: the restored records are context, not output (the
