@@ -192,8 +192,9 @@ struct TrackingOptions {
   /// turns with the robot, as it does in the dead reckoning. Where the IMU data is incomplete the
   /// blend (Tracking.CarriedVelocitySigma's share) is used. Only the output changes; the IMU data
   /// of carried frames and their margins is kept for it (Tracking.CarriedBridge, 0/1; 0: the blend
-  /// alone, the ablation).
-  bool carried_bridge = true;
+  /// alone; off by default: not better than the blend on the simulator's realsense profile,
+  /// docs/results.md "Inertial bridge").
+  bool carried_bridge = false;
   /// Tracked frames within this time before and after a carried stretch enter its inertial bridge
   /// with a prior on their final poses (3 mm, 0.2 deg): they tell the velocities at both ends and
   /// the biases (Tracking.CarriedBridgeMargin, s, [0, 5]; 0: the two end frames only)
