@@ -24,6 +24,7 @@
 //           2.9 s, before the IMU initialisation: 3 maps, 0.28 m); Seg.Enable off, seed 1: 0.32 m.
 //   carried seed 1: ATE 0.0067 m, IoU 0.991, recall 0.997; seeds 2, 3: 0.0030 / 0.0027 m, IoU
 //           0.994 / 0.995; Seg.Enable off, seed 1: 1.13 m.
+//   carried seed 1 with a plain box (issue 32): ATE 0.0082 m, IoU 0.991, recall 0.997.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -121,11 +122,14 @@ class OcclusionEndToEnd : public EndToEndSuite {
   static void TearDownTestSuite() { removeSuiteResources(); }
 
   /// The 16 s VGA sequence of `scenario` and `seed` at 15 Hz, with sensor noise.
-  static std::string sequence(sim::Scenario scenario, std::uint64_t seed) {
-    const fs::path dir = root() / (sim::scenarioName(scenario) + "_seed" + std::to_string(seed));
+  /// plain: every mover one plain colour (simulate --plain-movers).
+  static std::string sequence(sim::Scenario scenario, std::uint64_t seed, bool plain = false) {
+    const fs::path dir =
+        root() / (sim::scenarioName(scenario) + (plain ? "_plain" : "") + "_seed" + std::to_string(seed));
     sim::SimOptions options;
     options.scenario = scenario;
     options.seed = seed;
+    options.plain_movers = plain;
     options.duration_s = kSeconds;
     options.fps = kFps;
     sim::writeSequence(options, dir.string(), 0);
@@ -224,6 +228,27 @@ TEST_F(OcclusionEndToEnd, LongTermOcclusionKeepsTheTrajectoryAndSegmentsTheBoxes
 TEST_F(OcclusionEndToEnd, CarriedBoxIsDynamicAndTheTrajectoryHolds) {
   const std::string dir = sequence(sim::Scenario::kCarried, 1);
   const Occlusion occlusion = measureOcclusion(dir, "carried");
+  ASSERT_GE(occlusion.occluded_share, 0.5);
+  ASSERT_GE(occlusion.longest_occluded_s, 8.0);
+  ASSERT_GE(occlusion.mean_fraction_occluded, 0.6);
+
+  const RunResult result = run(dir, occlusion);
+  expectWholeRun(result, occlusion);
+  EXPECT_LE(result.ate_rmse_m, kMaxAteM);
+  EXPECT_LE(result.ate_occluded_rmse_m, kMaxAteM);
+  EXPECT_GE(result.iou.dynamic_recall, kMinDynamicRecall);
+  EXPECT_GE(result.iou.mean_static_iou, kMinStaticIou);
+}
+
+// The carried box of the test above in one plain colour (issue 32, texture-less movers): no
+// texture for ORB or for the dense intensity residual, so the depth term and the IMU's motion
+// prior must call it dynamic. Same schedule and occlusion as the textured box. Measured when
+// written: ATE 8.2 mm (occluded frames 6.3), static IoU 0.991, recall 0.997: the labels are the
+// textured box's to the last digit (the depth clusters and the IMU decide here; the box's texture
+// moved only the tracking: 5.8 mm with it).
+TEST_F(OcclusionEndToEnd, PlainCarriedBoxIsDynamicAndTheTrajectoryHolds) {
+  const std::string dir = sequence(sim::Scenario::kCarried, 1, true);
+  const Occlusion occlusion = measureOcclusion(dir, "carried plain");
   ASSERT_GE(occlusion.occluded_share, 0.5);
   ASSERT_GE(occlusion.longest_occluded_s, 8.0);
   ASSERT_GE(occlusion.mean_fraction_occluded, 0.6);
