@@ -53,6 +53,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -107,6 +108,8 @@ struct Arguments {
   bool no_imu = !LTLO_PROGRAM_USES_IMU;
   bool single_thread = false;
   bool oracle_masks = false;
+  /// --carried-variants: also trajectory_carried_{none,blend,bridge}.txt (the A/B of one run)
+  bool carried_variants = false;
   long max_frames = 0;
   long first_frame = 0;  ///< --first-frame N: start at frame N (e.g. the second half of a sequence)
   long progress_every = 100;
@@ -337,6 +340,16 @@ int run(const Arguments& args) {
   const system::WrittenOutputs written =
       system::writeRunOutputs(args.out_dir, report, evaluation, setup.settings.local_mapping.min_point_beta);
 
+  if (args.carried_variants) {
+    const std::pair<const char*, system::CarriedCorrection> variants[] = {
+        {"none", system::CarriedCorrection::kNone},
+        {"blend", system::CarriedCorrection::kBlend},
+        {"bridge", system::CarriedCorrection::kBridge}};
+    for (const auto& [name, correction] : variants) {
+      system::writeTrajectory((fs::path(args.out_dir) / (std::string("trajectory_carried_") + name + ".txt")).string(),
+                              slam.trajectory(correction));
+    }
+  }
   const system::SystemCounts& counts = report.counts;
   std::printf("frames %d\nframes_with_pose %d\nframes_tracked %d\nkeyframes %d\nmap_points %d\nstatic_points %d\n"
               "maps %d\nmaps_created %d\nloops %d\nmerges %d\nwall_s %.3f\nfps %.2f\npeak_memory_mb %.1f\n",
@@ -431,6 +444,9 @@ int main(int argc, char** argv) {
                  "live viewer: serve it on this port (0: any free port; page /, MJPEG /stream.mjpg, /frame.jpg)")
       ->check(CLI::Range(0, 65535));
   app.add_option("--viewer-bind", args.viewer_bind, "address of the viewer's HTTP server (default 127.0.0.1; 0.0.0.0: every interface)");
+  app.add_flag("--carried-variants", args.carried_variants,
+               "also write trajectory_carried_none/blend/bridge.txt: the IMU-carried stretches as predicted, "
+               "blended and bridged, from this one run");
   app.add_flag("--pose-stream", args.pose_stream,
                "publish every frame's pose as a JSON line on the viewer's HTTP server (/poses, server-sent events)");
   app.add_option("--save-atlas", args.save_atlas,

@@ -84,6 +84,9 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.MaxLostImuInterval", o.max_lost_imu_interval_s, 0.1, 1000.0);
   v.boolean("Tracking.SmoothCarriedFrames", o.smooth_carried_frames);
   v.real("Tracking.CarriedVelocitySigma", o.carried_velocity_sigma_m_s, 0.0, 10.0);
+  v.boolean("Tracking.CarriedBridge", o.carried_bridge);
+  v.real("Tracking.CarriedBridgeMargin", o.carried_bridge_margin_s, 0.0, 5.0);
+  v.real("Tracking.CarriedGyroBiasSigma", o.carried_gyro_bias_sigma_rad_s, 1e-9, 1.0);
   v.boolean("Tracking.Reacquire", o.reacquire);
   v.real("Tracking.ReacquireGateSigmas", o.reacquire_gate_sigmas, 1.0, 20.0);
   v.real("Tracking.ReacquireMinRotationGate", o.reacquire_min_rotation_gate_deg, 0.0, 180.0);

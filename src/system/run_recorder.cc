@@ -33,9 +33,37 @@ std::vector<cv::Vec3b> sampleColours(const cv::Mat& color_bgr, const std::vector
   return colours;
 }
 
+/// A frame record's IMU data for the inertial bridge (absent: a false flag).
+void writeCarriedImu(const std::shared_ptr<const CarriedImu>& imu, map::ByteWriter& out) {
+  out.boolean(imu != nullptr);
+  if (!imu) return;
+  out.boolean(imu->from_previous != nullptr);
+  if (imu->from_previous) map::writePreintegration(*imu->from_previous, out);
+  out.vec3(imu->v_w_b);
+  out.vec3(imu->bias.b_g);
+  out.vec3(imu->bias.b_a);
+  out.vec3(imu->g_w);
+  out.se3(imu->T_b_c);
+}
+
+std::shared_ptr<const CarriedImu> readCarriedImu(map::ByteReader& in) {
+  if (!in.boolean("frame record IMU data")) return nullptr;
+  auto imu = std::make_shared<CarriedImu>();
+  if (in.boolean("frame record preintegration")) {
+    imu->from_previous = std::make_shared<const imu::Preintegrated>(map::readPreintegration(in));
+  }
+  imu->v_w_b = in.vec3("frame record velocity");
+  imu->bias.b_g = in.vec3("frame record gyro bias");
+  imu->bias.b_a = in.vec3("frame record accelerometer bias");
+  imu->g_w = in.vec3("frame record gravity");
+  imu->T_b_c = in.se3("frame record T_b_c");
+  return imu;
+}
+
 }  // namespace
 
-RunRecorder::RunRecorder(map::Atlas& atlas, const TrackingOptions& tracking) : atlas_(atlas), tracking_(tracking) {}
+RunRecorder::RunRecorder(map::Atlas& atlas, const TrackingOptions& tracking)
+    : atlas_(atlas), tracking_(tracking), imu_retention_(tracking.carried_bridge_margin_s) {}
 
 void RunRecorder::recordKeyFrameColours(const map::KeyFrame& kf, const cv::Mat& color_bgr,
                                         const Undistorter& undistorter) {
@@ -67,9 +95,22 @@ std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Fra
   recorded.tracked = record.tracked;
   recorded.carried = record.carried;
   recorded.map = record.map_online;
+  std::shared_ptr<CarriedImu> imu;
+  if (tracker.imuInitialised() && frame.imu_from_last_frame) {
+    imu = std::make_shared<CarriedImu>();
+    imu->from_previous = std::make_shared<const imu::Preintegrated>(*frame.imu_from_last_frame);
+    imu->v_w_b = frame.v_w_b();
+    imu->bias = frame.bias();
+    imu->g_w = tracker.g_w();
+    imu->T_b_c = frame.T_b_c();
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     records_.push_back(std::move(record));
+    for (auto& [index, kept] :
+         imu_retention_.add(records_.size() - 1, t_s, recorded.carried, recorded.map.value, std::move(imu))) {
+      records_[index].imu = std::move(kept);
+    }
   }
   return recorded;
 }
@@ -156,7 +197,7 @@ std::unordered_map<map::MapId, map::MapId> RunRecorder::floatingMaps(const std::
   return floatingMapWorlds(maps, kFloatingMapMaxSpan_s, kFloatingMapMaxDepth);
 }
 
-std::vector<FramePose> RunRecorder::trajectory(bool smooth_carried_frames) const {
+std::vector<FramePose> RunRecorder::trajectory(CarriedCorrection correction) const {
   std::vector<FrameRecord> records;
   std::size_t context = 0;
   {
@@ -202,11 +243,27 @@ std::vector<FramePose> RunRecorder::trajectory(bool smooth_carried_frames) const
     sample.t_s = pose.t_s;
     sample.T_w_c = pose.T_w_c;
     sample.carried = record.carried || (record.reference && floating.count(pose.map) > 0);
+    sample.world = record.reference ? world_of(pose.map).value : map::MapId::kInvalid;
+    if (record.imu && record.reference) {
+      // Velocity and gravity turned with the reference keyframe since the frame was tracked.
+      const Mat3 R_w_ref_then = (record.T_w_c_online * record.T_refb_c.inverse()).rotationMatrix();
+      const Mat3 R_now_then = map::latestPose_T_w_b(*record.reference).rotationMatrix() * R_w_ref_then.transpose();
+      auto imu = std::make_shared<CarriedImu>(*record.imu);
+      imu->v_w_b = R_now_then * imu->v_w_b;
+      imu->g_w = R_now_then * imu->g_w;
+      sample.imu = std::move(imu);
+    }
     poses.push_back(pose);
     samples.push_back(std::move(sample));
   }
-  if (smooth_carried_frames) {
-    smoothCarriedStretches(samples, tracking_.carried_velocity_sigma_m_s, tracking_.acc_bias_sigma_m_s2);
+  if (correction != CarriedCorrection::kNone) {
+    CarriedCorrectionOptions options;
+    options.bridge = correction == CarriedCorrection::kBridge;
+    options.velocity_sigma_m_s = tracking_.carried_velocity_sigma_m_s;
+    options.acc_bias_sigma_m_s2 = tracking_.acc_bias_sigma_m_s2;
+    options.gyro_bias_sigma_rad_s = tracking_.carried_gyro_bias_sigma_rad_s;
+    options.margin_s = tracking_.carried_bridge_margin_s;
+    correctCarriedStretches(samples, options);
     for (std::size_t i = 0; i < poses.size(); ++i) poses[i].T_w_c = samples[i].T_w_c;
   }
   poses.erase(poses.begin(), poses.begin() + static_cast<std::ptrdiff_t>(context));  // a saved run's frames
@@ -309,10 +366,12 @@ std::vector<MapPointRecord> RunRecorder::mapPoints() const {
 void RunRecorder::writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const {
   std::vector<FrameRecord> records;
   std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours;
+  CarriedImuRetention::State retention;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     records = records_;
     colours = colours_;
+    retention = imu_retention_.state();
   }
   out.u64(records.size());
   for (const FrameRecord& record : records) {
@@ -326,8 +385,21 @@ void RunRecorder::writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) cons
     out.se3(record.T_stretchrefb_c_predicted);
     out.se3(record.T_w_c_online);
     out.u64(record.map_online.value);
+    writeCarriedImu(record.imu, out);
   }
   refs.write(carried_reference_, out);
+  // The frames held back in case a carried stretch follows, and where the last stretch stands.
+  out.u64(retention.recent.size());
+  for (const CarriedImuRetention::Pending& pending : retention.recent) {
+    out.u64(pending.index);
+    out.f64(pending.t_s);
+    out.u64(pending.map);
+    writeCarriedImu(pending.imu, out);
+  }
+  out.boolean(retention.stretch_open);
+  out.u64(retention.stretch_map);
+  out.f64(retention.last_carried_t_s);
+  out.f64(retention.keep_until_s);
   // The colours of the keyframes that can still give a point its colour (those in the maps), by id.
   std::vector<std::uint64_t> ids;
   for (const map::MapId map_id : atlas_.mapIds()) {
@@ -346,7 +418,7 @@ void RunRecorder::writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) cons
 }
 
 void RunRecorder::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes) {
-  constexpr std::size_t kRecordBytes = 8 + 8 + 56 + 56 + 1 + 1 + 8 + 56 + 56 + 8;
+  constexpr std::size_t kRecordBytes = 8 + 8 + 56 + 56 + 1 + 1 + 8 + 56 + 56 + 8 + 1;
   const std::size_t n = in.count("frame records", kRecordBytes);
   std::vector<FrameRecord> records(n);
   for (FrameRecord& record : records) {
@@ -360,8 +432,28 @@ void RunRecorder::readState(map::ByteReader& in, const map::RunKeyFrames& keyfra
     record.T_stretchrefb_c_predicted = in.se3("frame record stretch prediction");
     record.T_w_c_online = in.se3("frame record online pose");
     record.map_online = map::MapId(in.u64("frame record map"));
+    record.imu = readCarriedImu(in);
   }
   carried_reference_ = keyframes.read(in, "carried stretch reference");
+  CarriedImuRetention::State retention;
+  const std::size_t num_pending = in.count("frames held for a carried stretch", 8 + 8 + 8 + 1);
+  for (std::size_t k = 0; k < num_pending; ++k) {
+    const std::uint64_t offset = in.fileOffset();
+    CarriedImuRetention::Pending pending;
+    pending.index = in.u64("held frame record");
+    if (pending.index >= records.size()) {
+      in.failAt(offset, "a held frame beyond the " + std::to_string(records.size()) + " frame records",
+                std::to_string(pending.index));
+    }
+    pending.t_s = in.finiteF64("held frame time");
+    pending.map = in.u64("held frame map");
+    pending.imu = readCarriedImu(in);
+    retention.recent.push_back(std::move(pending));
+  }
+  retention.stretch_open = in.boolean("carried stretch open");
+  retention.stretch_map = in.u64("carried stretch map");
+  retention.last_carried_t_s = in.finiteF64("last carried frame time");
+  retention.keep_until_s = in.finiteF64("carried data kept until");
   const std::size_t num_colours = in.count("keyframe colours", 16);
   std::unordered_map<std::uint64_t, std::vector<cv::Vec3b>> colours;
   for (std::size_t k = 0; k < num_colours; ++k) {
@@ -376,6 +468,7 @@ void RunRecorder::readState(map::ByteReader& in, const map::RunKeyFrames& keyfra
   records_ = std::move(records);
   context_records_ = records_.size();
   colours_ = std::move(colours);
+  imu_retention_.restore(std::move(retention));
 }
 
 }  // namespace ltlo::system

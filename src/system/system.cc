@@ -278,8 +278,15 @@ void System::shutdown() {
             closer_->numMerges(), " merges, ", atlas_->numMaps(), " map(s)");
 }
 
-std::vector<FramePose> System::trajectory(bool smooth_carried_frames) const {
-  return recorder_->trajectory(smooth_carried_frames);
+std::vector<FramePose> System::trajectory() const {
+  const TrackingOptions& tracking = settings_.tracking;
+  return trajectory(!tracking.smooth_carried_frames ? CarriedCorrection::kNone
+                    : tracking.carried_bridge       ? CarriedCorrection::kBridge
+                                                    : CarriedCorrection::kBlend);
+}
+
+std::vector<FramePose> System::trajectory(CarriedCorrection correction) const {
+  return recorder_->trajectory(correction);
 }
 
 viewer::ViewerMap System::viewerMap(std::uint64_t map_id) const {

@@ -91,7 +91,7 @@ void resumeFrom(const std::string& bytes, const bow::Vocabulary& vocabulary) {
     ltlo::map::LoadedAtlas loaded = ltlo::map::loadAtlasFromBytes(bytes, "fuzz.atlas", {}, vocabulary, true);
     FuzzStages stages(*loaded.atlas, vocabulary);
     (void)ltlo::system::readRunState(*loaded.run, stages.view());
-    (void)stages.recorder.trajectory(true);
+    (void)stages.recorder.trajectory(ltlo::system::CarriedCorrection::kBridge);
   } catch (const ltlo::map::AtlasFileError&) {
   }
 }

@@ -81,7 +81,7 @@ class VisualInertialEndToEnd : public EndToEndSuite {
       const RunReport report = system.report(1.0);
       result.counts = report.counts;
       result.trajectory = report.trajectory;
-      result.predicted_trajectory = system.trajectory(false);
+      result.predicted_trajectory = system.trajectory(CarriedCorrection::kNone);
     }
     result.ground_truth = reader.groundTruth();
     result.ate = eval::computeAte(eval::associateTrajectories(result.ground_truth, toTumTrajectory(result.trajectory)),

@@ -183,6 +183,26 @@ struct TrackingOptions {
   /// (growing linearly) and an acceleration error (quadratically) (Tracking.CarriedVelocitySigma,
   /// [0, 10]; 0.01: a frame tracked at 30 Hz with mm-level pose noise)
   double carried_velocity_sigma_m_s = 0.01;
+  /// Inertial bridge of IMU-carried stretches in the trajectory output (system/carried_bridge.h;
+  /// with Tracking.SmoothCarriedFrames): once the frame after a stretch is anchored, the stretch's
+  /// poses and velocities are solved again from the frames' own IMU preintegration between the
+  /// last tracked frame (held, velocity prior Tracking.CarriedVelocitySigma) and the anchored one
+  /// (held), with one gyroscope and accelerometer bias over it (priors Tracking.CarriedGyroBiasSigma
+  /// and Tracking.AccBiasSigma about the last tracked frame's); an accelerometer bias error then
+  /// turns with the robot, as it does in the dead reckoning. Where the IMU data is incomplete the
+  /// blend (Tracking.CarriedVelocitySigma's share) is used. Only the output changes; the IMU data
+  /// of carried frames and their margins is kept for it (Tracking.CarriedBridge, 0/1; 0: the blend
+  /// alone; off by default: not better than the blend on the simulator's realsense profile,
+  /// docs/results.md "Inertial bridge").
+  bool carried_bridge = false;
+  /// Tracked frames within this time before and after a carried stretch enter its inertial bridge
+  /// with a prior on their final poses (3 mm, 0.2 deg): they tell the velocities at both ends and
+  /// the biases (Tracking.CarriedBridgeMargin, s, [0, 5]; 0: the two end frames only)
+  double carried_bridge_margin_s = 0.5;
+  /// Standard deviation of the gyroscope bias over a carried stretch about the last tracked
+  /// frame's estimate, rad/s (the random walk over the stretch is added): the anchored end's
+  /// rotation tells the rest (Tracking.CarriedGyroBiasSigma, (0, 1])
+  double carried_gyro_bias_sigma_rad_s = 0.002;
   /// Guided re-acquisition of the active map by a lost frame with the IMU prediction
   /// (Tracking.Reacquire, 0/1): the map points of the keyframes around the predicted pose are
   /// projected with it, matched to the frame's static keypoints with depth in windows of

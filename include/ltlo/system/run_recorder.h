@@ -30,6 +30,7 @@
 #include "ltlo/core/lie.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/map/ids.h"
+#include "ltlo/system/carried_stretch.h"
 #include "ltlo/system/run_records.h"
 
 namespace ltlo {
@@ -86,8 +87,8 @@ class RunRecorder {
   SystemCounts counts(const tracking::Tracker& tracker, const loop::LoopCloser& closer) const;
 
   /// Any thread. Every frame with a pose, in input order, from its reference keyframe's latest pose;
-  /// IMU-carried stretches smoothed (system/carried_stretch.h) or as the IMU predicted them.
-  std::vector<FramePose> trajectory(bool smooth_carried_frames) const;
+  /// IMU-carried stretches corrected as `correction` says (system/carried_stretch.h).
+  std::vector<FramePose> trajectory(CarriedCorrection correction) const;
   /// Any thread. Every frame with a pose, in input order, as tracking returned it at that frame.
   std::vector<FramePose> onlineTrajectory() const;
   /// Any thread. The camera centres of the frames whose reference keyframe is in map `map_id` now,
@@ -101,7 +102,8 @@ class RunRecorder {
 
   /// Tracking thread, for a run resumed from an atlas file (system/run_state.h): every frame record
   /// (the final trajectory's carried stretches and floating maps reach across the resumed frame),
-  /// the open carried stretch, the keyframes' colours. The frame counters are statistics and stay
+  /// with the IMU data kept for the inertial bridge, the open carried stretch, the frames held back
+  /// in case a stretch follows (CarriedImuRetention's state), the keyframes' colours. The frame counters are statistics and stay
   /// this run's.
   void writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const;
   /// Restores it before the first frame: the restored records are context, not output (the
@@ -127,6 +129,9 @@ class RunRecorder {
     /// loop correction, merge or smoothing; in the world of `map_online` at that time.
     SE3 T_w_c_online;
     map::MapId map_online;
+    /// The frame's IMU data in the world of T_w_c_online, kept for the inertial bridge of carried
+    /// stretches (CarriedImuRetention: carried frames and their margins only).
+    std::shared_ptr<const CarriedImu> imu;
   };
 
   /// Tracking thread: the carried-stretch part of `record` (the stretch it ends, the stretch it
@@ -156,6 +161,7 @@ class RunRecorder {
   /// The keyframe the open IMU-carried stretch hangs on (null: no stretch open).
   std::shared_ptr<const map::KeyFrame> carried_reference_;
   int reacquisitions_ = 0;
+  CarriedImuRetention imu_retention_;
 
   mutable std::mutex mutex_;  ///< guards records_, context_records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;

@@ -53,6 +53,7 @@
 #include "ltlo/map/atlas_file.h"
 #include "ltlo/map/ids.h"
 #include "ltlo/mapping/local_mapper.h"
+#include "ltlo/system/carried_stretch.h"
 #include "ltlo/system/run_records.h"
 #include "ltlo/system/run_state.h"
 #include "ltlo/tracking/frame_builder.h"
@@ -152,11 +153,12 @@ class System {
   void shutdown();
   bool isShutDown() const { return shut_down_; }
 
-  /// Every frame with a pose, in input order; IMU-carried stretches smoothed as
-  /// Tracking.SmoothCarriedFrames says (system/carried_stretch.h).
-  std::vector<FramePose> trajectory() const { return trajectory(settings_.tracking.smooth_carried_frames); }
-  /// The same, with carried stretches smoothed or as the IMU predicted them.
-  std::vector<FramePose> trajectory(bool smooth_carried_frames) const;
+  /// Every frame with a pose, in input order; IMU-carried stretches corrected as
+  /// Tracking.SmoothCarriedFrames and Tracking.CarriedBridge say (system/carried_stretch.h).
+  std::vector<FramePose> trajectory() const;
+  /// The same, with carried stretches corrected as `correction` says (e.g. as the IMU predicted
+  /// them, or the blend and the bridge of one run side by side).
+  std::vector<FramePose> trajectory(CarriedCorrection correction) const;
   /// Every frame with a pose, in input order, as tracking returned it at that frame (before any
   /// later loop correction, merge or smoothing): what a controller reading the live pose got.
   /// FramePose::map is the map the frame was tracked in.

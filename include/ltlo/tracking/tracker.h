@@ -153,6 +153,8 @@ class Tracker : private RecoverySteps {
   /// the larger of it and Tracking.AccBiasSigma.
   void setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2 = 0.0);
   bool imuInitialised() const { return imu_initialised_; }
+  /// Gravity in the world frame the IMU prediction uses (m/s^2; meaningful once imuInitialised()).
+  const Vec3& g_w() const { return g_w_; }
   /// The bias new frames are preintegrated at: the last optimised frame's (inertial optimisation),
   /// else the IMU initialisation's or the last keyframe's.
   const imu::ImuBias& bias() const { return bias_; }
