@@ -9,14 +9,6 @@ namespace ltlo::optim {
 
 namespace {
 
-imu::NavState navState(const SE3& T_w_b, const Vec3& v_w_b) {
-  imu::NavState state;
-  state.R_w_b = T_w_b.rotationMatrix();
-  state.p_w_b = T_w_b.translation();
-  state.v_w_b = v_w_b;
-  return state;
-}
-
 // d r / d [dphi; drho] of a VertexPose from the residual's rotation and world-position Jacobians.
 Eigen::Matrix<double, 9, 6> poseJacobian(const imu::Mat93& d_r_d_R, const imu::Mat93& d_r_d_p, const Mat3& R_w_b) {
   Eigen::Matrix<double, 9, 6> J;
@@ -43,14 +35,14 @@ EdgeInertial::EdgeInertial(std::shared_ptr<const imu::Preintegrated> pim, const 
 
 void EdgeInertial::computeError() {
   const imu::ImuBias bias{estimate<2>(), estimate<3>()};
-  error_ = imu::inertialResidual(navState(estimate<0>(), estimate<1>()), navState(estimate<4>(), estimate<5>()),
+  error_ = imu::inertialResidual(imu::navState(estimate<0>(), estimate<1>()), imu::navState(estimate<4>(), estimate<5>()),
                                  bias, *pim_, g_w_);
 }
 
 void EdgeInertial::linearizeOplus() {
   const imu::ImuBias bias{estimate<2>(), estimate<3>()};
-  const imu::NavState state_i = navState(estimate<0>(), estimate<1>());
-  const imu::NavState state_j = navState(estimate<4>(), estimate<5>());
+  const imu::NavState state_i = imu::navState(estimate<0>(), estimate<1>());
+  const imu::NavState state_j = imu::navState(estimate<4>(), estimate<5>());
   const imu::InertialResidualJacobians J = imu::inertialResidualJacobians(state_i, state_j, bias, *pim_, g_w_);
   jacobian<0>() = poseJacobian(J.d_r_d_R_i, J.d_r_d_p_i, state_i.R_w_b);
   jacobian<1>() = J.d_r_d_v_i;
@@ -69,14 +61,14 @@ EdgeInertialGravity::EdgeInertialGravity(std::shared_ptr<const imu::Preintegrate
 void EdgeInertialGravity::computeError() {
   const imu::ImuBias bias{estimate<2>(), estimate<3>()};
   const Vec3 g_w = imu::gravityFromRotation(estimate<6>(), gravity_m_s2_);
-  error_ = imu::inertialResidual(navState(estimate<0>(), estimate<1>()), navState(estimate<4>(), estimate<5>()),
+  error_ = imu::inertialResidual(imu::navState(estimate<0>(), estimate<1>()), imu::navState(estimate<4>(), estimate<5>()),
                                  bias, *pim_, g_w);
 }
 
 void EdgeInertialGravity::linearizeOplus() {
   const imu::ImuBias bias{estimate<2>(), estimate<3>()};
-  const imu::NavState state_i = navState(estimate<0>(), estimate<1>());
-  const imu::NavState state_j = navState(estimate<4>(), estimate<5>());
+  const imu::NavState state_i = imu::navState(estimate<0>(), estimate<1>());
+  const imu::NavState state_j = imu::navState(estimate<4>(), estimate<5>());
   const Mat3& R_w_g = estimate<6>();
   const Vec3 g_w = imu::gravityFromRotation(R_w_g, gravity_m_s2_);
   const imu::InertialResidualJacobians J = imu::inertialResidualJacobians(state_i, state_j, bias, *pim_, g_w);

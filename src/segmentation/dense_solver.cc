@@ -69,14 +69,6 @@ detail::Warp warpOf(const DensePrior& prior, const SE3& T_w_b) {
   return warp;
 }
 
-imu::NavState navState(const SE3& T_w_b, const Vec3& v_w_b) {
-  imu::NavState state;
-  state.R_w_b = T_w_b.rotationMatrix();
-  state.p_w_b = T_w_b.translation();
-  state.v_w_b = v_w_b;
-  return state;
-}
-
 /// The image motion still to come after a Gauss-Newton step of step_px, px, from the level's
 /// previous step (previous_px, < 0 for none): near a minimum the steps shrink geometrically by
 /// rho = step_px / previous_px, so the rest sums to step_px rho / (1 - rho). Without a previous
@@ -109,8 +101,8 @@ Mat6 biasInformation(const DensePrior& prior, double lambda_imu) {
 /// Whitened motion-prior residual of a state (the IMU term, or the relative-pose prior).
 double priorChi2(const DensePrior& prior, const State& state, const Mat9& imu_information) {
   if (prior.kind == DensePrior::Kind::kImu) {
-    const Vec9 r = imu::inertialResidual(navState(prior.T_w_b_prev, prior.v_w_b_prev),
-                                         navState(state.T_w_b, state.v_w_b), state.bias, *prior.pim, prior.g_w);
+    const Vec9 r = imu::inertialResidual(imu::navState(prior.T_w_b_prev, prior.v_w_b_prev),
+                                         imu::navState(state.T_w_b, state.v_w_b), state.bias, *prior.pim, prior.g_w);
     return r.dot(imu_information * r);
   }
   const Vec6 r = (prior.T_w_b_pred.inverse() * state.T_w_b).log();
@@ -376,7 +368,7 @@ double DenseSolve::imuStateStep(const Mat6& H_pose, const Vec6& b_pose, int leve
   H.block<6, 6>(0, 0) = H_pose;
   b.head<6>() = b_pose;
   const imu::InertialResidualJacobians jac = imu::inertialResidualJacobians(
-      navState(prior_.T_w_b_prev, prior_.v_w_b_prev), navState(state_.T_w_b, state_.v_w_b), state_.bias,
+      imu::navState(prior_.T_w_b_prev, prior_.v_w_b_prev), imu::navState(state_.T_w_b, state_.v_w_b), state_.bias,
       *prior_.pim, prior_.g_w);
   Eigen::Matrix<double, 9, 15> J;
   J << jac.d_r_d_R_j, jac.d_r_d_p_j * state_.T_w_b.rotationMatrix(), jac.d_r_d_v_j, jac.d_r_d_b_g, jac.d_r_d_b_a;

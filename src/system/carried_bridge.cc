@@ -37,14 +37,6 @@ SE3 bodyPose(const CarriedSample& sample) { return sample.T_w_c * sample.imu->T_
 /// A body pose from a predicted navigation state (SE3 re-orthonormalises the rotation).
 SE3 poseOf(const imu::NavState& state) { return SE3(state.R_w_b, state.p_w_b); }
 
-imu::NavState navState(const SE3& T_w_b, const Vec3& v_w_b) {
-  imu::NavState state;
-  state.R_w_b = T_w_b.rotationMatrix();
-  state.p_w_b = T_w_b.translation();
-  state.v_w_b = v_w_b;
-  return state;
-}
-
 struct NodeVertices {
   optim::VertexPose* pose = nullptr;
   optim::VertexVelocity* velocity = nullptr;
@@ -86,7 +78,7 @@ std::optional<CarriedBridgeResult> bridgeCarriedStretch(const std::vector<Carrie
   for (std::size_t k = first; k <= last; ++k) {
     const std::size_t n = k - first;
     if (k >= begin && k < end) {
-      const imu::NavState predicted = imu::predict(navState(T_w_b[n - 1], v_w_b[n - 1]),
+      const imu::NavState predicted = imu::predict(imu::navState(T_w_b[n - 1], v_w_b[n - 1]),
                                                    *samples[k].imu->from_previous, bias_S, g_w);
       T_w_b[n] = poseOf(predicted);
       v_w_b[n] = predicted.v_w_b;

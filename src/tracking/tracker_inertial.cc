@@ -14,14 +14,6 @@ namespace ltlo::tracking {
 
 namespace {
 
-imu::NavState navState(const SE3& T_w_b, const Vec3& v_w_b) {
-  imu::NavState state;
-  state.R_w_b = T_w_b.rotationMatrix();
-  state.p_w_b = T_w_b.translation();
-  state.v_w_b = v_w_b;
-  return state;
-}
-
 bool sameState(const SE3& a, const SE3& b) {
   return (a.translation() - b.translation()).norm() == 0.0 &&
          (a.quaternion().coeffs() - b.quaternion().coeffs()).norm() == 0.0;
@@ -207,7 +199,7 @@ Tracker::ImuPrediction Tracker::predictWithImu(const map::Frame& frame) {
   }
   // Preintegration from the link's start, Forster et al. (2017) eq. 26-28 through imu::predict.
   const imu::NavState predicted =
-      imu::predict(navState(link.T_w_b_prev, link.v_w_b_prev), *link.pim, link.bias_prev, g_w_);
+      imu::predict(imu::navState(link.T_w_b_prev, link.v_w_b_prev), *link.pim, link.bias_prev, g_w_);
   out.state.T_w_b = SE3(Quat(normalizeRotation(predicted.R_w_b)), predicted.p_w_b);
   out.state.v_w_b = predicted.v_w_b;
   out.state.bias = link.bias_prev;

@@ -10,6 +10,7 @@
 /// For an SE3 vertex updated as T_w_b Exp([dphi; drho]) (rotation first), chain with
 /// dp = R_w_b drho to first order: d_r_d_rho = d_r_d_p * R_w_b.
 #include "ltlo/core/eigen_types.h"
+#include "ltlo/core/lie.h"
 #include "ltlo/imu/imu_types.h"
 #include "ltlo/imu/preintegration.h"
 
@@ -24,6 +25,15 @@ struct NavState {
   Vec3 p_w_b = Vec3::Zero();   ///< m
   Vec3 v_w_b = Vec3::Zero();   ///< m/s, body velocity in world
 };
+
+/// The state of a body pose T_w_b moving at v_w_b.
+inline NavState navState(const SE3& T_w_b, const Vec3& v_w_b) {
+  NavState state;
+  state.R_w_b = T_w_b.rotationMatrix();
+  state.p_w_b = T_w_b.translation();
+  state.v_w_b = v_w_b;
+  return state;
+}
 
 /// Standard gravity in a z-up gravity-aligned world (m/s^2).
 constexpr double kGravity_m_s2 = 9.81;
