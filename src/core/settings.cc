@@ -105,6 +105,7 @@ void visitTracking(O& o, V& v) {
   v.integer("Tracking.StartDynamicVotes", o.start_dynamic_votes, 1, 100);
   v.real("Tracking.StartReacquireSpeed", o.start_reacquire_speed_m_s, 0.0, 10.0);
   v.boolean("Tracking.StartRecoveryCutsImu", o.start_recovery_cuts_imu);
+  v.boolean("Tracking.StartRecoveryGauge", o.start_recovery_gauge);
   v.boolean("Tracking.StartCarriedLost", o.start_carried_lost);
 }
 

@@ -84,6 +84,16 @@ KeyFrameId Map::gaugeKeyFrame() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return origins_.empty() ? KeyFrameId() : origins_.front();
 }
+KeyFrameId Map::moveGaugeTo(KeyFrameId id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  LTLO_ASSERT(keyframes_.count(id) > 0, "moveGaugeTo: keyframe " << id << " is not in map " << id_);
+  const KeyFrameId previous = origins_.empty() ? KeyFrameId() : origins_.front();
+  if (previous == id) return previous;
+  origins_.erase(std::remove(origins_.begin(), origins_.end(), id), origins_.end());
+  if (!origins_.empty()) origins_.front() = id;
+  else origins_.push_back(id);
+  return previous;
+}
 bool Map::isOrigin(KeyFrameId id) const {
   std::lock_guard<std::mutex> lock(mutex_);
   return std::find(origins_.begin(), origins_.end(), id) != origins_.end();

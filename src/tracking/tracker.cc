@@ -87,7 +87,7 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
       loss_.recover(frame, matched, lossContext(frame, was_lost), *this, T_w_b_pred, v_w_b_pred);
   if (!decision.tracked()) return state_;
   recordTrackedFrame(frame, decision.inliers, was_lost);
-  if (stats_.relocalised) cutImuChainAtStartRecovery(frame);
+  if (stats_.relocalised) onStartRecovery(frame);
   if (velocity_unknown_) estimateStartVelocity(frame, was_lost || stats_.relocalised);
   if (needNewKeyFrame()) {
     createKeyFrame();

@@ -5,7 +5,7 @@
 // world (an ltlo start with the box over 62 % of the view: tracking lost at 0.23 s, then recovered
 // near the origin on the first keyframe's box points, 0.3 m behind the truth from then on).
 //
-// Two remedies, each with its switch:
+// Three remedies, each with its switch:
 //  - the first keyframe's points are provisional (Tracking.StartProvisional): later frames, whose
 //    segmentation has a motion prior from the gyroscope (later the IMU), vote on each with the
 //    gamma of the cluster it lands on where the frame's depth matches the point's; a point seen on
@@ -16,6 +16,10 @@
 //    re-acquires the map by the guided search around that prediction, in windows of the position
 //    the robot's speed allows since the last tracked frame (Tracking.StartReacquireSpeed): the
 //    constant-velocity model has nothing better to offer when tracking was lost following a box.
+//  - a frame relocalised (by the keyframe database) on a keyframe made while tracking followed the
+//    box lands in that keyframe's world, which is off the first keyframe's by the motion missed;
+//    that keyframe becomes the map's gauge and the keyframes before it leave the map
+//    (Tracking.StartRecoveryGauge), so neither BA nor a loop onto them mixes the two worlds.
 //
 // Thread safety: the erasure is Map::eraseMapPoint, the call local BA makes from the mapping thread
 // for the points it finds dynamic (thread-safe; it takes topology_mutex_, then the map's, the
@@ -113,19 +117,45 @@ void Tracker::checkProvisionalPoints(const map::Frame& frame) {
   }
 }
 
-void Tracker::cutImuChainAtStartRecovery(const map::Frame& frame) {
-  if (!options_.tracking.start_recovery_cuts_imu || imu_initialised_ || frame.t_s() > start_window_end_t_s_ ||
-      !imu_since_keyframe_) {
-    return;
+void Tracker::onStartRecovery(const map::Frame& frame) {
+  if (imu_initialised_ || frame.t_s() > start_window_end_t_s_) return;
+  if (options_.tracking.start_recovery_cuts_imu && imu_since_keyframe_) {
+    // The pose jumped back onto the map's world points: until here tracking may have followed a
+    // mover that held most of the view, and the keyframes it made carry that motion (ltlo's occluded
+    // start with the box over 61 % of the view: the first 0.37 s of motion missed, 0.18 m, and the
+    // IMU initialised 19 deg off over them). Their IMU chain ends here; the initialisation uses the next.
+    imu_since_keyframe_.reset();
+    imu_chain_broken_ = true;
+    log::info("occluded start: recovered at t = ", frame.t_s(), " s before the IMU initialisation: the next keyframe ",
+              "starts a new IMU chain (the keyframes before were posed while a mover may have held the view)");
   }
-  // The pose jumped back onto the map's world points: until here tracking may have followed a mover
-  // that held most of the view, and the keyframes it made carry that motion (ltlo's occluded start
-  // with the box over 61 % of the view: the first 0.37 s of motion missed, 0.18 m, and the IMU
-  // initialised 19 deg off over them). Their IMU chain ends here; the initialisation uses the next.
-  imu_since_keyframe_.reset();
-  imu_chain_broken_ = true;
-  log::info("occluded start: recovered at t = ", frame.t_s(), " s before the IMU initialisation: the next keyframe ",
-            "starts a new IMU chain (the keyframes before were posed while a mover may have held the view)");
+  if (options_.tracking.start_recovery_gauge && !stats_.reacquired && reference_kf_.valid()) {
+    // Relocalised (not re-acquired around the prediction, which stays in the world tracking was
+    // in): the frame may have landed in the world of a keyframe made while tracking followed a
+    // mover, which differs from the first keyframe's. The map grows on in the world it landed in,
+    // so the keyframes posed before, in the other world, leave the map (ltlo occluded start, seed 3:
+    // relocalised on kf1 at 0.37 s, whose points are 12.8 cm off kf0's; kf0 stayed 12 cm off every
+    // later keyframe, and the proximity loop kf41 ~ kf0 at 29 s pulled the map towards it).
+    map::Map& active = activeMap();
+    const map::KeyFrameId previous = active.moveGaugeTo(reference_kf_);
+    if (previous == reference_kf_) return;
+    const int erased = eraseKeyFramesBefore(active, frame.t_s());
+    log::info("occluded start: relocalised on ", reference_kf_, ", now the map's gauge in place of ", previous, "; ",
+              erased, " keyframes posed before it erased");
+  }
+}
+
+int Tracker::eraseKeyFramesBefore(map::Map& active, double recovered_t_s) {
+  int erased = 0;
+  for (const std::shared_ptr<map::KeyFrame>& kf : active.keyFrames()) {
+    if (kf->isBad() || kf->t_s() >= recovered_t_s || kf->id() == reference_kf_) continue;
+    // Its points seen by no other keyframe go with it; the IMU chain is cut there.
+    if (active.eraseKeyFrame(kf->id(), map::Map::ImuLink::kCut)) {
+      atlas_.keyFrameDatabase().erase(kf->id());
+      ++erased;
+    }
+  }
+  return erased;
 }
 
 double Tracker::startReacquireSigma(const map::Frame& frame) const {

@@ -81,6 +81,27 @@ TEST(KeyFrameOwnership, OriginKeyFrameIsNeverCulled) {
   EXPECT_FALSE(origin->isBad());
 }
 
+TEST(KeyFrameOwnership, MovingTheGaugeFreesTheOldOriginAndRootsTheTreeAtTheNewOne) {
+  // Tracking.StartRecoveryGauge: a start relocalised on b makes b the gauge; a (the first keyframe)
+  // can then leave the map, and b, its child, becomes a root.
+  Map map;
+  test::SceneBuilder scene(map, 3);
+  const auto a = scene.addKeyFrame(), b = scene.addKeyFrame(), c = scene.addKeyFrame();
+  scene.share({a, b}, 40);
+  scene.share({b, c}, 40);
+  for (const auto& kf : {a, b, c}) map.updateConnections(*kf);
+  ASSERT_EQ(b->parent(), a->id());
+  EXPECT_EQ(map.moveGaugeTo(b->id()), a->id());
+  EXPECT_EQ(map.gaugeKeyFrame(), b->id());
+  EXPECT_EQ(map.originKeyFrames(), std::vector<KeyFrameId>{b->id()});
+  EXPECT_EQ(map.moveGaugeTo(b->id()), b->id());  // already the gauge: nothing changes
+  EXPECT_FALSE(map.eraseKeyFrame(b->id()));
+  ASSERT_TRUE(map.eraseKeyFrame(a->id(), Map::ImuLink::kCut));
+  EXPECT_FALSE(b->parent().valid());
+  EXPECT_EQ(c->parent(), b->id());
+  EXPECT_EQ(map.numKeyFrames(), 2u);
+}
+
 TEST(Covisibility, WeightsCountSharedPointsAndOrderBestFirst) {
   Map map;
   test::SceneBuilder scene(map, 3);

@@ -289,6 +289,11 @@ struct TrackingOptions {
   /// and the IMU initialisation (which uses the chain ending at the newest keyframe) starts after
   /// them (Tracking.StartRecoveryCutsImu, 0/1)
   bool start_recovery_cuts_imu = false;
+  /// With the same condition, a frame relocalised (not re-acquired) on another keyframe than the
+  /// map's gauge makes that keyframe the gauge, and the keyframes made before the frame leave the
+  /// map: the frame landed in that keyframe's world, which differs from the first keyframe's when
+  /// the keyframe was made while tracking followed a mover (Tracking.StartRecoveryGauge, 0/1)
+  bool start_recovery_gauge = false;
   /// Before the IMU is initialised, frames lost with the gyroscope's prediction
   /// (Tracking.StartReacquireSpeed) form a carried stretch of the final trajectory like the IMU's
   /// (system/carried_stretch.h): once a frame is tracked again, its difference to the prediction is

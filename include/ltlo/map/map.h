@@ -77,6 +77,10 @@ class Map {
   /// it has one). The origins of maps merged into it are not held: a merge places them by the
   /// seam's alignment, which the BAs must be free to correct.
   KeyFrameId gaugeKeyFrame() const;
+  /// Makes `id` (a keyframe of this map) the gauge and an origin (never culled) in place of the
+  /// gauge before, which becomes an ordinary keyframe: an occluded start relocalised on `id`, and the
+  /// map grows on in its world (Tracking.StartRecoveryGauge). Returns the previous gauge.
+  KeyFrameId moveGaugeTo(KeyFrameId id);
 
   /// Links keypoint `keypoint_index` of `kf` to `point` on both ends. Returns false (and links
   /// nothing) when either is bad, the keypoint holds another point, or `point` is already seen at

@@ -453,8 +453,13 @@ class Tracker : private RecoverySteps {
   /// camera centre kept. Returns `T_w_b_pred` unchanged otherwise.
   SE3 startGyroRotation(const map::Frame& frame, const SE3& T_w_b_pred) const;
   /// Tracking.StartRecoveryCutsImu: after a frame recovered (relocalised or re-acquired) within the
-  /// start window, before the IMU is initialised, the next keyframe starts a new IMU chain.
-  void cutImuChainAtStartRecovery(const map::Frame& frame);
+  /// start window, before the IMU is initialised, the next keyframe starts a new IMU chain; and
+  /// Tracking.StartRecoveryGauge: a frame relocalised on another keyframe than the gauge makes it the
+  /// map's gauge, and the keyframes made before it are erased.
+  void onStartRecovery(const map::Frame& frame);
+  /// Erases the keyframes older than `recovered_t_s` other than the reference keyframe
+  /// (Tracking.StartRecoveryGauge); returns how many.
+  int eraseKeyFramesBefore(map::Map& active, double recovered_t_s);
   struct ProvisionalPoint {
     map::MapPointId id;
     int dynamic_votes = 0;
