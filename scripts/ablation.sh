@@ -14,6 +14,11 @@
 #   dense_init_off   Seg.DenseInit = 0: depth clusters with gamma = 1, only local mapping refines them
 #   robust_beta_off  Mapping.RobustBeta = 0: plain VIBA on tracking's Gamma, no beta, no dynamic points deleted
 #   no_imu           --no-imu: RGB-D only
+# and, for the harder worlds (issue 32; not in the default list):
+#   start_off        the occluded start's handling off: Tracking.StartProvisional = 0, StartReacquireSpeed = 0,
+#                    StartRecoveryCutsImu = 0, StartCarriedLost = 0, StartRecoveryGauge = 0
+#   start_gauge_off  Tracking.StartRecoveryGauge = 0 only (a start relocalised on a later keyframe keeps kf0)
+#   zupt_off         Tracking.Zupt = 0 and Tracking.ZuptNoKeyFrames = 0: no zero-velocity update at standstill
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -61,6 +66,11 @@ variant_args() {
     dense_init_off) echo "${full[@]}" --set Seg.DenseInit=0 ;;
     robust_beta_off) echo "${full[@]}" --set Mapping.RobustBeta=0 ;;
     no_imu) echo "${full[@]}" --no-imu ;;
+    start_off)
+      echo "${full[@]}" --set Tracking.StartProvisional=0 --set Tracking.StartReacquireSpeed=0 \
+        --set Tracking.StartRecoveryCutsImu=0 --set Tracking.StartCarriedLost=0 --set Tracking.StartRecoveryGauge=0 ;;
+    start_gauge_off) echo "${full[@]}" --set Tracking.StartRecoveryGauge=0 ;;
+    zupt_off) echo "${full[@]}" --set Tracking.Zupt=0 --set Tracking.ZuptNoKeyFrames=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }
