@@ -7,7 +7,10 @@ its keyframes (the ids in RUN0_DIR/keyframes.txt) are looked up in SEQUENCE0_DIR
 ground truths in one frame, as the simulator's room frame is).
 For each "loop closed[ (proximity)]: kfA ~ kfB" / "maps merged|rejoined: ... kfA ~ kfB" line of the run log, compares the
 estimated relative pose of the two keyframes (keyframes.txt, final) with the ground-truth one and
-prints the error; a loop whose error exceeds 0.10 m or 3 deg is reported FALSE (exit 1)."""
+prints the error; a loop whose error exceeds 0.10 m or 3 deg is reported FALSE (exit 1).
+A loop is also FALSE when its logged correction exceeds 0.10 m plus twice the pair's relative-pose error
+in the online poses (trajectory_online.txt, what the map held before the loop): a loop between two places
+that only look alike can move the map by metres and still leave a pair the later full BAs put right."""
 import re
 import sys
 from math import *
@@ -29,6 +32,8 @@ run,seq,log=sys.argv[1],sys.argv[2],sys.argv[3]
 kfs={int(v[8]):(float(v[0]),([float(x) for x in v[1:4]],[float(x) for x in v[4:8]])) for v in load(run+'/keyframes.txt')}
 def loadgt(d): return [(float(v[0]),([float(x) for x in v[1:4]],[float(x) for x in v[4:8]])) for v in load(d+'/groundtruth.txt')]
 gt=loadgt(seq)
+try: online={round(float(v[0]),4):([float(x) for x in v[1:4]],[float(x) for x in v[4:8]]) for v in load(run+'/trajectory_online.txt')}
+except OSError: online={}
 gt0,loaded=(loadgt(sys.argv[4]),{int(v[8]) for v in load(sys.argv[5]+'/keyframes.txt')}) if len(sys.argv)>5 else ([],set())
 def gtat(t,kf=None): return min(gt0 if kf in loaded else gt,key=lambda r:abs(r[0]-t))[1]
 bad = 0
@@ -42,6 +47,13 @@ for l in open(log):
     dq=qmul(qinv(G[1]),E[1]); ang=degrees(2*acos(min(1,abs(dq[3]))))
     gd=sqrt(sum(x*x for x in G[0]))
     false = dt > 0.10 or ang > 3.0
+    note = ""
+    c = re.search(r'correction ([0-9.eE+-]+) m', l)
+    ta, tb = round(kfs[a][0], 4), round(kfs[b][0], 4)
+    if c and ta in online and tb in online:
+        O = rel(online[tb], online[ta]); drift = sqrt(sum((O[0][i]-G[0][i])**2 for i in range(3)))
+        correction = float(c.group(1)); note = f"; correction {correction:.3f} m, online drift {drift:.3f} m"
+        false = false or correction > 0.10 + 2.0 * drift
     bad += false
-    print(("FALSE " if false else "") + f"{m.group(1)} kf{a}(t={kfs[a][0]:.1f}) ~ kf{b}(t={kfs[b][0]:.1f}): true distance {gd:.2f} m; relative-pose error {dt*100:.1f} cm {ang:.2f} deg")
+    print(("FALSE " if false else "") + f"{m.group(1)} kf{a}(t={kfs[a][0]:.1f}) ~ kf{b}(t={kfs[b][0]:.1f}): true distance {gd:.2f} m; relative-pose error {dt*100:.1f} cm {ang:.2f} deg" + note)
 sys.exit(1 if bad else 0)

@@ -4,11 +4,18 @@
 # `simulate --scenario NAME`, SECONDS_PER_SEQUENCE long) or a named harder world below (issue 32):
 # its simulate options, with --seconds when it is not SECONDS_PER_SEQUENCE long. Sequences are
 # <scenario>_s<seed>. Add a harder world as one line: name, then its options.
+# walkers, door and three_movers stand on the static profile, so every mover in them is the one
+# under test (walkers drop the boxes they overlap and three_movers drops all of them anyway).
 HARDER_WORLDS='
 long_mtlo           --scenario mtlo --seconds 300
 standstill          --scenario ltlo --still 20,10 --occlusion-at 21 --occlusion-at 27.1
 still_start         --scenario ltlo --still 0,3
 still_start_static  --scenario static --still 0,3 --occlusion-at 0.5
+walkers             --scenario static --walkers 4
+door                --scenario static --door
+three_movers        --scenario static --three-movers
+plain_ltlo          --scenario ltlo --plain-movers
+plain_mtlo          --scenario mtlo --plain-movers
 '
 PROFILES="static stlo mtlo ltlo carried"
 

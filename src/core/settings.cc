@@ -149,6 +149,7 @@ void visitLoop(O& o, V& v) {
   v.real("Loop.ProximityMinAge", o.proximity_min_age_s, 0.0, 3600.0);
   v.real("Loop.ProximityMaxDistance", o.proximity_max_distance_m, 0.1, 100.0);
   v.real("Loop.RejoinMaxSigma", o.rejoin_max_sigma_m, 0.01, 100.0);
+  v.real("Loop.MaxCorrectionShare", o.max_correction_share, 0.0, 10.0);
   v.boolean("Loop.HoldLoadedMap", o.hold_loaded_map);
 }
 

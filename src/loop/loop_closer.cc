@@ -8,6 +8,8 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "bow/bow_vector.h"
 #include "ltlo/core/blocking_queue.h"
@@ -58,6 +60,21 @@ constexpr double kMaxCorrectionYawSigma_rad = 0.5 * M_PI / 180.0;
 bool fixesYaw(const GuidedPlaceMatch& found) { return found.yaw_sigma_rad <= kMaxCorrectionYawSigma_rad; }
 /// Ancestors of a map's origin chain searched by the rejoin (the parent first).
 constexpr int kRejoinMaxAncestors = 4;
+
+/// Path of the map's keyframes from t0_s to t1_s: the distances of consecutive keyframe positions
+/// in time order, m (bad keyframes skipped).
+double keyFramePathLength_m(const map::Map& map, double t0_s, double t1_s) {
+  std::vector<std::pair<double, Vec3>> positions;
+  for (const std::shared_ptr<map::KeyFrame>& kf : map.keyFrames()) {
+    if (!kf->isBad() && kf->t_s() >= t0_s && kf->t_s() <= t1_s) {
+      positions.emplace_back(kf->t_s(), kf->T_w_b().translation());
+    }
+  }
+  std::sort(positions.begin(), positions.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  double length_m = 0.0;
+  for (std::size_t k = 1; k < positions.size(); ++k) length_m += (positions[k].second - positions[k - 1].second).norm();
+  return length_m;
+}
 
 /// Pauses local mapping, then holds tracking between two frames, for its lifetime (no-op functions
 /// when not wired).
@@ -197,8 +214,23 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
     if (candidate->isBad()) continue;
     const std::optional<LoopClosure> loop = verifyLoop(*kf, *candidate, map, options.loop);
     if (!loop) continue;
+    if (!plausibleCorrection(*kf, *candidate, *loop, map)) continue;
     return correct(kf, candidate, *loop, map, false);
   }
+  return false;
+}
+
+bool LoopCloser::Impl::plausibleCorrection(const map::KeyFrame& kf, const map::KeyFrame& candidate,
+                                           const LoopClosure& loop, const map::Map& map) const {
+  if (options.loop.max_correction_share <= 0.0 || !gravity()) return true;
+  const double correction_m = (loop.T_w_b_current_corrected.translation() - kf.T_w_b().translation()).norm();
+  const double path_m =
+      keyFramePathLength_m(map, std::min(candidate.t_s(), kf.t_s()), std::max(candidate.t_s(), kf.t_s()));
+  const double limit_m = 3.0 * options.loop.proximity_sigma_m + options.loop.max_correction_share * path_m;
+  if (correction_m <= limit_m) return true;
+  log::info("loop rejected: ", kf.id(), " ~ ", candidate.id(), " in ", map.id(), " (", loop.matches.size(),
+            " inliers) would move the keyframe by ", correction_m, " m, more than the ", limit_m,
+            " m drift allows over the ", path_m, " m since (Loop.MaxCorrectionShare)");
   return false;
 }
 

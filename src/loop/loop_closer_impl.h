@@ -36,6 +36,10 @@ struct LoopCloser::Impl {
   void process(const std::shared_ptr<map::KeyFrame>& kf);
   /// Detection, verification and correction in kf's map; true when a loop was closed.
   bool tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);
+  /// Loop.MaxCorrectionShare: whether a verified BoW loop's correction is within the drift the map
+  /// may have gathered between its two keyframes (always, without gravity or with the share 0).
+  bool plausibleCorrection(const map::KeyFrame& kf, const map::KeyFrame& candidate, const LoopClosure& loop,
+                           const map::Map& map) const;
   /// Loop.Proximity: the guided search of kf's old, non-covisible neighbours in its own map
   /// (gravity known); true when a loop was closed.
   bool tryProximityLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Map& map);

@@ -177,6 +177,36 @@ TEST(LoopCloser, WithGravityALoopIsClosedByProximityWhenBowCannot) {
   EXPECT_LT(seam_on, 0.75 * seam_off);
 }
 
+// Loop.MaxCorrectionShare: with gravity known, a BoW loop may correct the current keyframe by at
+// most 3 Loop.ProximitySigma plus the share of the path travelled since the loop keyframe. The
+// lap's drift (driftStep) needs a correction of 0.1 m or more after one lap: closed with no limit
+// and with a share of the whole path, rejected when the limit is made smaller than the correction
+// (a place that only looks the same would need metres); without gravity there is no limit.
+TEST(LoopCloser, WithGravityALoopCorrectingMoreThanTheDriftAllowsIsRejected) {
+  auto runWith = [&](double share, double sigma_m, bool with_gravity) {
+    map::Atlas atlas(world().vocabulary->numWords());
+    LoopCloserOptions options = closerOptions();
+    options.loop.proximity = false;
+    options.loop.max_correction_share = share;
+    options.loop.proximity_sigma_m = sigma_m;
+    MappingControl control;
+    if (with_gravity) control.gravity_w = [] { return std::optional<Vec3>(Vec3(0.0, 0.0, -9.81)); };
+    LoopCloser closer(atlas, options, control);
+    SceneBuilder scene(atlas, driftStep());
+    for (int step = 0; step < kLoopSteps; ++step) closer.processKeyFrame(scene.add(step));
+    return closer.events();
+  };
+  const std::vector<LoopEvent> unlimited = runWith(0.0, 0.10, true);
+  ASSERT_EQ(unlimited.size(), 1u);
+  const double correction_m = unlimited.front().correction_m;
+  EXPECT_GT(correction_m, 0.1);
+  EXPECT_EQ(runWith(1.0, 0.10, true).size(), 1u);  // a lap is longer than its drift
+  EXPECT_TRUE(runWith(1e-4, 0.005, true).empty());  // limit 0.015 m plus 0.1 mm per metre
+  EXPECT_EQ(runWith(1e-4, 0.005, false).size(), 1u);
+  std::printf("[ CLOSER   ] loop correction %.3f m: closed without a limit, rejected under a limit of 0.015 m\n",
+              correction_m);
+}
+
 // The yaw a guided place match fixes (GuidedPlaceMatch::yaw_sigma_rad, which gates the rejoin and
 // the proximity loop): a keyframe seeing the whole view of a mapped place pins its yaw; the same
 // place seen through a strip of the image (the rest covered) holds as many matches in a narrow

@@ -425,6 +425,12 @@ struct LoopOptions {
   /// m (Loop.RejoinMaxSigma, [0.01, 100]): 3 sigma reaches 3 m, a room's scale; beyond it only BoW
   /// place recognition can merge the map
   double rejoin_max_sigma_m = 1.0;
+  /// With the IMU's gravity known, a BoW loop within one map may move the current keyframe by at
+  /// most 3 Loop.ProximitySigma plus this share of the path the map's keyframes travelled from the
+  /// loop keyframe to it; a larger correction is a place that only looks the same (two door leaves
+  /// of one texture 4.6 m apart: a 4.3 m correction, issue 32), not drift
+  /// (Loop.MaxCorrectionShare, [0, 10]; 0: no limit)
+  double max_correction_share = 0.0;
   /// The full BA after a loop or merge sees only the matches of that one keyframe; the keyframes
   /// that follow keep observing the old side. This many keyframes after a correction the full BA
   /// runs once more, with that evidence (Loop.RefineKeyFrames; 0: off)
