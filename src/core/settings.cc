@@ -65,6 +65,10 @@ void visitKeyFrame(O& o, V& v) {
   v.real("KF.MaxInterval", o.max_interval_s, 0.01, 100.0);
   v.integer("KF.MinInliers", o.min_inliers, 3, 10000);
   v.integer("KF.MinInliersInertial", o.min_inliers_inertial, 3, 10000);
+  v.real("KF.RevisitMaxInterval", o.revisit_max_interval_s, 0.0, 100.0);
+  v.real("KF.RevisitMappedShare", o.revisit_mapped_share, 0.5, 1.0);
+  v.integer("KF.RevisitMinObservers", o.revisit_min_observers, 2, 100);
+  v.real("KF.RevisitMaxNewShare", o.revisit_max_new_share, 0.0, 1.0);
 }
 
 template <typename O, typename V>
@@ -113,6 +117,7 @@ template <typename O, typename V>
 void visitLocalMapping(O& o, V& v) {
   v.integer("LocalMapping.WindowSize", o.window_size, 2, 100);
   v.integer("LocalMapping.MaxFixedKeyFrames", o.max_fixed_keyframes, 1, 1000);
+  v.integer("LocalMapping.MaxFixedObservationsPerPoint", o.max_fixed_observations_per_point, 0, 1000);
   v.integer("LocalMapping.Iterations", o.ba_iterations, 1, 1000);
   v.boolean("Mapping.RobustBeta", o.robust_beta);
   v.integer("LocalMapping.Alternations", o.alternations, 1, 100);

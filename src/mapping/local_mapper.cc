@@ -45,9 +45,10 @@ struct LocalMapper::Impl {
   }
 
   void process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded);
-  /// Appends `kf`'s entry to the mapping timeline (atlas sizes and memory read now).
-  void recordTimeline(const map::KeyFrame& kf, double mapping_ms);
-  void localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const ImuState& imu,
+  /// Appends `kf`'s entry to the mapping timeline (atlas sizes and memory read now) with its local
+  /// BA's problem size `ba`.
+  void recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba);
+  WindowBaStats localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const ImuState& imu,
                          bool threaded, LocalMapperCounters& delta);
   /// Initialises or refines the IMU estimate when due; true when it did.
   bool maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf);
@@ -104,6 +105,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
   std::optional<ScopedTimer> timer;
   if (timing != nullptr) timer.emplace(*timing, "mapping.keyframe");
   LocalMapperCounters delta;
+  WindowBaStats ba_stats;
   map::Map* map = atlas.map(kf->mapId());
   if (map != nullptr && !kf->isBad()) {
     ++sequence;
@@ -127,7 +129,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     if (options.use_imu && imu.initialised) predictInertialState(*map, *kf, imu.g_w);
     stop_ba.store(pause_requested.load());
     if (map->numKeyFrames() > 1 && !(threaded && queue.size() > 0) && !stop_ba.load()) {
-      localBundleAdjust(*map, kf, imu, threaded, delta);
+      ba_stats = localBundleAdjust(*map, kf, imu, threaded, delta);
       ++delta.local_ba_runs;
     }
 
@@ -168,7 +170,8 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     callback = processed_callback;
   }
   if (timer) timer->stop();
-  recordTimeline(*kf, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  recordTimeline(*kf, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+                 ba_stats);
   // 6. Hand on (loop closing).
   if (callback) callback(kf);
 }
@@ -220,13 +223,15 @@ void LocalMapper::Impl::updateTimeOffset(map::Map& map, const map::KeyFrame& kf,
   }
 }
 
-void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf,
-                                          const ImuState& imu, bool threaded, LocalMapperCounters& delta) {
+WindowBaStats LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf,
+                                                   const ImuState& imu, bool threaded, LocalMapperCounters& delta) {
   std::optional<ScopedTimer> timer;
   if (timing != nullptr) timer.emplace(*timing, "mapping.local_ba");
   WindowBaOptions ba;
   ba.window_size = options.local_mapping.window_size;
   ba.max_fixed_keyframes = static_cast<std::size_t>(options.local_mapping.max_fixed_keyframes);
+  ba.max_fixed_observations_per_point =
+      static_cast<std::size_t>(options.local_mapping.max_fixed_observations_per_point);
   ba.iterations = options.local_mapping.ba_iterations;
   ba.bf_px_m = options.bf_px_m;
   ba.min_point_beta = options.local_mapping.min_point_beta;
@@ -268,6 +273,7 @@ void LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::shared_ptr<m
              " points, ", stats.observations, " observations, ", stats.dynamic_points_erased, " dynamic points and ",
              stats.outliers_erased, " outliers erased, c^ = ", stats.c_hat, ", ", stats.static_set_changed.size(),
              " keyframes' static features changed", (stats.aborted ? ", aborted" : ""));
+  return stats;
 }
 
 bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf) {
@@ -520,8 +526,12 @@ TimeOffsetStatus LocalMapper::timeOffset() const {
   return impl_->time_offset;
 }
 
-void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_ms) {
+void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba) {
   MappingTimelineEntry entry;
+  entry.ba_optimised_keyframes = ba.optimised_keyframes;
+  entry.ba_fixed_keyframes = ba.fixed_keyframes;
+  entry.ba_points = ba.points;
+  entry.ba_observations = ba.observations;
   entry.t_s = kf.t_s();
   entry.keyframe_id = kf.id().value;
   entry.mapping_ms = mapping_ms;

@@ -189,18 +189,36 @@ void setUpProblem(const map::KeyFrame& kf, const WindowBaOptions& options, Windo
 }
 
 /// `point` with its observations by the window's keyframes into the problem, unless they leave it
-/// unconstrained.
+/// unconstrained. Of its observations by the fixed observers (window keyframes from `window_end`
+/// on, ordered by the points they share with the window), at most `max_fixed_observations` (0: all)
+/// enter, the first in that order.
 void addPoint(const std::shared_ptr<map::MapPoint>& point, const KeyFrameIndex& index_of,
-              const std::vector<float>& level_sigma2, Window* window) {
+              const std::vector<float>& level_sigma2, std::size_t window_end, std::size_t max_fixed_observations,
+              Window* window) {
   optim::LocalBaProblem& problem = window->problem;
   const std::size_t point_index = window->points.size();
   const double beta = point->beta();
   std::vector<optim::BaObservation> observations;
   std::vector<ObservationRef> point_refs;
   bool has_depth = false;
-  for (const auto& [observer, index] : point->observations()) {
+  const std::map<map::KeyFrameId, int> point_observations = point->observations();
+  // The window index below which a fixed observer's observation is kept (all when uncapped).
+  std::size_t fixed_index_limit = window->keyframes.size();
+  if (max_fixed_observations > 0) {
+    std::vector<std::size_t> fixed_indices;
+    for (const auto& [observer, index] : point_observations) {
+      const auto it = index_of.find(observer);
+      if (it != index_of.end() && it->second >= window_end) fixed_indices.push_back(it->second);
+    }
+    if (fixed_indices.size() > max_fixed_observations) {
+      std::nth_element(fixed_indices.begin(), fixed_indices.begin() + static_cast<long>(max_fixed_observations),
+                       fixed_indices.end());
+      fixed_index_limit = fixed_indices[max_fixed_observations];
+    }
+  }
+  for (const auto& [observer, index] : point_observations) {
     const auto it = index_of.find(observer);
-    if (it == index_of.end()) continue;
+    if (it == index_of.end() || it->second >= fixed_index_limit) continue;
     const WindowKeyFrame& entry = window->keyframes[it->second];
     if (index < 0 || index >= entry.kf->numKeypoints()) continue;
     const features::Keypoint& kp = entry.kf->keypoints()[static_cast<std::size_t>(index)];
@@ -258,7 +276,9 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
       addObservedPoints(map, options, window_end, &window, &index_of, &point_seen);
   // ---- the problem ----
   setUpProblem(*kf, options, &window);
-  for (const std::shared_ptr<map::MapPoint>& point : points) addPoint(point, index_of, level_sigma2, &window);
+  for (const std::shared_ptr<map::MapPoint>& point : points) {
+    addPoint(point, index_of, level_sigma2, window_end, options.max_fixed_observations_per_point, &window);
+  }
   if (options.robust) addProbePoints(map, options, window_end, &point_seen, &window);
   return window;
 }

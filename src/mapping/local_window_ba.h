@@ -34,6 +34,9 @@ struct WindowBaOptions {
   int window_size = 10;          ///< keyframes optimised
   int iterations = 10;           ///< solver iterations per state step (plain: per pass)
   std::size_t max_fixed_keyframes = 50;  ///< fixed observers kept, those sharing most points first
+  /// observations of one point from fixed keyframes kept, those of the fixed keyframes sharing most
+  /// points first (0: all)
+  std::size_t max_fixed_observations_per_point = 0;
   double bf_px_m = 40.0;
   double min_point_beta = 0.5;   ///< points with a lower static score are left out (robust: deleted)
   int num_threads = 1;

@@ -23,7 +23,8 @@ namespace {
 
 constexpr const char* kKeyFramesHeader = "# t tx ty tz qx qy qz qw id map static_area_ratio";
 constexpr const char* kMappingTimelineHeader =
-    "# t keyframe_id mapping_ms atlas_keyframes atlas_map_points resident_mb";
+    "# t keyframe_id mapping_ms atlas_keyframes atlas_map_points resident_mb ba_optimised ba_fixed ba_points "
+    "ba_observations";
 constexpr const char* kPlyVertexLayout[] = {"property float x",     "property float y",
                                             "property float z",     "property uchar red",
                                             "property uchar green", "property uchar blue",
@@ -95,7 +96,8 @@ void writeMappingTimeline(const std::string& path, const std::vector<mapping::Ma
   for (const mapping::MappingTimelineEntry& entry : timeline) {
     out << std::fixed << std::setprecision(6) << entry.t_s << ' ' << entry.keyframe_id << ' ' << std::setprecision(3)
         << entry.mapping_ms << ' ' << entry.atlas_keyframes << ' ' << entry.atlas_map_points << ' '
-        << std::setprecision(1) << entry.resident_mb << '\n';
+        << std::setprecision(1) << entry.resident_mb << ' ' << entry.ba_optimised_keyframes << ' '
+        << entry.ba_fixed_keyframes << ' ' << entry.ba_points << ' ' << entry.ba_observations << '\n';
   }
   if (!out) throw InputError(path, 0, "write failed");
 }
@@ -113,10 +115,22 @@ MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::Mappi
   // The two windows must not overlap, or the ratio would compare a stretch with itself.
   if (last_t_s - first_t_s < 2.0 * window_s) return summary;
   std::vector<double> first_ms, last_ms;
+  // Local BA sizes of the keyframes that ran one: observations, points, fixed keyframes.
+  std::vector<double> first_ba[3], last_ba[3];
+  auto add_ba = [](const mapping::MappingTimelineEntry& entry, std::vector<double>* sizes) {
+    if (entry.ba_observations <= 0) return;
+    sizes[0].push_back(entry.ba_observations);
+    sizes[1].push_back(entry.ba_points);
+    sizes[2].push_back(entry.ba_fixed_keyframes);
+  };
   for (const mapping::MappingTimelineEntry& entry : timeline) {
-    if (entry.t_s < first_t_s + window_s) first_ms.push_back(entry.mapping_ms);
+    if (entry.t_s < first_t_s + window_s) {
+      first_ms.push_back(entry.mapping_ms);
+      add_ba(entry, first_ba);
+    }
     if (entry.t_s > last_t_s - window_s) {
       last_ms.push_back(entry.mapping_ms);
+      add_ba(entry, last_ba);
       summary.last_resident_mb = std::max(summary.last_resident_mb, entry.resident_mb);
     } else if (entry.t_s < first_t_s + window_s) {
       summary.first_resident_mb = std::max(summary.first_resident_mb, entry.resident_mb);
@@ -125,6 +139,13 @@ MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::Mappi
   summary.windows = true;
   summary.first_median_ms = percentile(first_ms, 0.5);
   summary.last_median_ms = percentile(last_ms, 0.5);
+  auto median = [](std::vector<double>& values) { return values.empty() ? 0.0 : percentile(values, 0.5); };
+  summary.first_ba_observations = median(first_ba[0]);
+  summary.last_ba_observations = median(last_ba[0]);
+  summary.first_ba_points = median(first_ba[1]);
+  summary.last_ba_points = median(last_ba[1]);
+  summary.first_ba_fixed_keyframes = median(first_ba[2]);
+  summary.last_ba_fixed_keyframes = median(last_ba[2]);
   return summary;
 }
 
@@ -332,6 +353,12 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
                 timeline.first_median_ms > 0.0 ? timeline.last_median_ms / timeline.first_median_ms : 0.0);
     metrics.set("resident_first_minute_max_mb", timeline.first_resident_mb);
     metrics.set("resident_last_minute_max_mb", timeline.last_resident_mb);
+    metrics.set("local_ba_first_minute_median_observations", timeline.first_ba_observations);
+    metrics.set("local_ba_last_minute_median_observations", timeline.last_ba_observations);
+    metrics.set("local_ba_first_minute_median_points", timeline.first_ba_points);
+    metrics.set("local_ba_last_minute_median_points", timeline.last_ba_points);
+    metrics.set("local_ba_first_minute_median_fixed_keyframes", timeline.first_ba_fixed_keyframes);
+    metrics.set("local_ba_last_minute_median_fixed_keyframes", timeline.last_ba_fixed_keyframes);
   }
   if (report.time_offset_estimated) {
     metrics.set("imu_time_offset_s", report.time_offset_s);

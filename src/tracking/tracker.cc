@@ -89,7 +89,16 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   recordTrackedFrame(frame, decision.inliers, was_lost);
   if (stats_.relocalised) onStartRecovery(frame);
   if (velocity_unknown_) estimateStartVelocity(frame, was_lost || stats_.relocalised);
-  if (needNewKeyFrame()) {
+  const KeyFrameDecision keyframe = decideKeyFrame();
+  if (keyframe.deferred_on_revisit) ++keyframes_deferred_on_revisit_;
+  if ((keyframe.need || keyframe.deferred_on_revisit) && log::level() <= log::Level::kDebug) {
+    const MappedView view = keyframe.view.inliers > 0 ? keyframe.view : mappedView();
+    log::debug("keyframe decision at t = ", frame.t_s(), ": ", keyframe.need ? "made" : "deferred on revisit",
+               " (interval ", keyframe.interval, ", overlap ", keyframe.low_overlap, " ", stats_.overlap, ", weak ",
+               keyframe.weak, "), inliers ", view.inliers, ", mapped ", view.mappedShare(), ", new ", view.unmatched,
+               " of ", view.static_with_depth, " static with depth");
+  }
+  if (keyframe.need) {
     createKeyFrame();
     frame.map_points = last_frame_->map_points;
     frame.outliers = last_frame_->outliers;

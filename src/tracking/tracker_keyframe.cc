@@ -1,6 +1,7 @@
 // Tracker, part 5: the keyframe decision and the keyframe's creation (matches become observations,
 // new close map points), and the keyframe a lost frame places at its IMU-predicted pose.
 #include <algorithm>
+#include <array>
 #include <limits>
 
 #include "bow/vocabulary.h"
@@ -12,12 +13,14 @@
 namespace ltlo::tracking {
 
 using detail::clearMatches;
+using detail::isMatched;
 
-bool Tracker::needNewKeyFrame() const {
-  if (options_.tracking.localisation_only) return false;  // the loaded map is not changed
-  if (state_ != TrackingState::kOk || !last_frame_) return false;
-  if (frames_since_keyframe_ < options_.min_frames_between_keyframes) return false;
-  if (still_ && options_.tracking.zupt_no_keyframes) return false;  // at rest (issue 32)
+KeyFrameDecision Tracker::decideKeyFrame() const {
+  KeyFrameDecision decision;
+  if (options_.tracking.localisation_only) return decision;  // the loaded map is not changed
+  if (state_ != TrackingState::kOk || !last_frame_) return decision;
+  if (frames_since_keyframe_ < options_.min_frames_between_keyframes) return decision;
+  if (still_ && options_.tracking.zupt_no_keyframes) return decision;  // at rest (issue 32)
   const KeyFrameOptions& kf = options_.keyframe;
   // Before the IMU initialisation the interval shrinks to ImuInit.MinTime / (MinKeyFrames - 1), so
   // the map can initialise the IMU as soon as MinTime of motion is covered.
@@ -25,12 +28,12 @@ bool Tracker::needNewKeyFrame() const {
   if (!imu_initialised_ && last_frame_->imu_from_last_frame && options_.imu_init_keyframe_interval_s > 0.0) {
     max_interval_s = std::min(max_interval_s, options_.imu_init_keyframe_interval_s);
   }
-  const bool interval = last_frame_->t_s() - last_keyframe_t_s_ >= max_interval_s;
-  const bool low_overlap = stats_.overlap < kf.max_overlap;
+  const double since_keyframe_s = last_frame_->t_s() - last_keyframe_t_s_;
+  decision.interval = since_keyframe_s >= max_interval_s;
+  decision.low_overlap = stats_.overlap < kf.max_overlap;
   // (The tolerance lets three 1/30 s frame steps count as 0.1 s.)
   constexpr double kTimeTolerance_s = 1e-6;
-  const bool weak = stats_.inliers < kf.min_tracked_points &&
-                    last_frame_->t_s() - last_keyframe_t_s_ >= kf.weak_min_interval_s - kTimeTolerance_s;
+  decision.weak = stats_.inliers < kf.min_tracked_points && since_keyframe_s >= kf.weak_min_interval_s - kTimeTolerance_s;
   // A keyframe needs enough inliers to be anchored in the map. When tracking resumes after a loss,
   // a frame tracked with the inertial optimisation is anchored by its IMU link too and needs fewer:
   // the view is then mostly unmapped, and without a keyframe its few matches run out and tracking
@@ -38,7 +41,57 @@ bool Tracker::needNewKeyFrame() const {
   // window, so the vision-only rule holds.
   const int anchor_inliers =
       stats_.inertial_link != 0 && resumed_without_keyframe_ ? kf.min_inliers_inertial : kf.min_inliers;
-  return (interval || low_overlap || weak) && stats_.inliers >= anchor_inliers;
+  decision.anchored = stats_.inliers >= anchor_inliers;
+  decision.need = (decision.interval || decision.low_overlap || decision.weak) && decision.anchored;
+  // Revisits: a view the map already holds gains nothing from a keyframe but one more observer of
+  // the same points (local BA's fixed set, the culling and the loop closer's work all grow with
+  // them); keyframe culling would remove it as redundant. Not after a loss, whose keyframe
+  // re-anchors the IMU chain, nor before the IMU initialisation, which needs its keyframes.
+  const bool imu_waits = !imu_initialised_ && last_frame_->imu_from_last_frame;
+  if (decision.need && kf.revisit_max_interval_s > 0.0 && since_keyframe_s < kf.revisit_max_interval_s &&
+      !resumed_without_keyframe_ && !imu_waits) {
+    decision.view = mappedView();
+    if (decision.view.mappedShare() >= kf.revisit_mapped_share && decision.view.newShare() <= kf.revisit_max_new_share) {
+      decision.deferred_on_revisit = true;
+      decision.need = false;
+    }
+  }
+  return decision;
+}
+
+MappedView Tracker::mappedView() const {
+  MappedView view;
+  if (!last_frame_) return view;
+  const map::Frame& frame = *last_frame_;
+  const map::Map& active = atlas_.activeMap();
+  const int min_observers = options_.keyframe.revisit_min_observers;
+  // A coarse grid over the image: a cell with static features but no pose inlier is a part of the
+  // view the map does not hold (8 x 6 cells: 80 px at VGA, about the spacing of 1000 features).
+  constexpr int kGridColumns = 8;
+  constexpr int kGridRows = 6;
+  std::array<int, kGridColumns * kGridRows> static_in_cell{};
+  std::array<bool, kGridColumns * kGridRows> inlier_in_cell{};
+  const double column_scale = kGridColumns / static_cast<double>(std::max(1, frame.camera().width()));
+  const double row_scale = kGridRows / static_cast<double>(std::max(1, frame.camera().height()));
+  for (int i = 0; i < frame.numKeypoints(); ++i) {
+    const features::Keypoint& kp = frame.keypoints()[static_cast<std::size_t>(i)];
+    const int column = std::clamp(static_cast<int>(kp.x_px * column_scale), 0, kGridColumns - 1);
+    const int row = std::clamp(static_cast<int>(kp.y_px * row_scale), 0, kGridRows - 1);
+    const auto cell = static_cast<std::size_t>(row * kGridColumns + column);
+    if (frame.isStatic(i) && frame.depth_m(i) > 0.0f) {
+      ++view.static_with_depth;
+      ++static_in_cell[cell];
+    }
+    if (!isMatched(frame, i)) continue;
+    inlier_in_cell[cell] = true;
+    ++view.inliers;
+    const auto point = active.mapPoint(frame.map_points[static_cast<std::size_t>(i)]);
+    if (point && !point->isBad() && point->numObservations() >= min_observers) ++view.mapped_inliers;
+  }
+  for (std::size_t cell = 0; cell < static_in_cell.size(); ++cell) {
+    if (!inlier_in_cell[cell]) view.unmatched += static_in_cell[cell];
+  }
+  return view;
 }
 
 std::shared_ptr<map::KeyFrame> Tracker::createKeyFrame() {

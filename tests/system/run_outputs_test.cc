@@ -203,6 +203,13 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
     entry.mapping_ms = 100.0 + entry.t_s / 3.0 + (k % 2 == 0 ? 5.0 : -5.0);  // 100 ms -> 200 ms
     entry.atlas_keyframes = static_cast<std::size_t>(k + 1);
     entry.resident_mb = 200.0 + entry.t_s;
+    // Local BA on every keyframe but one in ten: observations 1000 -> 1600 over the run.
+    if (k % 10 != 5) {
+      entry.ba_optimised_keyframes = 10;
+      entry.ba_fixed_keyframes = 20 + k / 20;
+      entry.ba_points = 500;
+      entry.ba_observations = 1000 + k;
+    }
     timeline.push_back(entry);
   }
   const MappingTimelineSummary summary = summariseMappingTimeline(timeline, 60.0);
@@ -213,6 +220,13 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   EXPECT_NEAR(summary.first_resident_mb, 259.5, 1e-9);
   EXPECT_NEAR(summary.last_resident_mb, 500.0, 1e-9);
   EXPECT_NEAR(summary.max_resident_mb, 500.0, 1e-9);
+  // The BA sizes' medians over the keyframes that ran one: k in [0, 119] and [481, 600] but
+  // those ending in 5, medians at k = 59.5 and 540.5.
+  EXPECT_NEAR(summary.first_ba_observations, 1059.5, 1.01);
+  EXPECT_NEAR(summary.last_ba_observations, 1540.5, 1.01);
+  EXPECT_NEAR(summary.first_ba_points, 500.0, 1e-9);
+  EXPECT_NEAR(summary.first_ba_fixed_keyframes, 23.0, 1.01);
+  EXPECT_NEAR(summary.last_ba_fixed_keyframes, 47.0, 1.01);
 
   const std::vector<mapping::MappingTimelineEntry> short_run(timeline.begin(), timeline.begin() + 200);
   EXPECT_FALSE(summariseMappingTimeline(short_run, 60.0).windows);
@@ -222,6 +236,8 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   const io::Metrics metrics = computeRunMetrics(report, circleGroundTruth(10));
   EXPECT_NEAR(metrics.number("mapping_keyframe_last_to_first_minute"),
               summary.last_median_ms / summary.first_median_ms, 1e-12);
+  EXPECT_NEAR(metrics.number("local_ba_first_minute_median_observations"), summary.first_ba_observations, 1e-12);
+  EXPECT_NEAR(metrics.number("local_ba_last_minute_median_observations"), summary.last_ba_observations, 1e-12);
   writeMappingTimeline(path("timeline.txt"), timeline);
   std::ifstream in(path("timeline.txt"));
   std::string header, line;
@@ -230,10 +246,16 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   int lines = 0;
   double t_s = 0.0, mapping_ms = 0.0, resident_mb = 0.0;
   std::uint64_t id = 0, keyframes = 0, points = 0;
+  int ba_optimised = 0, ba_fixed = 0, ba_points = 0, ba_observations = 0;
   while (std::getline(in, line)) {
-    std::istringstream(line) >> t_s >> id >> mapping_ms >> keyframes >> points >> resident_mb;
+    std::istringstream(line) >> t_s >> id >> mapping_ms >> keyframes >> points >> resident_mb >> ba_optimised >>
+        ba_fixed >> ba_points >> ba_observations;
     ++lines;
   }
+  EXPECT_EQ(ba_optimised, 10);
+  EXPECT_EQ(ba_fixed, 50);
+  EXPECT_EQ(ba_points, 500);
+  EXPECT_EQ(ba_observations, 1600);
   EXPECT_EQ(lines, 601);
   EXPECT_NEAR(t_s, 300.0, 1e-9);
   EXPECT_EQ(id, 600u);

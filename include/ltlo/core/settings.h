@@ -122,6 +122,23 @@ struct KeyFrameOptions {
   /// mostly unmapped extends the map as soon as it is tracked, instead of being lost again for want
   /// of points (KF.MinInliers restores the vision-only rule)
   int min_inliers_inertial = 10;
+  /// Revisits (issue 32): a frame whose view the map already holds, i.e. at least
+  /// KF.RevisitMappedShare of its pose inliers are points seen by KF.RevisitMinObservers keyframes
+  /// or more (the redundancy test of keyframe culling, ORB-SLAM's 90 % seen by >= 3 others, applied
+  /// before the keyframe is made) and at most KF.RevisitMaxNewShare of its static features with
+  /// depth would become new points, makes no keyframe on the overlap, weak-tracking or interval rule
+  /// until this long has passed since the last keyframe, s (KF.RevisitMaxInterval, [0, 100]; it
+  /// bounds the IMU preintegration between keyframes as KF.MaxInterval does elsewhere). 0: off,
+  /// every trigger makes its keyframe (the rule of the first visit everywhere).
+  double revisit_max_interval_s = 0.0;
+  /// share of the pose inliers that must be established points for the view to count as mapped
+  /// (KF.RevisitMappedShare, [0.5, 1])
+  double revisit_mapped_share = 0.9;
+  /// keyframes an established point is seen by (KF.RevisitMinObservers, [2, 100])
+  int revisit_min_observers = 3;
+  /// largest share of the frame's static keypoints with depth that match no map point and would
+  /// become new points, for the view to count as mapped (KF.RevisitMaxNewShare, [0, 1]; 1: any)
+  double revisit_max_new_share = 1.0;
 
   static KeyFrameOptions load(const SettingsFile& file);
 };
@@ -313,6 +330,11 @@ struct LocalMappingOptions {
   /// after lap gives every point more observers, and the fixed set (its observations) grows to this
   /// cap: it sets how the local BA's cost grows over a long run
   int max_fixed_keyframes = 50;
+  /// At most this many observations of a window point from fixed keyframes enter local BA, those
+  /// of the fixed keyframes sharing most points with the window first (LocalMapping.
+  /// MaxFixedObservationsPerPoint, [0, 1000]; 0: all). A point seen from every lap of a revisited
+  /// room is held by a few fixed views as well as by all: the rest only add cost (issue 32)
+  int max_fixed_observations_per_point = 0;
   /// solver iterations per state step (LocalMapping.Iterations, [1, 1000])
   int ba_iterations = 10;
   /// Robust VIBA (Mapping.RobustBeta, 0/1): 1 alternates the state/point step with the closed-form

@@ -14,6 +14,12 @@ struct MappingTimelineEntry {
   std::size_t atlas_keyframes = 0;  ///< keyframes in all maps after it
   std::size_t atlas_map_points = 0;
   double resident_mb = 0.0;         ///< resident set size of the process after it
+  /// Its local BA's problem size (all 0 when it ran none): a measure of the mapping cost that,
+  /// unlike mapping_ms, does not depend on the machine's load (issue 32).
+  int ba_optimised_keyframes = 0;
+  int ba_fixed_keyframes = 0;
+  int ba_points = 0;
+  int ba_observations = 0;
 };
 
 }  // namespace ltlo::mapping

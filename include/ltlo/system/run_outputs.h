@@ -47,6 +47,14 @@ struct MappingTimelineSummary {
   double first_resident_mb = 0.0;  ///< the largest resident memory in each window, MB
   double last_resident_mb = 0.0;
   double max_resident_mb = 0.0;    ///< over the whole timeline
+  /// Median local BA problem size of the keyframes that ran one, in each window (load-insensitive;
+  /// issue 32): observations, points and fixed keyframes.
+  double first_ba_observations = 0.0;
+  double last_ba_observations = 0.0;
+  double first_ba_points = 0.0;
+  double last_ba_points = 0.0;
+  double first_ba_fixed_keyframes = 0.0;
+  double last_ba_fixed_keyframes = 0.0;
 };
 MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::MappingTimelineEntry>& timeline,
                                                 double window_s);

@@ -88,6 +88,31 @@ struct TrackingStats {
   int odometry_inliers = 0;
 };
 
+/// How much of a keyframe candidate's view the map already holds (KeyFrameOptions revisit_*).
+struct MappedView {
+  int inliers = 0;          ///< pose inliers
+  int mapped_inliers = 0;   ///< of them, points seen by KF.RevisitMinObservers keyframes or more
+  int static_with_depth = 0;  ///< static keypoints with depth
+  /// of them, those in image cells (a coarse grid, kMappedViewGrid) without any pose inlier: the
+  /// unmapped part of the view, whose points a keyframe would add. (Counting every unmatched
+  /// keypoint would count the detector's misses on mapped ground too.)
+  int unmatched = 0;
+  double mappedShare() const { return inliers > 0 ? static_cast<double>(mapped_inliers) / inliers : 0.0; }
+  double newShare() const { return static_with_depth > 0 ? static_cast<double>(unmatched) / static_with_depth : 1.0; }
+};
+
+/// The keyframe decision for one tracked frame (Tracker::decideKeyFrame).
+struct KeyFrameDecision {
+  bool interval = false;     ///< KF.MaxInterval (or the shorter interval before the IMU initialisation)
+  bool low_overlap = false;  ///< KF.MaxOverlap
+  bool weak = false;         ///< KF.MinTrackedPoints after KF.WeakMinInterval
+  bool anchored = false;     ///< enough inliers to anchor a keyframe (KF.MinInliers[Inertial])
+  /// a trigger held but the view is already mapped and KF.RevisitMaxInterval has not passed
+  bool deferred_on_revisit = false;
+  bool need = false;         ///< make the keyframe
+  MappedView view;           ///< measured only when a trigger held and the revisit rule is on
+};
+
 /// Not thread-safe (the tracking thread owns it). Reads and writes the Atlas' active map through
 /// its thread-safe API. Runs the loss policy's steps (RecoverySteps) for its LossRecovery.
 class Tracker : private RecoverySteps {
@@ -121,7 +146,11 @@ class Tracker : private RecoverySteps {
   /// Keyframe decision for the last tracked frame (KeyFrameOptions): overlap below max_overlap,
   /// or weak tracking, or max_interval_s since the last keyframe; and at least
   /// min_frames_between_keyframes frames since it.
-  bool needNewKeyFrame() const;
+  bool needNewKeyFrame() const { return decideKeyFrame().need; }
+  /// The decision with its triggers and, on a revisit, the view's measure.
+  KeyFrameDecision decideKeyFrame() const;
+  /// The view of the last tracked frame against the map (MappedView).
+  MappedView mappedView() const;
   /// Promotes the last tracked frame to a keyframe with its matches and new close map points,
   /// updates the covisibility graph and runs the local-mapping callback.
   std::shared_ptr<map::KeyFrame> createKeyFrame();
@@ -164,6 +193,8 @@ class Tracker : private RecoverySteps {
 
   /// Keyframes created by this tracker (all maps).
   int numKeyFrames() const { return num_keyframes_; }
+  /// Tracked frames whose keyframe the revisit rule deferred (KF.RevisitMaxInterval).
+  int numKeyFramesDeferredOnRevisit() const { return keyframes_deferred_on_revisit_; }
   map::KeyFrameId referenceKeyFrame() const { return reference_kf_; }
   /// Reference keyframe of the last frame (nullptr before initialisation); its pose and the last
   /// frame's pose are consistent (the frame's pose was estimated against the map holding it).
@@ -330,6 +361,7 @@ class Tracker : private RecoverySteps {
   double last_tracked_t_s_ = 0.0;
   LossRecovery loss_;  ///< the loss policy and the IMU-carried stretch
   int num_keyframes_ = 0;
+  int keyframes_deferred_on_revisit_ = 0;
   std::vector<map::KeyFrameId> local_keyframes_;
   std::vector<map::MapPointId> local_points_;
 

@@ -1,0 +1,113 @@
+// The size of local BA's problem on a revisited place (issue 32): 30 keyframes, as laps over one
+// spot leave them, all see the same 60 points. LocalMapping.MaxFixedObservationsPerPoint bounds the
+// observations each point takes from the fixed keyframes, so the problem stops growing with the
+// laps, and the optimised keyframes still return to their true poses (noise-free observations).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <random>
+
+#include "../../src/mapping/local_window_ba.h"
+#include "ltlo/map/map.h"
+
+namespace ltlo::mapping {
+namespace {
+
+constexpr int kKeyFrames = 30;
+constexpr int kPoints = 60;
+constexpr int kWindow = 5;  ///< keyframes of the window (the map's gauge among them is held)
+
+PinholeCamera qvgaCamera() { return PinholeCamera(262.5, 262.5, 159.5, 119.5, 320, 240); }
+std::vector<float> levelSigma2() { return {1.0f, 1.44f, 2.0736f, 2.985984f}; }
+
+/// The true pose of keyframe n (camera = body): a few cm apart along x, turned slightly.
+SE3 truePose(int n) {
+  return SE3(Quat(Eigen::AngleAxisd(0.01 * n, Vec3::UnitY())), Vec3(0.02 * n, 0.005 * (n % 3), 0.0));
+}
+
+/// kKeyFrames keyframes seeing the same kPoints points (exact projections and depths, octave 0),
+/// all connected in the covisibility graph.
+struct RevisitedSpot {
+  RevisitedSpot() {
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(40.0, 280.0), v(30.0, 210.0), z(2.0, 3.0);
+    const PinholeCamera camera = qvgaCamera();
+    std::vector<Vec3> points_w;
+    for (int k = 0; k < kPoints; ++k) points_w.push_back(camera.backProject(Vec2(u(rng), v(rng)), z(rng)));
+    for (int n = 0; n < kKeyFrames; ++n) {
+      const SE3 T_w_b = truePose(n);
+      features::OrbFeatures features;
+      std::vector<float> depths;
+      for (const Vec3& p_w : points_w) {
+        const Vec3 p_c = T_w_b.inverse() * p_w;
+        const Vec2 uv = camera.project(p_c);
+        features::Keypoint kp;
+        kp.x_px = static_cast<float>(uv.x());
+        kp.y_px = static_cast<float>(uv.y());
+        features.keypoints.push_back(kp);
+        features.descriptors.push_back(features::Descriptor{});
+        depths.push_back(static_cast<float>(p_c.z()));
+      }
+      map::Frame frame(0.5 * n, camera, SE3(), std::move(features), std::move(depths), {1.0f, 1.2f, 1.44f, 1.728f});
+      frame.setPose_T_w_b(T_w_b);
+      keyframes.push_back(map.createKeyFrame(frame));
+    }
+    for (int k = 0; k < kPoints; ++k) {
+      auto point = map.createMapPoint(points_w[static_cast<std::size_t>(k)], keyframes.front()->id());
+      for (const auto& kf : keyframes) map.addObservation(*kf, k, *point);
+    }
+    for (const auto& kf : keyframes) map.updateConnections(*kf);
+  }
+  map::Map map;
+  std::vector<std::shared_ptr<map::KeyFrame>> keyframes;
+};
+
+struct CapResult {
+  WindowBaStats stats;
+  double largest_error_m = 0.0;  ///< optimised keyframes' position error after the BA
+};
+
+/// Visual local BA around the newest keyframe, moved 3 cm off the truth first.
+CapResult runWindow(std::size_t max_fixed_observations_per_point) {
+  RevisitedSpot spot;
+  WindowBaOptions options;
+  options.window_size = kWindow;
+  options.max_fixed_keyframes = 50;
+  options.max_fixed_observations_per_point = max_fixed_observations_per_point;
+  options.robust = false;
+  options.bf_px_m = 262.5 * 0.5;
+  const auto& newest = spot.keyframes.back();
+  newest->setPose_T_w_b(SE3(newest->T_w_b().quaternion(), newest->T_w_b().translation() + Vec3(0.03, -0.02, 0.01)));
+  CapResult result;
+  result.stats = localWindowBundleAdjust(spot.map, spot.keyframes.back(), options, levelSigma2());
+  for (int n = 0; n < kKeyFrames; ++n) {
+    const auto& kf = spot.keyframes[static_cast<std::size_t>(n)];
+    result.largest_error_m =
+        std::max(result.largest_error_m, (kf->T_w_b().translation() - truePose(n).translation()).norm());
+  }
+  return result;
+}
+
+TEST(LocalBaProblemSize, FixedObservationsPerPointAreCapped) {
+  const CapResult all = runWindow(0);
+  const CapResult capped = runWindow(4);
+  std::printf("local BA: %d optimised + %d fixed keyframes, %d points; observations %d uncapped, %d with 4 fixed per "
+              "point; largest position error after it %.2e / %.2e m\n",
+              all.stats.optimised_keyframes, all.stats.fixed_keyframes, all.stats.points, all.stats.observations,
+              capped.stats.observations, all.largest_error_m, capped.largest_error_m);
+  ASSERT_EQ(all.stats.points, kPoints);
+  ASSERT_EQ(all.stats.optimised_keyframes + all.stats.fixed_keyframes, kKeyFrames);
+  // Uncapped every point carries an observation from every keyframe; capped, from the window's
+  // keyframes and four fixed observers.
+  EXPECT_EQ(all.stats.observations, kPoints * kKeyFrames);
+  EXPECT_EQ(capped.stats.points, kPoints);
+  EXPECT_EQ(capped.stats.fixed_keyframes, all.stats.fixed_keyframes);
+  EXPECT_EQ(capped.stats.observations, kPoints * (kWindow + 4));
+  // Both recover the true poses (exact data): the cap drops redundant constraints only.
+  EXPECT_LT(all.largest_error_m, 1e-4);
+  EXPECT_LT(capped.largest_error_m, 1e-4);
+}
+
+}  // namespace
+}  // namespace ltlo::mapping
