@@ -111,6 +111,7 @@ void visitTracking(O& o, V& v) {
   v.boolean("Tracking.StartRecoveryCutsImu", o.start_recovery_cuts_imu);
   v.boolean("Tracking.StartRecoveryGauge", o.start_recovery_gauge);
   v.boolean("Tracking.StartCarriedLost", o.start_carried_lost);
+  v.boolean("Tracking.PreMapImuPose", o.pre_map_imu_pose);
 }
 
 template <typename O, typename V>

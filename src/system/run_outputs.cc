@@ -321,6 +321,7 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("maps_created", c.maps_created);
   metrics.set("frames_tracked_weak_imu", c.frames_tracked_weak_imu);
   metrics.set("frames_imu_predicted", c.frames_imu_predicted);
+  metrics.set("frames_before_map", c.frames_before_map);
   metrics.set("relocalisations", c.relocalisations);
   metrics.set("maps_extended", c.maps_extended);
   metrics.set("reacquisitions", c.reacquisitions);

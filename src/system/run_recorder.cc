@@ -104,9 +104,23 @@ std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Fra
     imu->g_w = tracker.g_w();
     imu->T_b_c = frame.T_b_c();
   }
+  const bool before_map = tracker.framePosedBeforeMap();
+  if (before_map) ++frames_before_map_;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (record.reference && !pre_map_records_.empty()) {
+      // The first map's first keyframe, at its creation pose in the dead reckoning's world.
+      const SE3 T_refb_w = map::latestPose_T_w_b(*record.reference).inverse();
+      for (const std::size_t index : pre_map_records_) {
+        FrameRecord& early = records_[index];
+        early.reference = record.reference;
+        early.T_refb_c = T_refb_w * early.T_w_c;
+        early.map_online = record.map_online;
+      }
+      pre_map_records_.clear();
+    }
     records_.push_back(std::move(record));
+    if (before_map) pre_map_records_.push_back(records_.size() - 1);
     for (auto& [index, kept] :
          imu_retention_.add(records_.size() - 1, t_s, recorded.carried, recorded.map.value, std::move(imu))) {
       records_[index].imu = std::move(kept);
@@ -165,6 +179,7 @@ SystemCounts RunRecorder::counts(const tracking::Tracker& tracker, const loop::L
   counts.maps_created = tracker.numMapsCreated();
   counts.frames_tracked_weak_imu = frames_tracked_weak_imu_;
   counts.frames_imu_predicted = frames_imu_predicted_;
+  counts.frames_before_map = frames_before_map_;
   counts.relocalisations = relocalisations_;
   counts.maps_extended = maps_extended_;
   counts.reacquisitions = reacquisitions_;
@@ -467,6 +482,9 @@ void RunRecorder::readState(map::ByteReader& in, const map::RunKeyFrames& keyfra
   std::lock_guard<std::mutex> lock(mutex_);
   records_ = std::move(records);
   context_records_ = records_.size();
+  // A run saved before its first map: the restored records keep their dead-reckoned poses as they
+  // are (the resumed tracker starts its own dead reckoning).
+  pre_map_records_.clear();
   colours_ = std::move(colours);
   imu_retention_.restore(std::move(retention));
 }

@@ -53,15 +53,24 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   frame_information_ = StateInformation();
   imu_prediction_ = ImuPrediction();
   start_predicted_T_w_b_.reset();
+  frame_posed_before_map_ = false;
   updateStandstill(frame);
+  if (state_ != TrackingState::kNotInitialised || loaded_start_pending_) first_map_started_ = true;
   if (state_ == TrackingState::kNotInitialised) {
     segment(frame, MotionPrior());
     const bool plain_start = !loaded_start_pending_;
+    if (plain_start && !first_map_started_ && options_.tracking.pre_map_imu_pose) poseBeforeFirstMap(frame);
     state_ = loaded_start_pending_ ? startInLoadedAtlas(frame) : initialise(frame);
     frame_tracked_ = state_ == TrackingState::kOk;
     // The map's first keyframe was made without any motion seen: its points are provisional.
     if (frame_tracked_ && plain_start && reference_kf_ptr_) {
       makeStartPointsProvisional(*reference_kf_ptr_);
+    }
+    if (state_ != TrackingState::kNotInitialised) {
+      // The map started at the frame's pose (the dead-reckoned one with Tracking.PreMapImuPose).
+      first_map_started_ = true;
+      frame_posed_before_map_ = false;
+      pre_map_.reset();
     }
     return state_;
   }
@@ -286,7 +295,10 @@ TrackingState Tracker::initialise(map::Frame& frame) {
       init_wait_since_t_s_ = frame.t_s();
       log::info("initialisation waits at t = ", frame.t_s(), " s: the view is too poor to start a map, ", with_depth,
                 " static keypoints with depth of ", frame.numKeypoints(), " keypoints (", options_.min_init_features,
-                " needed); no pose until it starts");
+                " needed); ",
+                options_.tracking.pre_map_imu_pose && !first_map_started_
+                    ? "the IMU keeps the pose until it starts (Tracking.PreMapImuPose)"
+                    : "no pose until it starts");
     } else {
       log::debug("initialisation: ", with_depth, " static keypoints with depth, ", options_.min_init_features,
                  " needed");
@@ -320,6 +332,27 @@ TrackingState Tracker::initialise(map::Frame& frame) {
   log::info("tracking initialised at t = ", frame.t_s(), " s in map ", active.id(), " with ",
             active.numMapPoints(), " map points");
   return TrackingState::kOk;
+}
+
+void Tracker::poseBeforeFirstMap(map::Frame& frame) {
+  // A rest is trusted from twice the zero-velocity test's window before the first moving frame.
+  const double replay_s = 2.0 * options_.zero_velocity.window_s;
+  if (!pre_map_) {
+    // The run's first frame: the world is its body frame.
+    pre_map_.emplace(frame.t_s(), replay_s);
+    pre_map_t0_s_ = frame.t_s();
+  } else {
+    pre_map_->propagate(frame.t_s(), frame.imu_from_last_frame ? &*frame.imu_from_last_frame : nullptr, still_);
+    if (!still_ && !pre_map_->positionIntegrated() && !pre_map_position_held_logged_ &&
+        frame.t_s() - pre_map_t0_s_ > replay_s) {
+      pre_map_position_held_logged_ = true;
+      log::info("before the first map at t = ", frame.t_s(), " s: moving with no rest seen to take gravity from, ",
+                "the IMU keeps the orientation only (the position is held)");
+    }
+  }
+  frame.setPose_T_w_b(pre_map_->T_w_b());
+  frame.setVelocity(pre_map_->v_w_b());
+  frame_posed_before_map_ = true;
 }
 
 SegmentationOutcome Tracker::segment(map::Frame& frame, const MotionPrior& prior) {

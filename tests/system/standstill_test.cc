@@ -5,6 +5,8 @@
 //     the truth, the gyro bias within its sigma (rms of IMU.NoiseGyro / sqrt(ImuInit.RestTime) per
 //     axis) of the simulator's true bias;
 //   - a 3 s standstill while a box crosses the view keeps the pose within 3 mm and makes no keyframe.
+//   - a start whose view is too poor for a map (blank images) is carried by the IMU's dead reckoning
+//     (Tracking.PreMapImuPose): every frame has a pose, and the map starts where the robot is.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -15,8 +17,10 @@
 #include "end_to_end_suite.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/settings.h"
+#include "ltlo/eval/trajectory_metrics.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/sim/simulator.h"
+#include "ltlo/system/run_outputs.h"
 #include "ltlo/system/system.h"
 
 namespace ltlo::system {
@@ -138,6 +142,75 @@ TEST_F(StandstillEndToEnd, AStandstillAmongMoversHoldsThePoseAndMakesNoKeyFrame)
   EXPECT_LT(drift_m, 0.003);
   for (const KeyFrameRecord& kf : system.keyFrames())
     EXPECT_FALSE(kf.t_s > kStillFrom + 0.6 && kf.t_s <= kStillTo) << "keyframe at " << kf.t_s << " s while still";
+}
+
+/// The camera pose in the truth nearest to t_s.
+SE3 truthAt(const io::Trajectory& truth, double t_s) {
+  const io::StampedPose* best = &truth.front();
+  for (const io::StampedPose& pose : truth) {
+    if (std::abs(pose.t_s - t_s) < std::abs(best->t_s - t_s)) best = &pose;
+  }
+  return best->T_w_x;
+}
+
+TEST_F(StandstillEndToEnd, AViewTooPoorForAMapIsCarriedByTheImuUntilTheMapStarts) {
+  // A still start of 1.5 s whose colour images are blank until 2.5 s (no keypoint: no map can
+  // start), then the robot's normal drive. Tracking.PreMapImuPose gives those frames the IMU's pose
+  // (held at rest, gravity and gyro bias taken there, then integrated for 1 s of motion), and the
+  // map starts at the dead-reckoned pose, so the run is one trajectory.
+  constexpr double kBlankUntil_s = 2.5;
+  const std::string dir = sequence("blind_start", 5.0, {{0.0, 1.5}}, {});
+  for (const bool on : {true, false}) {
+    Settings s = settings(dir);
+    s.tracking.pre_map_imu_pose = on;
+    io::SequenceReaderOptions reader_options;
+    reader_options.calib_override = s.calib;
+    io::SequenceReader reader = io::SequenceReader::open(dir, reader_options);
+    SystemOptions options;
+    options.threaded = false;
+    System system(s, vocabulary(), options);
+    int frames = 0, blank = 0;
+    while (std::optional<io::RgbdImuFrame> input = reader.next()) {
+      if (input->t_s < kBlankUntil_s) {
+        input->color_bgr.setTo(cv::Scalar(128, 128, 128));
+        ++blank;
+      }
+      system.trackFrame(*input);
+      ++frames;
+    }
+    system.shutdown();
+    const SystemCounts counts = system.counts();
+    if (!on) {
+      EXPECT_EQ(counts.frames_with_pose, frames - blank);
+      EXPECT_EQ(counts.frames_before_map, 0);
+      continue;
+    }
+    EXPECT_EQ(counts.frames_with_pose, frames);
+    EXPECT_EQ(counts.frames_before_map, blank);
+    // The online poses relative to the first frame's against the truth's: held, then dead-reckoned.
+    const io::Trajectory& truth = reader.groundTruth();
+    const std::vector<FramePose> online = system.onlineTrajectory();
+    ASSERT_FALSE(online.empty());
+    const SE3 T_c0_w = online.front().T_w_c.inverse();
+    const SE3 T_c0_w_true = truthAt(truth, online.front().t_s).inverse();
+    double worst_before_m = 0.0, travelled_m = 0.0;
+    for (const FramePose& pose : online) {
+      if (pose.t_s >= kBlankUntil_s) break;
+      const SE3 T_c0_c_true = T_c0_w_true * truthAt(truth, pose.t_s);
+      travelled_m = T_c0_c_true.translation().norm();
+      worst_before_m = std::max(worst_before_m, ((T_c0_w * pose.T_w_c).translation() - T_c0_c_true.translation()).norm());
+    }
+    const double ate_m =
+        eval::computeAte(eval::associateTrajectories(truth, toTumTrajectory(system.trajectory())), false).error_m.rmse;
+    log::info("blind start: ", counts.frames_before_map, " frames before the map, worst dead-reckoned position ",
+              worst_before_m * 1000.0, " mm off after ", travelled_m, " m; ATE of the run ", ate_m * 1000.0, " mm");
+    // Measured: 18.6 mm after 0.198 m (1 s of motion on this IMU's noise: 1 mrad/s/sqrt(Hz) of gyro,
+    // a gyro bias from 0.8 s of rest, 0.3 deg off by then), ATE 6.6 mm. Taking the zero-velocity
+    // test's late rest as true (no replay) left it 83 mm off, ATE 43 mm; a held position 198 mm.
+    EXPECT_GT(travelled_m, 0.15);
+    EXPECT_LT(worst_before_m, 0.04);
+    EXPECT_LT(ate_m, 0.012);
+  }
 }
 
 }  // namespace

@@ -316,6 +316,12 @@ struct TrackingOptions {
   /// (system/carried_stretch.h): once a frame is tracked again, its difference to the prediction is
   /// spread over them (Tracking.StartCarriedLost, 0/1; the online poses are unchanged)
   bool start_carried_lost = false;
+  /// While the view is too poor to start the run's first map, the IMU alone keeps each frame's pose
+  /// (tracking/imu_dead_reckoning.h): the orientation from the gyroscope, the pose held and gravity
+  /// and the gyro bias taken from the accelerometer and gyro at rest, the position integrated once
+  /// gravity is known; the map then starts at the dead-reckoned pose (Tracking.PreMapImuPose, 0/1;
+  /// 0: those frames have no pose)
+  bool pre_map_imu_pose = false;
 
   static TrackingOptions load(const SettingsFile& file);
 };

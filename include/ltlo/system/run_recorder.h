@@ -161,7 +161,12 @@ class RunRecorder {
   /// The keyframe the open IMU-carried stretch hangs on (null: no stretch open).
   std::shared_ptr<const map::KeyFrame> carried_reference_;
   int reacquisitions_ = 0;
+  int frames_before_map_ = 0;
   CarriedImuRetention imu_retention_;
+  /// Records of frames dead-reckoned before the first map (Tracking.PreMapImuPose), not yet on a
+  /// keyframe: the first record with a reference anchors them to it (same world at that moment), so
+  /// that the map's later corrections carry them.
+  std::vector<std::size_t> pre_map_records_;
 
   mutable std::mutex mutex_;  ///< guards records_, context_records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;

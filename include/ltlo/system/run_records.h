@@ -39,7 +39,8 @@ struct MapPointRecord {
 
 struct SystemCounts {
   int frames = 0;             ///< frames given to trackFrame
-  int frames_with_pose = 0;   ///< frames with a pose (all frames after the first initialisation)
+  int frames_with_pose = 0;   ///< frames with a pose (all after the first initialisation; before it, the
+                              ///< dead-reckoned ones)
   int frames_tracked = 0;     ///< frames tracked against the map
   int maps = 0;               ///< maps of the Atlas holding content (Atlas::numMaps)
   int maps_created = 0;       ///< maps started after tracking loss
@@ -47,6 +48,9 @@ struct SystemCounts {
   /// optimisation (Tracking.MinInliersImu)
   int frames_tracked_weak_imu = 0;
   int frames_imu_predicted = 0;  ///< untracked frames that got the IMU-only prediction
+  /// frames posed by the IMU's dead reckoning while the view was too poor to start the first map
+  /// (Tracking.PreMapImuPose)
+  int frames_before_map = 0;
   int relocalisations = 0;       ///< frames relocalised against the keyframe database
   int maps_extended = 0;         ///< keyframes placed at the IMU prediction while lost
   int reacquisitions = 0;        ///< lost frames that re-acquired the map by the IMU-guided search

@@ -40,6 +40,7 @@
 #include "ltlo/map/map.h"
 #include "ltlo/optim/pose_only_problem.h"
 #include "ltlo/tracking/frame_segmenter.h"
+#include "ltlo/tracking/imu_dead_reckoning.h"
 #include "ltlo/tracking/loss_recovery.h"
 #include "ltlo/tracking/tracker_options.h"
 
@@ -128,6 +129,9 @@ class Tracker : private RecoverySteps {
   TrackingState state() const { return state_; }
   /// Whether the last frame was tracked / relocalised / started a map (false: predicted pose).
   bool frameTracked() const { return frame_tracked_; }
+  /// Whether the last frame's pose is the IMU's dead reckoning before the run's first map
+  /// (Tracking.PreMapImuPose): in the world the first map will start in, with no keyframe yet.
+  bool framePosedBeforeMap() const { return frame_posed_before_map_; }
   /// Frames tracked by the map's points alone (with Tracking.LocalisationOnly: not carried by the
   /// visual odometry or the IMU), over the run.
   int numFramesLocalisedInMap() const { return frames_localised_in_map_; }
@@ -506,6 +510,18 @@ class Tracker : private RecoverySteps {
   std::optional<SE3> start_predicted_T_w_b_;
   /// The first frame of the current wait for a view good enough to start a map (NaN: not waiting).
   double init_wait_since_t_s_ = std::numeric_limits<double>::quiet_NaN();
+  // ---- before the first map (Tracking.PreMapImuPose, issue 32) ----
+  /// Poses the frame by the IMU's dead reckoning since the run's first frame (the frame waits for a
+  /// view to start the first map, or is the one that starts it).
+  void poseBeforeFirstMap(map::Frame& frame);
+  /// The dead reckoning while no map was started yet (empty before the first frame and after).
+  std::optional<ImuDeadReckoning> pre_map_;
+  /// A map was started (or the run started in a loaded atlas or from a saved state): no more
+  /// dead reckoning from the first frame.
+  bool first_map_started_ = false;
+  bool frame_posed_before_map_ = false;     ///< this frame's pose is pre_map_'s
+  bool pre_map_position_held_logged_ = false;  ///< said once that only the orientation is kept
+  double pre_map_t0_s_ = 0.0;                  ///< the run's first frame
   int provisional_erased_ = 0;          ///< erased so far
 };
 
