@@ -6,6 +6,8 @@
 # <scenario>_s<seed>. Add a harder world as one line: name, then its options.
 # walkers, door and three_movers stand on the static profile, so every mover in them is the one
 # under test (walkers drop the boxes they overlap and three_movers drops all of them anyway).
+# plain_* panels are as large as the boxes they replace (only the texture differs from ltlo/mtlo);
+# plain_tall_* panels are up to twice that and hide the whole view for seconds (stop 44's plain movers).
 HARDER_WORLDS='
 long_mtlo           --scenario mtlo --seconds 300
 standstill          --scenario ltlo --still 20,10 --occlusion-at 21 --occlusion-at 27.1
@@ -16,6 +18,8 @@ door                --scenario static --door
 three_movers        --scenario static --three-movers
 plain_ltlo          --scenario ltlo --plain-movers
 plain_mtlo          --scenario mtlo --plain-movers
+plain_tall_ltlo     --scenario ltlo --plain-movers --tall-panels
+plain_tall_mtlo     --scenario mtlo --plain-movers --tall-panels
 '
 PROFILES="static stlo mtlo ltlo carried"
 

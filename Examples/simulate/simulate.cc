@@ -131,11 +131,15 @@ int main(int argc, char** argv) {
   app.add_option("--occlusion-at", occlusion_at,
                  "T (s): a box crosses the view from T (in from one side, held 2-4 s, out to the other); repeatable")
       ->check(CLI::Range(0.0, 1e6));
-  bool plain_movers = false, doors = false, three_movers = false;
+  bool plain_movers = false, tall_panels = false, doors = false, three_movers = false;
   std::string occluded_start;
   int walkers = 0;
   app.add_flag("--plain-movers", plain_movers,
-               "every mover one plain colour; half of the events are thin panels instead of boxes");
+               "every mover one plain colour; half of the events are thin panels instead of boxes (as wide and "
+               "tall as the box each replaces)");
+  app.add_flag("--tall-panels", tall_panels,
+               "with --plain-movers: panels 1.0-1.4 m wide and 1.5-2.0 m tall (up to twice a box; they hide the "
+               "whole view when close)");
   app.add_option("--occluded-start", occluded_start,
                  "away|towards: a box covers 40-80 % of frame 0 and is pushed away or pulled towards the robot "
                  "at 1.5-3.5 s, gone by 5 s")
@@ -205,6 +209,11 @@ int main(int argc, char** argv) {
     }
     options.occlusion_at_s = occlusion_at;
     options.plain_movers = plain_movers;
+    options.tall_panels = tall_panels;
+    if (tall_panels && !plain_movers) {
+      std::cerr << "simulate: --tall-panels needs --plain-movers\n";
+      return 2;
+    }
     if (!occluded_start.empty())
       options.occluded_start = occluded_start == "away" ? ltlo::sim::StartMove::kAway : ltlo::sim::StartMove::kTowards;
     options.walkers = walkers;

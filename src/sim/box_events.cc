@@ -274,7 +274,10 @@ void applyPlainMovers(const SimOptions& options, Scene* scene) {
     b.plain_rgb = plainColour(draw);
     if (std::find(events.begin(), events.end(), b.event) == events.end()) continue;
     b.panel = true;
-    b.size_m = Vec3(draw(0.03, 0.05), draw(1.0, 1.4), draw(1.5, 2.0));
+    // Three draws either way, so both sizes leave the colours that follow the same.
+    const double thickness_m = draw(0.03, 0.05), tall_width_m = draw(1.0, 1.4), tall_height_m = draw(1.5, 2.0);
+    b.size_m = options.tall_panels ? Vec3(thickness_m, tall_width_m, tall_height_m)
+                                   : Vec3(thickness_m, b.size_m.y(), b.size_m.z());
   }
   for (Walker& w : scene->walkers) {
     w.plain = true;

@@ -519,7 +519,8 @@ void writeHarderWorldStats(const Simulator& sim, std::ostream& out) {
   const Scene& scene = sim.scene();
   if (options.plain_movers) {
     const auto panels = std::count_if(scene.boxes.begin(), scene.boxes.end(), [](const DynamicBox& b) { return b.panel; });
-    out << "\nplain_movers 1 (" << panels << " of " << scene.boxes.size() << " boxes are panels)";
+    out << "\nplain_movers 1 (" << panels << " of " << scene.boxes.size() << " boxes are "
+        << (options.tall_panels ? "tall panels" : "panels") << ")";
   }
   for (const DynamicBox& b : scene.boxes)
     if (b.start_move != StartMove::kNone)

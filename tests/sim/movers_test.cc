@@ -71,7 +71,8 @@ int frameAt(const Simulator& sim, double t_s) { return static_cast<int>(std::lro
 // ---- plain movers --------------------------------------------------------------------------------
 
 // --plain-movers keeps the schedule (times, distances, lateral places, sways; the boxes' sizes and
-// the near bottom edge of every panel), makes every mover one colour and half of the events panels.
+// the near bottom edge of every panel), makes every mover one colour and half of the events panels
+// (as wide and tall as the boxes they replace; with --tall-panels larger, the rest the same).
 TEST(PlainMovers, KeepTheScheduleAndMakeHalfOfTheEventsPanels) {
   SimOptions o = smallOptions(Scenario::kMtlo, 40.0, 3);
   o.width_px = 320;
@@ -80,9 +81,12 @@ TEST(PlainMovers, KeepTheScheduleAndMakeHalfOfTheEventsPanels) {
   Simulator textured(o, sharedRoom());
   o.plain_movers = true;
   Simulator plain(o, sharedRoom());
+  o.tall_panels = true;
+  Simulator tall(o, sharedRoom());
   const std::vector<DynamicBox>& a = textured.scene().boxes;
   const std::vector<DynamicBox>& b = plain.scene().boxes;
   ASSERT_EQ(a.size(), b.size());
+  ASSERT_EQ(a.size(), tall.scene().boxes.size());
   std::set<int> events, panel_events;
   for (size_t i = 0; i < a.size(); ++i) {
     EXPECT_EQ(a[i].t_in_s, b[i].t_in_s);
@@ -94,16 +98,25 @@ TEST(PlainMovers, KeepTheScheduleAndMakeHalfOfTheEventsPanels) {
     EXPECT_EQ(a[i].event, b[i].event);
     EXPECT_TRUE(b[i].plain && !a[i].plain);
     events.insert(b[i].event);
+    // The same panels and colours with --tall-panels, only larger.
+    const DynamicBox& c = tall.scene().boxes[i];
+    EXPECT_EQ(b[i].panel, c.panel);
+    EXPECT_EQ(b[i].plain_rgb, c.plain_rgb);
+    EXPECT_EQ(b[i].size_m.x(), c.size_m.x());
     if (b[i].panel) {
       panel_events.insert(b[i].event);
+      // As wide and tall as the box it replaces, thin.
       EXPECT_GE(b[i].size_m.x(), 0.03);
       EXPECT_LE(b[i].size_m.x(), 0.05);
-      EXPECT_GE(b[i].size_m.y(), 1.0);
-      EXPECT_LE(b[i].size_m.y(), 1.4);
-      EXPECT_GE(b[i].size_m.z(), 1.5);
-      EXPECT_LE(b[i].size_m.z(), 2.0);
+      EXPECT_EQ(b[i].size_m.y(), a[i].size_m.y());
+      EXPECT_EQ(b[i].size_m.z(), a[i].size_m.z());
+      EXPECT_GE(c.size_m.y(), 1.0);
+      EXPECT_LE(c.size_m.y(), 1.4);
+      EXPECT_GE(c.size_m.z(), 1.5);
+      EXPECT_LE(c.size_m.z(), 2.0);
     } else {
       EXPECT_EQ(a[i].size_m, b[i].size_m);
+      EXPECT_EQ(a[i].size_m, c.size_m);
     }
   }
   ASSERT_GE(events.size(), 3u);

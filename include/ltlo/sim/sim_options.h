@@ -104,8 +104,13 @@ struct SimOptions {
 
   // Harder worlds (command line only, issue 32); each draws from its own random stream.
   /// --plain-movers: every mover one plain colour; half of the scenario's and --occlusion-at's
-  /// events are thin panels instead of boxes.
+  /// events are thin panels instead of boxes, as wide and tall as the box each replaces (the
+  /// textured twin's view share: only the texture differs).
   bool plain_movers = false;
+  /// --tall-panels (with --plain-movers): the panels are 1.0-1.4 m wide and 1.5-2.0 m tall instead,
+  /// up to twice the boxes' size: close to the camera they hide the whole view for seconds (the
+  /// stop-44 plain movers, a stress case beyond texture).
+  bool tall_panels = false;
   /// --occluded-start away|towards: a box covering 40-80 % of frame 0 leaves by 5 s.
   StartMove occluded_start = StartMove::kNone;
   /// --walkers N: N walking figures over the run (leading the robot or crossing its view).
