@@ -19,6 +19,8 @@
 #                    StartRecoveryCutsImu = 0, StartCarriedLost = 0, StartRecoveryGauge = 0
 #   start_gauge_off  Tracking.StartRecoveryGauge = 0 only (a start relocalised on a later keyframe keeps kf0)
 #   zupt_off         Tracking.Zupt = 0 and Tracking.ZuptNoKeyFrames = 0: no zero-velocity update at standstill
+#   premap_off       Tracking.PreMapImuPose = 0: no pose (and the map at the origin) while the view is too poor
+#                    for the first map
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -71,6 +73,7 @@ variant_args() {
         --set Tracking.StartRecoveryCutsImu=0 --set Tracking.StartCarriedLost=0 --set Tracking.StartRecoveryGauge=0 ;;
     start_gauge_off) echo "${full[@]}" --set Tracking.StartRecoveryGauge=0 ;;
     zupt_off) echo "${full[@]}" --set Tracking.Zupt=0 --set Tracking.ZuptNoKeyFrames=0 ;;
+    premap_off) echo "${full[@]}" --set Tracking.PreMapImuPose=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

@@ -8,6 +8,8 @@
 # under test (walkers drop the boxes they overlap and three_movers drops all of them anyway).
 # plain_* panels are as large as the boxes they replace (only the texture differs from ltlo/mtlo);
 # plain_tall_* panels are up to twice that and hide the whole view for seconds (stop 44's plain movers).
+# blind_start: no image (black, no depth) for the first 3 s, the robot still for 2 of them: no map can
+# start, the IMU carries the pose (Tracking.PreMapImuPose).
 HARDER_WORLDS='
 long_mtlo           --scenario mtlo --seconds 300
 standstill          --scenario ltlo --still 20,10 --occlusion-at 21 --occlusion-at 27.1
@@ -20,6 +22,7 @@ plain_ltlo          --scenario ltlo --plain-movers
 plain_mtlo          --scenario mtlo --plain-movers
 plain_tall_ltlo     --scenario ltlo --plain-movers --tall-panels
 plain_tall_mtlo     --scenario mtlo --plain-movers --tall-panels
+blind_start         --scenario static --still 0,2 --black 0,3
 '
 PROFILES="static stlo mtlo ltlo carried"
 
