@@ -106,15 +106,17 @@ std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Fra
   }
   const bool before_map = tracker.framePosedBeforeMap();
   if (before_map) ++frames_before_map_;
+  // The first map's first keyframe, at its creation pose in the dead reckoning's world (read before
+  // mutex_, a leaf lock: the keyframe's pose has its own).
+  std::optional<SE3> T_firstb_w;
+  if (record.reference && !pre_map_records_.empty()) T_firstb_w = map::latestPose_T_w_b(*record.reference).inverse();
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (record.reference && !pre_map_records_.empty()) {
-      // The first map's first keyframe, at its creation pose in the dead reckoning's world.
-      const SE3 T_refb_w = map::latestPose_T_w_b(*record.reference).inverse();
+    if (T_firstb_w) {
       for (const std::size_t index : pre_map_records_) {
         FrameRecord& early = records_[index];
         early.reference = record.reference;
-        early.T_refb_c = T_refb_w * early.T_w_c;
+        early.T_refb_c = *T_firstb_w * early.T_w_c;
         early.map_online = record.map_online;
       }
       pre_map_records_.clear();
