@@ -24,6 +24,7 @@ struct WindowKeyFrame {
   std::shared_ptr<map::KeyFrame> kf;
   bool fixed = false;
   std::vector<double> gamma;  ///< the keyframe's cluster scores (copied once)
+  bool velocity_free = false;  ///< fixed, but the velocity optimised (the gauge, gauge_velocity_free)
 };
 
 struct ObservationRef {
@@ -96,7 +97,7 @@ using KeyFrameIndex = std::unordered_map<map::KeyFrameId, std::size_t>;
 
 void addKeyFrame(const std::shared_ptr<map::KeyFrame>& k, bool fixed, Window* window, KeyFrameIndex* index_of) {
   if (!index_of->emplace(k->id(), window->keyframes.size()).second) return;
-  window->keyframes.push_back({k, fixed, k->gamma()});
+  window->keyframes.push_back({k, fixed, k->gamma(), false});
 }
 
 /// The optimised window (and, inertial, the fixed keyframe before it, with the inertial links):
@@ -126,8 +127,13 @@ void addOptimisedKeyFrames(map::Map& map, const std::shared_ptr<map::KeyFrame>& 
     }
   }
   const map::KeyFrameId gauge = map.gaugeKeyFrame();
+  // A map started at the IMU's prediction after a loss (it has an origin in its parent's world):
+  // its gauge holds the window's pose, but its velocity is the dead reckoning's and is estimated.
+  // The first map's gauge keeps the velocity of the IMU initialisation (at rest: zero).
+  const bool gauge_velocity_free = options.inertial && options.gauge_velocity_free && map.origin().has_value();
   for (WindowKeyFrame& entry : keyframes) {
     if (entry.kf->id() == gauge || entry.kf->isAnchor()) entry.fixed = true;
+    if (entry.kf->id() == gauge && !entry.kf->isAnchor() && gauge_velocity_free) entry.velocity_free = true;
   }
 }
 
@@ -184,6 +190,7 @@ void setUpProblem(const map::KeyFrame& kf, const WindowBaOptions& options, Windo
     ba.v_w_b = entry.kf->v_w_b();
     ba.bias = entry.kf->bias();
     ba.fixed = entry.fixed;
+    ba.velocity_free = entry.fixed && entry.velocity_free;
     problem.keyframes.push_back(ba);
   }
 }
@@ -292,8 +299,14 @@ void writeStates(const Window& window, const optim::LocalBaResult& result) {
   }
   for (std::size_t k = 0; k < window.keyframes.size(); ++k) {
     const WindowKeyFrame& entry = window.keyframes[k];
-    if (entry.fixed || entry.kf->isBad()) continue;
+    if (entry.kf->isBad()) continue;
     const optim::BaKeyFrame& out = result.keyframes[k];
+    if (entry.fixed) {
+      if (entry.velocity_free && with_inertial.count(out.id) > 0 && out.v_w_b.allFinite()) {
+        entry.kf->setVelocity(out.v_w_b);
+      }
+      continue;
+    }
     if (!out.T_w_b.translation().allFinite()) continue;
     entry.kf->setPose_T_w_b(out.T_w_b);
     if (with_inertial.count(out.id) > 0) {

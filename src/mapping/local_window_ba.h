@@ -46,6 +46,12 @@ struct WindowBaOptions {
   /// optim::LocalBaProblem::held_acc_bias_sigma_m_s2: how well the held keyframes' accelerometer
   /// bias is known (m/s^2; 0: exactly).
   double held_acc_bias_sigma_m_s2 = 0.0;
+  /// Inertial, in a map started at the IMU's prediction after a loss (map::Map::origin()): its gauge
+  /// keyframe is held in pose and biases only, its velocity is optimised
+  /// (LocalMapping.GaugeVelocityFree). That first keyframe sits at the IMU's dead-reckoned state,
+  /// whose velocity is off by the drift of the loss; held, the inertial links pass that error on to
+  /// every keyframe of the window and tracking follows it.
+  bool gauge_velocity_free = false;
   double huber_chi2 = 7.815;     ///< rho_H threshold on the whitened |r|^2 (3-D edges; 2-D: 5.991)
   /// The robust VIBA above (Mapping.RobustBeta); false: the plain VIBA.
   bool robust = true;

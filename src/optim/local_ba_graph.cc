@@ -117,7 +117,7 @@ void LocalBaGraph::Impl::ensureInertialVertices(int k) {
   auto gyro_bias = std::make_unique<VertexGyroBias>(4 * k + 2, kf.bias.b_g);
   auto acc_bias = std::make_unique<VertexAccBias>(4 * k + 3, kf.bias.b_a);
   const bool state_fixed = kf.fixed && !kf.fixed_pose_only;
-  velocity->setFixed(state_fixed);
+  velocity->setFixed(state_fixed && !kf.velocity_free);
   gyro_bias->setFixed(state_fixed);
   acc_bias->setFixed(state_fixed);
   v.velocity = graph.addVertex(std::move(velocity));

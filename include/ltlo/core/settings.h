@@ -389,6 +389,15 @@ struct LocalMappingOptions {
   /// instead of about two a second (LocalMapping.CullImuCutAge, [0, 1e6]; 0: never, the span rule
   /// holds for every keyframe)
   double cull_imu_cut_age_s = 0.0;
+  /// In a map started at the IMU's prediction after a loss, the inertial local BA holds the map's
+  /// gauge keyframe (its first) in pose and biases only and optimises its velocity: that keyframe
+  /// begins at the IMU's dead-reckoned state, its velocity off by the drift of the loss; held (0, as
+  /// before), the window's inertial links pass that error on to its keyframes and tracking, linked
+  /// to them, follows it between keyframes (issue 28). The first map's gauge keeps the velocity of
+  /// the IMU initialisation either way. Off by default until measured on more seeds: ltlo_s3
+  /// realsense 13.16 -> 11.06 mm with it, ltlo_s3 ideal 7.89 -> 10.13 mm (docs/results.md)
+  /// (LocalMapping.GaugeVelocityFree, 0/1)
+  bool gauge_velocity_free = false;
   /// Estimate the camera-IMU time offset online (what IMU.TimeOffset left), from the keyframe
   /// rotations after each local BA against the gyroscope (mapping/time_offset_estimator.h); tracking
   /// cuts the frames' IMU intervals with it (LocalMapping.EstimateTimeOffset, 0/1)

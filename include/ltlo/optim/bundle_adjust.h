@@ -28,6 +28,9 @@ struct BaKeyFrame {
   /// With `fixed`: only the pose is held (the gauge of a full visual-inertial BA); the velocity and
   /// biases are optimised.
   bool fixed_pose_only = false;
+  /// With `fixed`: the velocity is optimised, the pose and biases held (a map's gauge keyframe in a
+  /// local visual-inertial window: its velocity may be dead-reckoned, mapping::WindowBaOptions).
+  bool velocity_free = false;
 };
 
 struct BaPoint {
