@@ -25,8 +25,7 @@ tracking::TrackerOptions trackerOptions(const Settings& settings, bool use_imu) 
   // Without the IMU there is nothing to keep a pose before the first map with.
   tracker_options.tracking.pre_map_imu_pose = use_imu && tracking.pre_map_imu_pose;
   tracker_options.zero_velocity_test =
-      use_imu && (tracking.zupt || tracking.zupt_no_keyframes || settings.imu_init.from_rest ||
-                  tracking.pre_map_imu_pose);
+      use_imu && (tracking.zupt || tracking.zupt_no_keyframes || settings.imu_init.from_rest);
   tracker_options.zero_velocity =
       imu::ZeroVelocityOptions::fromCalib(settings.calib.imu, tracking.zupt_window_s, tracking.zupt_threshold);
   tracker_options.rest_keyframe = use_imu && settings.imu_init.from_rest;

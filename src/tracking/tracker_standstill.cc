@@ -26,7 +26,9 @@ constexpr int kMinVisualCheckMatches = 10;
 }  // namespace
 
 void Tracker::updateStandstill(const map::Frame& frame) {
-  if (!options_.zero_velocity_test || frame.imu_samples.empty()) {
+  // Tracking.PreMapImuPose needs the test only until the first map starts (its rest holds the pose).
+  const bool pre_map = options_.tracking.pre_map_imu_pose && !first_map_started_;
+  if (!(options_.zero_velocity_test || pre_map) || frame.imu_samples.empty()) {
     still_ = false;
     return;
   }
