@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
@@ -13,7 +14,9 @@
 #include <string>
 
 #include "bow/vocabulary.h"
+#include "ltlo/core/lie.h"
 #include "ltlo/core/settings.h"
+#include "ltlo/io/trajectory_io.h"
 #include "ltlo/sim/sim_options.h"
 
 namespace ltlo::test_support {
@@ -50,6 +53,15 @@ inline Settings shortRunSettings(const std::string& sequence_dir) {
   settings.keyframe.max_interval_s = 0.5;
   settings.imu_init.min_keyframes = 8;
   return settings;
+}
+
+/// The pose of the ground truth stamped nearest to t_s (a non-empty trajectory).
+inline SE3 truthNearest(const io::Trajectory& truth, double t_s) {
+  const io::StampedPose* best = &truth.front();
+  for (const io::StampedPose& pose : truth) {
+    if (std::abs(pose.t_s - t_s) < std::abs(best->t_s - t_s)) best = &pose;
+  }
+  return best->T_w_x;
 }
 
 /// Base of the end-to-end fixtures. A derived suite calls createSuiteResources(prefix) from its

@@ -30,6 +30,7 @@ namespace fs = std::filesystem;
 using test_support::EndToEndSuite;
 using test_support::shortRunSettings;
 using test_support::shortRunSimOptions;
+using test_support::truthNearest;
 
 /// Seconds simulated: the box has left the view by 5 s; the IMU initialises at about 4 s.
 constexpr double kSeconds = 8.0;
@@ -113,23 +114,16 @@ TEST_F(OccludedStartEndToEnd, TheImuIsNotInitialisedOnTheBox) {
 /// The largest translation error, m, of the keyframes' poses relative to the map's first remaining
 /// keyframe against the same relative poses of the truth (nearest ground-truth instant).
 double worstKeyFrameRelativeError_m(const std::vector<KeyFrameRecord>& keyframes, const io::Trajectory& truth) {
-  auto truth_at = [&](double t_s) {
-    const io::StampedPose* best = &truth.front();
-    for (const io::StampedPose& pose : truth) {
-      if (std::abs(pose.t_s - t_s) < std::abs(best->t_s - t_s)) best = &pose;
-    }
-    return best->T_w_x;
-  };
   const KeyFrameRecord* first = &keyframes.front();
   for (const KeyFrameRecord& kf : keyframes) {
     if (kf.t_s < first->t_s) first = &kf;
   }
   const SE3 T_first_w = first->T_w_c.inverse();
-  const SE3 T_first_w_true = truth_at(first->t_s).inverse();
+  const SE3 T_first_w_true = truthNearest(truth, first->t_s).inverse();
   double worst_m = 0.0;
   for (const KeyFrameRecord& kf : keyframes) {
     const SE3 estimated = T_first_w * kf.T_w_c;
-    const SE3 true_relative = T_first_w_true * truth_at(kf.t_s);
+    const SE3 true_relative = T_first_w_true * truthNearest(truth, kf.t_s);
     worst_m = std::max(worst_m, (true_relative.inverse() * estimated).translation().norm());
   }
   return worst_m;

@@ -30,6 +30,7 @@ namespace fs = std::filesystem;
 using test_support::EndToEndSuite;
 using test_support::shortRunSettings;
 using test_support::shortRunSimOptions;
+using test_support::truthNearest;
 
 double angleDeg(const Vec3& a, const Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
@@ -144,15 +145,6 @@ TEST_F(StandstillEndToEnd, AStandstillAmongMoversHoldsThePoseAndMakesNoKeyFrame)
     EXPECT_FALSE(kf.t_s > kStillFrom + 0.6 && kf.t_s <= kStillTo) << "keyframe at " << kf.t_s << " s while still";
 }
 
-/// The camera pose in the truth nearest to t_s.
-SE3 truthAt(const io::Trajectory& truth, double t_s) {
-  const io::StampedPose* best = &truth.front();
-  for (const io::StampedPose& pose : truth) {
-    if (std::abs(pose.t_s - t_s) < std::abs(best->t_s - t_s)) best = &pose;
-  }
-  return best->T_w_x;
-}
-
 TEST_F(StandstillEndToEnd, AViewTooPoorForAMapIsCarriedByTheImuUntilTheMapStarts) {
   // A still start of 1.5 s whose colour images are blank until 2.5 s (no keypoint: no map can
   // start), then the robot's normal drive. Tracking.PreMapImuPose gives those frames the IMU's pose
@@ -192,11 +184,11 @@ TEST_F(StandstillEndToEnd, AViewTooPoorForAMapIsCarriedByTheImuUntilTheMapStarts
     const std::vector<FramePose> online = system.onlineTrajectory();
     ASSERT_FALSE(online.empty());
     const SE3 T_c0_w = online.front().T_w_c.inverse();
-    const SE3 T_c0_w_true = truthAt(truth, online.front().t_s).inverse();
+    const SE3 T_c0_w_true = truthNearest(truth, online.front().t_s).inverse();
     double worst_before_m = 0.0, travelled_m = 0.0;
     for (const FramePose& pose : online) {
       if (pose.t_s >= kBlankUntil_s) break;
-      const SE3 T_c0_c_true = T_c0_w_true * truthAt(truth, pose.t_s);
+      const SE3 T_c0_c_true = T_c0_w_true * truthNearest(truth, pose.t_s);
       travelled_m = T_c0_c_true.translation().norm();
       worst_before_m = std::max(worst_before_m, ((T_c0_w * pose.T_w_c).translation() - T_c0_c_true.translation()).norm());
     }
