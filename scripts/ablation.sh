@@ -21,6 +21,8 @@
 #   zupt_off         Tracking.Zupt = 0 and Tracking.ZuptNoKeyFrames = 0: no zero-velocity update at standstill
 #   premap_off       Tracking.PreMapImuPose = 0: no pose (and the map at the origin) while the view is too poor
 #                    for the first map
+#   premap_rest_off  ImuInit.FromPreMapRest = 0: the IMU of a map started after that wait initialises on the
+#                    map's own keyframes only
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -74,6 +76,7 @@ variant_args() {
     start_gauge_off) echo "${full[@]}" --set Tracking.StartRecoveryGauge=0 ;;
     zupt_off) echo "${full[@]}" --set Tracking.Zupt=0 --set Tracking.ZuptNoKeyFrames=0 ;;
     premap_off) echo "${full[@]}" --set Tracking.PreMapImuPose=0 ;;
+    premap_rest_off) echo "${full[@]}" --set ImuInit.FromPreMapRest=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

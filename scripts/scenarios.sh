@@ -9,7 +9,9 @@
 # plain_* panels are as large as the boxes they replace (only the texture differs from ltlo/mtlo);
 # plain_tall_* panels are up to twice that and hide the whole view for seconds (stop 44's plain movers).
 # blind_start: no image (black, no depth) for the first 3 s, the robot still for 2 of them: no map can
-# start, the IMU carries the pose (Tracking.PreMapImuPose).
+# start, the IMU carries the pose (Tracking.PreMapImuPose). blind_ltlo: the same start on ltlo, whose
+# first box arrives soon after the map starts (the IMU initialised from the rest before the map,
+# ImuInit.FromPreMapRest, carries the pose behind it).
 HARDER_WORLDS='
 long_mtlo           --scenario mtlo --seconds 300
 standstill          --scenario ltlo --still 20,10 --occlusion-at 21 --occlusion-at 27.1
@@ -23,6 +25,7 @@ plain_mtlo          --scenario mtlo --plain-movers
 plain_tall_ltlo     --scenario ltlo --plain-movers --tall-panels
 plain_tall_mtlo     --scenario mtlo --plain-movers --tall-panels
 blind_start         --scenario static --still 0,2 --black 0,3
+blind_ltlo          --scenario ltlo --still 0,2 --black 0,3
 '
 PROFILES="static stlo mtlo ltlo carried"
 

@@ -321,7 +321,7 @@ int run(const Arguments& args) {
   const bool interrupted = g_stop_requested.load() || !failure.empty();
   progress.finish();
 
-  slam.shutdown();
+  slam.shutdown(!interrupted);
   if (!args.save_atlas.empty()) {
     try {
       slam.saveAtlas(args.save_atlas);

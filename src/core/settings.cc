@@ -152,6 +152,7 @@ void visitLoop(O& o, V& v) {
   v.boolean("Loop.BridgeLosses", o.bridge_losses);
   v.boolean("Loop.Proximity", o.proximity);
   v.integer("Loop.RefineKeyFrames", o.refine_keyframes, 0, 1000);
+  v.boolean("Loop.FinalFullBa", o.final_full_ba);
   v.real("Loop.ProximitySigma", o.proximity_sigma_m, 0.005, 5.0);
   v.real("Loop.ProximityMinAge", o.proximity_min_age_s, 0.0, 3600.0);
   v.real("Loop.ProximityMaxDistance", o.proximity_max_distance_m, 0.1, 100.0);
@@ -197,6 +198,8 @@ void visitImuInit(O& o, V& v) {
   v.integer("ImuInit.MinKeyFrames", o.min_keyframes, 3, 1000);
   v.boolean("ImuInit.EarlyKeyFrames", o.early_keyframes);
   v.boolean("ImuInit.FromRest", o.from_rest);
+  v.boolean("ImuInit.FromPreMapRest", o.from_pre_map_rest);
+  v.real("ImuInit.PreMapMinTime", o.pre_map_min_time_s, 0.1, 100.0);
   v.real("ImuInit.RestTime", o.rest_time_s, 0.2, 60.0);
   v.integer("ImuInit.Iterations", o.iterations, 1, 1000);
   v.real("ImuInit.BiasPriorSamples", o.bias_prior_samples, 0.0, 1e6);

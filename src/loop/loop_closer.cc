@@ -652,4 +652,31 @@ void LoopCloser::waitForGlobalBa() {
   impl_->ba_done.wait(lock, [&] { return !impl_->ba_running; });
 }
 
+int LoopCloser::finalGlobalBa() {
+  Impl& impl = *impl_;
+  if (!impl.options.run_global_ba || !impl.options.loop.final_full_ba) return 0;
+  impl.joinGlobalBa();
+  waitForGlobalBa();
+  int adjusted = 0;
+  for (const map::MapId id : impl.atlas.mapIds()) {
+    map::Map* map = impl.atlas.map(id);
+    if (map == nullptr || map->numKeyFrames() < 3) continue;
+    // A loaded map held as the world's reference (Loop.HoldLoadedMap) and not extended: nothing to adjust.
+    const std::vector<std::shared_ptr<map::KeyFrame>> keyframes = map->keyFrames();
+    if (std::all_of(keyframes.begin(), keyframes.end(),
+                    [](const std::shared_ptr<map::KeyFrame>& kf) { return kf->isAnchor(); })) {
+      continue;
+    }
+    log::info("final full BA of ", id, " (Loop.FinalFullBa): ", keyframes.size(), " keyframes");
+    impl.ba_stop.store(false);
+    {
+      std::lock_guard<std::mutex> lock(impl.ba_mutex);
+      impl.ba_running = true;
+    }
+    impl.globalBa(*map, impl.gravity());
+    ++adjusted;
+  }
+  return adjusted;
+}
+
 }  // namespace ltlo::loop

@@ -26,6 +26,7 @@ KeyFrame::KeyFrame(KeyFrameId id, MapId map, const Frame& frame)
       segmentation_layout_(frame.segmentation()),
       keypoint_cluster_(frame.keypointClusters()),
       static_threshold_(frame.staticThreshold()),
+      pre_map_rest_(frame.pre_map_rest),
       map_(map),
       has_bow_(frame.hasBow()),
       bow_vector_(frame.bowVector()),

@@ -58,7 +58,7 @@ double medianInertialChi2PerDof(const ImuChain& chain, const Vec3& g_w) {
 }
 
 std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const ImuInitOptions& options,
-                                                    const imu::ImuBias& bias_init) {
+                                                    const imu::ImuBias& bias_init, const imu::RestEstimate* rest) {
   LTLO_ASSERT(chain.keyframes.size() >= 3 && chain.pims.size() + 1 == chain.keyframes.size(),
               "IMU initialisation on a chain of " << chain.keyframes.size() << " keyframes and "
                                                   << chain.pims.size() << " preintegrations");
@@ -71,6 +71,15 @@ std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const
   problem.gyro_bias_prior_information = prior.gyro;
   problem.acc_bias_prior_information = prior.acc;
   problem.iterations = options.iterations;
+  if (rest != nullptr) {
+    problem.known_R_w_g = Quat::FromTwoVectors(Vec3(0.0, 0.0, -1.0), rest->g_w.normalized()).toRotationMatrix();
+    problem.bias_init.b_g = rest->b_g;
+    problem.gyro_bias_prior_mean = rest->b_g;
+    const imu::ImuNoise& noise = chain.pims.front()->noise();
+    const double variance = noise.gyro_density * noise.gyro_density / std::max(rest->rest_s, 1e-3) +
+                            noise.gyro_walk_density * noise.gyro_walk_density * (chain.span_s() + rest->rest_s);
+    problem.gyro_bias_prior_information = 1.0 / variance;
+  }
   const optim::ImuInitResult result = optim::initializeImu(problem);
   bool finite = result.g_w.allFinite() && result.bias.b_g.allFinite() && result.bias.b_a.allFinite();
   for (const Vec3& v : result.v_w_b) finite = finite && v.allFinite();

@@ -54,8 +54,12 @@ double medianInertialChi2PerDof(const ImuChain& chain, const Vec3& g_w);
 
 /// Runs optim::initializeImu on `chain` from `bias_init` (priors and iterations from `options`) and,
 /// on a finite result, sets every chain keyframe's velocity and bias. nullopt on a non-finite result.
+/// With `rest` (the rest before the first map, ImuInit.FromPreMapRest): gravity is held at the
+/// rest's, and the gyro bias starts at the rest's mean reading with a prior there of the mean's own
+/// variance, IMU.NoiseGyro^2 / rest_s, plus the bias random walk over the chain and the rest.
 std::optional<ImuInitEstimate> initialiseImuOnChain(const ImuChain& chain, const ImuInitOptions& options,
-                                                    const imu::ImuBias& bias_init);
+                                                    const imu::ImuBias& bias_init,
+                                                    const imu::RestEstimate* rest = nullptr);
 
 /// IMU initialisation from rest (ImuInit.FromRest, issue 32). The chain's newest keyframe is one
 /// tracking made at rest (KeyFrame::atRest): its IMU link from the keyframe before is a standstill.

@@ -52,7 +52,7 @@ struct LocalMapper::Impl {
                          bool threaded, LocalMapperCounters& delta);
   /// Initialises or refines the IMU estimate when due; true when it did.
   bool maybeInitialiseImu(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf);
-  void publishImu(const ImuInitEstimate& estimate, const char* what);
+  void publishImu(const ImuInitEstimate& estimate, const char* what, bool awaiting_own_initialisation = false);
   /// After an IMU estimate: one warning when the chain's inertial residuals are far beyond the
   /// noise model (the calibration is then inconsistent with the data).
   void checkImuConsistency(const ImuChain& chain, const Vec3& g_w);
@@ -297,6 +297,34 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
     }
     log::info("IMU initialisation from rest at kf ", kf->id(), ": the link is no standstill; waiting for motion");
   }
+  if (!state.initialised && options.imu_init.from_pre_map_rest) {
+    // The rest before the first map (issue 32): gravity and the gyro bias known, the velocities and
+    // b_a from the map's first keyframes.
+    const ImuChain chain = endAtStaticView(imuChainEndingAt(map, kf), options.imu_init.min_static_ratio);
+    const std::optional<imu::RestEstimate> rest =
+        chain.keyframes.empty() ? std::nullopt : chain.keyframes.front()->preMapRest();
+    if (rest && chain.keyframes.size() >= 3 && chain.span_s() >= options.imu_init.pre_map_min_time_s) {
+      std::optional<ScopedTimer> timer;
+      if (timing != nullptr) timer.emplace(*timing, "mapping.imu_init");
+      const std::optional<ImuInitEstimate> estimate =
+          initialiseImuOnChain(chain, options.imu_init, imu::ImuBias(), &*rest);
+      if (estimate) {
+        // The full initialisation follows once the map's own keyframes span ImuInit.MinTime from its
+        // first (they move from the start, unlike a still start's).
+        rest_init_t_s = chain.keyframes.front()->t_s();
+        first_imu_init_t_s = chain.keyframes.back()->t_s();
+        last_imu_estimate_t_s = kf->t_s();
+        last_imu_chain_end_t_s = first_imu_init_t_s;
+        log::info("IMU: the rest before the map: ", rest->rest_s, " s, g_w = (", rest->g_w.transpose(),
+                  ") m/s^2, b_g = (", rest->b_g.transpose(), ") rad/s");
+        publishImu(*estimate, "initialised from the rest before the map", true);
+        checkImuConsistency(chain, estimate->g_w);
+        return true;
+      }
+      log::warn("IMU initialisation from the rest before the map at kf ", kf->id(),
+                " gave a non-finite estimate; waiting for the map's own");
+    }
+  }
   // After an initialisation from rest the full one follows (inertial-only, which also finds the
   // accelerometer bias rest cannot tell from gravity, then the visual-inertial BA), once
   // ImuInit.MinTime of keyframes after the rest keyframe is covered; the refinement schedule counts
@@ -382,7 +410,8 @@ void LocalMapper::Impl::checkImuConsistency(const ImuChain& chain, const Vec3& g
   }
 }
 
-void LocalMapper::Impl::publishImu(const ImuInitEstimate& estimate, const char* what) {
+void LocalMapper::Impl::publishImu(const ImuInitEstimate& estimate, const char* what,
+                                   bool awaiting_own_initialisation) {
   ImuState published;
   {
     std::lock_guard<std::mutex> lock(state_mutex);
@@ -390,6 +419,7 @@ void LocalMapper::Impl::publishImu(const ImuInitEstimate& estimate, const char* 
     imu_state.bias = estimate.bias;
     imu_state.g_w = estimate.g_w;
     imu_state.acceleration_covariance_w = estimate.acceleration_covariance_w;
+    imu_state.awaiting_own_initialisation = awaiting_own_initialisation;
     ++imu_state.generation;
     published = imu_state;
   }

@@ -150,7 +150,7 @@ struct ImuInitGraph {
     }
     auto gyro_prior = std::make_unique<EdgeGyroBiasPrior>();
     gyro_prior->setVertex(0, gyro_bias);
-    gyro_prior->setMeasurement(Vec3::Zero());
+    gyro_prior->setMeasurement(problem.gyro_bias_prior_mean);
     gyro_prior->setInformation(problem.gyro_bias_prior_information * Mat3::Identity());
     graph.addEdge(std::move(gyro_prior));
     auto acc_prior = std::make_unique<EdgeAccBiasPrior>();

@@ -24,6 +24,9 @@ tracking::TrackerOptions trackerOptions(const Settings& settings, bool use_imu) 
   const TrackingOptions& tracking = settings.tracking;
   // Without the IMU there is nothing to keep a pose before the first map with.
   tracker_options.tracking.pre_map_imu_pose = use_imu && tracking.pre_map_imu_pose;
+  // The rest before the first map is the dead reckoning's.
+  tracker_options.imu_init.from_pre_map_rest =
+      tracker_options.tracking.pre_map_imu_pose && settings.imu_init.from_pre_map_rest;
   tracker_options.zero_velocity_test =
       use_imu && (tracking.zupt || tracking.zupt_no_keyframes || settings.imu_init.from_rest);
   tracker_options.zero_velocity =

@@ -115,7 +115,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
                                              [this](std::uint64_t map_id) { return viewerMap(map_id); }, *closer_,
                                              builder_->calib().camera.camera, *builder_->undistorter(), timing_);
     } catch (...) {
-      shutdown();  // the workers started above are joined before the error leaves
+      shutdown(false);  // the workers started above are joined before the error leaves
       throw;
     }
   }
@@ -126,7 +126,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
 
 System::~System() {
   try {
-    shutdown();
+    shutdown(false);
   } catch (const std::exception& e) {
     log::error("system shutdown: ", e.what());
   }
@@ -149,7 +149,8 @@ void System::pollImuState() {
     log::info("IMU initialised: b_g = ", imu.bias.b_g.transpose(), ", b_a = ", imu.bias.b_a.transpose(),
               ", g_w = ", imu.g_w.transpose());
   }
-  tracker_->setImuInitialised(imu.bias, imu.g_w, optim::accelerationSigma(imu.acceleration_covariance_w));
+  tracker_->setImuInitialised(imu.bias, imu.g_w, optim::accelerationSigma(imu.acceleration_covariance_w),
+                              imu.awaiting_own_initialisation);
   imu_generation_ = imu.generation;
 }
 
@@ -254,7 +255,7 @@ tracking::TrackingState System::trackFrame(const io::RgbdImuFrame& input) {
   return state;
 }
 
-void System::shutdown() {
+void System::shutdown(bool run_finished) {
   if (shut_down_) return;
   shut_down_ = true;
   finishing_.store(true);
@@ -265,6 +266,10 @@ void System::shutdown() {
     if (loop_thread_.joinable()) loop_thread_.join();
   } else {
     closer_->waitForGlobalBa();
+  }
+  if (run_finished) {
+    ScopedTimer timer(timing_, "system.final_ba");
+    closer_->finalGlobalBa();
   }
   // The tracking stage's own worker thread (depth clusters, pyramid) ends with the run.
   if (tracking::FrameSegmenter* segmenter = tracker_->segmenter()) segmenter->finish();

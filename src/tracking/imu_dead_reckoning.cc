@@ -9,6 +9,11 @@ ImuDeadReckoning::ImuDeadReckoning(double t0_s, double replay_s) : replay_s_(rep
   history_.push_back(std::move(first));
 }
 
+std::optional<imu::RestEstimate> ImuDeadReckoning::restEstimate() const {
+  if (!state_.g_w || state_.rest_s <= 0.0) return std::nullopt;
+  return imu::RestEstimate{*state_.g_w, state_.b_g, state_.rest_s};
+}
+
 void ImuDeadReckoning::restUpdate(const imu::Preintegrated* imu, bool rest_begins, State* state) {
   // Pose held, velocity zero; the rest's mean readings give the gyro bias and gravity (the
   // preintegration subtracts its linearisation bias, so gravity is taken against the same).

@@ -352,6 +352,9 @@ void Tracker::poseBeforeFirstMap(map::Frame& frame) {
   }
   frame.setPose_T_w_b(pre_map_->T_w_b());
   frame.setVelocity(pre_map_->v_w_b());
+  // Should this frame start the map, its first keyframe carries the rest's gravity and gyro bias
+  // (local mapping's ImuInit.FromPreMapRest).
+  if (options_.imu_init.from_pre_map_rest) frame.pre_map_rest = pre_map_->restEstimate();
   frame_posed_before_map_ = true;
 }
 

@@ -31,13 +31,15 @@ std::optional<Mat15> Tracker::stateInformation() const {
   return prev_information_.information;
 }
 
-void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2) {
+void Tracker::setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2,
+                                bool early_keyframes) {
   if (velocity_unknown_) {
     // A run in a loaded atlas: applied once the velocity is (tracker_loaded_start.cc).
     deferred_imu_ = DeferredImu{bias, g_w, acceleration_sigma_m_s2};
     return;
   }
   imu_initialised_ = true;
+  early_keyframes_after_init_ = early_keyframes;
   init_acceleration_sigma_m_s2_ = acceleration_sigma_m_s2;
   bias_ = bias;
   prev_bias_ = bias;

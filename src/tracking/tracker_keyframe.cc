@@ -25,7 +25,8 @@ KeyFrameDecision Tracker::decideKeyFrame() const {
   // Before the IMU initialisation the interval shrinks to ImuInit.MinTime / (MinKeyFrames - 1), so
   // the map can initialise the IMU as soon as MinTime of motion is covered.
   double max_interval_s = kf.max_interval_s;
-  if (!imu_initialised_ && last_frame_->imu_from_last_frame && options_.imu_init_keyframe_interval_s > 0.0) {
+  if ((!imu_initialised_ || early_keyframes_after_init_) && last_frame_->imu_from_last_frame &&
+      options_.imu_init_keyframe_interval_s > 0.0) {
     max_interval_s = std::min(max_interval_s, options_.imu_init_keyframe_interval_s);
   }
   const double since_keyframe_s = last_frame_->t_s() - last_keyframe_t_s_;

@@ -16,6 +16,15 @@ struct ImuBias {
   Vec3 b_a = Vec3::Zero();  ///< accelerometer bias (m/s^2)
 };
 
+/// What a rest of the body tells of the IMU (issue 32): gravity in the world, g_w = -R_w_b f_mean
+/// (the mean specific force at rest, accelerometer bias absorbed), and the gyroscope bias, the mean
+/// gyro reading, both over rest_s seconds of readings.
+struct RestEstimate {
+  Vec3 g_w = Vec3::Zero();  ///< m/s^2, in the world of the pose it was taken at
+  Vec3 b_g = Vec3::Zero();  ///< rad/s
+  double rest_s = 0.0;      ///< s of readings averaged
+};
+
 /// Shortest interval a bias random-walk term is weighed over, s: two keyframes or frames closer than
 /// this (repeated stamps) would give the walk an unbounded information. Every user of
 /// ImuNoise::biasWalkCovariance as a factor (the optimiser's inertial edges, the dense solver's

@@ -118,6 +118,10 @@ class LoopCloser {
   bool globalBaRunning() const;
   /// Blocks until no full BA is running (tests; System before writing the map).
   void waitForGlobalBa();
+  /// Loop.FinalFullBa: after the run (run() returned, or single-threaded after the last keyframe;
+  /// local mapping finished), a full BA of every map with at least 3 keyframes, synchronously in
+  /// the caller's thread. Returns the number of maps adjusted.
+  int finalGlobalBa();
 
   /// Loop closing's state between two keyframes, with its queue empty and no full BA running
   /// (single-threaded, or after run() returned): the candidates' consistency, the keyframes since

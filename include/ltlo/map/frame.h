@@ -98,6 +98,11 @@ class Frame {
   /// Tracking held the frame at rest (zero-velocity update, issue 32); a keyframe made from it
   /// says so (KeyFrame::atRest), local mapping's IMU initialisation from rest looks for it.
   bool at_rest = false;
+  /// Set on the frame that starts the run's first map after a wait dead-reckoned by the IMU
+  /// (Tracking.PreMapImuPose) once a rest was seen before it: gravity and the gyro bias of that rest,
+  /// in the map's world. A keyframe made from it keeps it (KeyFrame::preMapRest) for local mapping's
+  /// IMU initialisation (ImuInit.FromPreMapRest). Not saved by the run state.
+  std::optional<imu::RestEstimate> pre_map_rest;
   /// Keyframe this frame was tracked against (invalid before the first keyframe).
   KeyFrameId reference_keyframe;
 

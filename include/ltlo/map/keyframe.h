@@ -95,6 +95,9 @@ class KeyFrame {
   /// Made from a frame tracking held at rest (Frame::at_rest): the IMU link from the previous
   /// keyframe was then a standstill, if the previous keyframe is at rest too or was the map's first.
   bool atRest() const { return at_rest_; }
+  /// Gravity and gyro bias of the rest before the run's first map (Frame::pre_map_rest), on that
+  /// map's first keyframe only; immutable.
+  const std::optional<imu::RestEstimate>& preMapRest() const { return pre_map_rest_; }
   void setImuFromPrevious(std::optional<imu::Preintegrated> preintegration);
 
   // ---- observations: keypoint index -> map point (written through Map) ----
@@ -163,6 +166,7 @@ class KeyFrame {
   const std::vector<int> keypoint_cluster_;
   const double static_threshold_;
   bool anchor_ = false;  ///< see isAnchor(); written before the keyframe is shared, no lock
+  const std::optional<imu::RestEstimate> pre_map_rest_;
 
   mutable std::mutex mutex_;  ///< guards every member below
   MapId map_;

@@ -81,6 +81,11 @@ struct ImuState {
   /// Posterior covariance of the world acceleration the IMU integrates, from the last
   /// (re)initialisation's window ((m/s^2)^2; optim::inertialAccelerationCovariance).
   Mat3 acceleration_covariance_w = Mat3::Zero();
+  /// Initialised from the rest before the first map (ImuInit.FromPreMapRest), the map's own
+  /// initialisation still to come: tracking keeps making keyframes at ImuInit.EarlyKeyFrames'
+  /// interval until it (without them the map reached ImuInit.MinKeyFrames only after the first box
+  /// arrived). Not saved in the run state.
+  bool awaiting_own_initialisation = false;
   std::uint64_t generation = 0;
 };
 

@@ -146,8 +146,10 @@ struct ImuInitProblem {
   std::vector<std::shared_ptr<const imu::Preintegrated>> pims;
   imu::ImuBias bias_init;
   double gravity_m_s2 = imu::kGravity_m_s2;
-  /// Per-axis information of zero-mean priors on the biases (biasPriorInformation).
+  /// Per-axis information of the priors on the biases (biasPriorInformation), zero-mean but for
+  /// the gyro's when gyro_bias_prior_mean is set (a rest's mean reading).
   double gyro_bias_prior_information = 1e2;
+  Vec3 gyro_bias_prior_mean = Vec3::Zero();
   double acc_bias_prior_information = 1e2;
   int iterations = 20;
   /// Gravity already known (a loaded map's, estimated over a longer window): R_w_g held at it, so

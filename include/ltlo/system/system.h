@@ -150,7 +150,9 @@ class System {
   tracking::TrackingState trackFrame(const io::RgbdImuFrame& input);
 
   /// Stops and joins local mapping, then loop closing (which waits for its full BA). Idempotent.
-  void shutdown();
+  /// `run_finished`: the input ended (false: an interrupt or an error stopped the run); only then the
+  /// end-of-run adjustment runs (Loop.FinalFullBa), which an interrupted run should not wait for.
+  void shutdown(bool run_finished = true);
   bool isShutDown() const { return shut_down_; }
 
   /// Every frame with a pose, in input order; IMU-carried stretches corrected as

@@ -50,6 +50,9 @@ class ImuDeadReckoning {
   const Vec3& gyroBias() const { return state_.b_g; }
   /// Whether the position is integrated (a rest was seen) or held (orientation only).
   bool positionIntegrated() const { return state_.g_w.has_value(); }
+  /// Gravity and the gyro bias of the rest the current state integrates from (its readings up to the
+  /// trusted rest frame), once a rest was seen.
+  std::optional<imu::RestEstimate> restEstimate() const;
 
  private:
   struct State {

@@ -184,7 +184,10 @@ class Tracker : private RecoverySteps {
   /// `acceleration_sigma_m_s2` is the (re)initialisation's own uncertainty of the world
   /// acceleration it integrates (optim::accelerationSigma); the prediction's position sigma uses
   /// the larger of it and Tracking.AccBiasSigma.
-  void setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2 = 0.0);
+  /// `early_keyframes`: the estimate is the one from the rest before the map, the map's own still to
+  /// come (mapping::ImuState::awaiting_own_initialisation): keyframes stay at the early interval.
+  void setImuInitialised(const imu::ImuBias& bias, const Vec3& g_w, double acceleration_sigma_m_s2 = 0.0,
+                         bool early_keyframes = false);
   bool imuInitialised() const { return imu_initialised_; }
   /// Gravity in the world frame the IMU prediction uses (m/s^2; meaningful once imuInitialised()).
   const Vec3& g_w() const { return g_w_; }
@@ -425,6 +428,7 @@ class Tracker : private RecoverySteps {
   LocalisationImuWindow localisation_imu_;
 
   bool imu_initialised_ = false;
+  bool early_keyframes_after_init_ = false;  ///< setImuInitialised's early_keyframes
   /// The last (re)initialisation's acceleration sigma (m/s^2, setImuInitialised).
   double init_acceleration_sigma_m_s2_ = 0.0;
   imu::ImuBias bias_;
