@@ -112,6 +112,7 @@ void visitTracking(O& o, V& v) {
   v.boolean("Tracking.StartRecoveryGauge", o.start_recovery_gauge);
   v.boolean("Tracking.StartCarriedLost", o.start_carried_lost);
   v.boolean("Tracking.PreMapImuPose", o.pre_map_imu_pose);
+  v.boolean("Tracking.NewMapVelocityPrior", o.new_map_velocity_prior);
 }
 
 template <typename O, typename V>

@@ -82,6 +82,12 @@ void addInertialLink(sparse_opt::Graph& graph, const InertialLink& link, const C
     prior->setMeasurement(InertialState{link.T_w_b_prev, link.v_w_b_prev, link.bias_prev});
     prior->setInformation(0.5 * (link.prev_prior->information + link.prev_prior->information.transpose()));
     graph.addEdge(std::move(prior));
+  } else if (link.prev_velocity_free && link.prev_velocity_information) {
+    auto prior = std::make_unique<EdgeVelocityPrior>();
+    prior->setVertex(0, prev_velocity);
+    prior->setMeasurement(link.v_w_b_prev);
+    prior->setInformation(0.5 * (*link.prev_velocity_information + link.prev_velocity_information->transpose()));
+    graph.addEdge(std::move(prior));
   }
 
   // The current frame's biases correct the deltas (ORB-SLAM3's pose-inertial optimisation); the

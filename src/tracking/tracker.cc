@@ -1,8 +1,10 @@
 #include "ltlo/tracking/tracker.h"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
@@ -236,9 +238,31 @@ void Tracker::initialiseNewMap(map::Frame& frame) {
   velocity_T_last_cur_.reset();
   // After the loss the velocity is the IMU's dead-reckoned one, too uncertain to be held fixed at
   // the new map's first keyframe: without a marginal the keyframe is not inertial, and the
-  // keyframe link re-estimates its velocity from the next frames' poses.
+  // keyframe link re-estimates its velocity from the next frames' poses. With
+  // Tracking.NewMapVelocityPrior that estimate keeps the dead reckoning's velocity as a prior, of
+  // the carried prediction's own uncertainty: the next frame alone, posed against the few points of
+  // a view that just failed to track, is not enough to fix it (issue 32: plain ltlo s3, 0.7 m/s
+  // off after one frame, and the dense segmentation's motion prior with it).
+  new_map_velocity_kf_ = map::KeyFrameId();
+  std::optional<Mat3> velocity_information;
+  if (options_.tracking.new_map_velocity_prior && imu_initialised_ && frame_information_.valid) {
+    const Eigen::LDLT<Mat15> ldlt(0.5 * (frame_information_.information + frame_information_.information.transpose()));
+    if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
+      const Mat3 covariance = ldlt.solve(Mat15::Identity()).block<3, 3>(6, 6);
+      const Eigen::LDLT<Mat3> velocity(0.5 * (covariance + covariance.transpose()));
+      if (velocity.info() == Eigen::Success && velocity.isPositive() && velocity.vectorD().minCoeff() > 0.0) {
+        velocity_information = velocity.solve(Mat3::Identity());
+      }
+    }
+  }
   frame_information_ = StateInformation();
   state_ = initialise(frame);
+  if (velocity_information && state_ == TrackingState::kOk && last_kf_.valid()) {
+    new_map_velocity_kf_ = last_kf_;
+    new_map_velocity_information_ = 0.5 * (*velocity_information + velocity_information->transpose());
+    log::debug("new map's first keyframe ", last_kf_, ": velocity prior sigma ",
+               std::sqrt(new_map_velocity_information_.inverse().diagonal().maxCoeff()), " m/s");
+  }
 }
 
 void Tracker::recordFramePose(const map::Frame& frame) {

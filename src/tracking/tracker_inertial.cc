@@ -188,6 +188,9 @@ Tracker::ImuPrediction Tracker::predictWithImu(const map::Frame& frame) {
     // keyframe's and this frame's poses, and the initialisation's bias is used.
     link.bias_prev = last_kf_inertial_ ? bias_kf : bias_;
     link.prev_velocity_free = !last_kf_inertial_;
+    if (link.prev_velocity_free && new_map_velocity_kf_.valid() && new_map_velocity_kf_ == last_kf_) {
+      link.prev_velocity_information = new_map_velocity_information_;  // Tracking.NewMapVelocityPrior
+    }
     out.link_kind = 1;
   } else {
     // The previous frame (tracked or predicted) with the marginal of its own optimisation (or of

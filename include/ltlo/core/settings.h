@@ -322,6 +322,13 @@ struct TrackingOptions {
   /// gravity is known; the map then starts at the dead-reckoned pose (Tracking.PreMapImuPose, 0/1;
   /// 0: those frames have no pose)
   bool pre_map_imu_pose = false;
+  /// A new map started after a loss the IMU carried (IMU initialised) keeps the dead-reckoned
+  /// velocity of its first keyframe under a prior, the velocity marginal of the carried
+  /// prediction's information, until a frame is linked to a later keyframe; without it that
+  /// velocity is left free and the first frame's pose alone (against few new map points) fixes it,
+  /// and a wrong one becomes the motion prior of the next frames' dense segmentation
+  /// (Tracking.NewMapVelocityPrior, 0/1)
+  bool new_map_velocity_prior = false;
 
   static TrackingOptions load(const SettingsFile& file);
 };

@@ -49,6 +49,10 @@ struct InertialLink {
   /// With the previous state fixed (no prior): leave its velocity free, without a prior (a keyframe
   /// whose velocity is not known yet: the inertial edge then estimates it from the two poses).
   bool prev_velocity_free = false;
+  /// With prev_velocity_free: a Gaussian prior on that velocity at v_w_b_prev with this
+  /// information, (m/s)^-2 (e.g. a new map's first keyframe whose velocity the IMU carried through a
+  /// loss: known to its dead reckoning's uncertainty, neither exactly nor not at all). Absent: free.
+  std::optional<Mat3> prev_velocity_information;
 };
 
 struct PoseOnlyProblem {

@@ -446,6 +446,12 @@ class Tracker : private RecoverySteps {
   /// The last keyframe's velocity and biases are inertial estimates (else the keyframe link leaves
   /// its velocity free and uses the tracker's bias).
   bool last_kf_inertial_ = false;
+  /// Tracking.NewMapVelocityPrior: the first keyframe of a new map started after an IMU-carried
+  /// loss, and the information of its dead-reckoned velocity (the carried prediction's velocity
+  /// marginal), the prior of the keyframe link's free velocity. Not saved with the tracker's state
+  /// (a run resumed before the map's second keyframe leaves that velocity free).
+  map::KeyFrameId new_map_velocity_kf_;
+  Mat3 new_map_velocity_information_ = Mat3::Zero();
   ImuPrediction imu_prediction_;
   /// The current frame's state information (set by optimisePose and the lost path).
   StateInformation frame_information_;
