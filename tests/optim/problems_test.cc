@@ -155,6 +155,55 @@ TEST(PoseOnlyProblem, InertialLinkRecoversPoseVelocityAndKeepsBias) {
   EXPECT_LT((with_prior.v_w_b - cur.v_w_b).norm(), 0.05);
 }
 
+// A keyframe whose velocity is not known (the first keyframe of a new map) links the next frame
+// with that velocity free: the frame's pose then comes from its few observations alone. When they
+// all lie (points on a mover, here as if the camera stood 3 cm to the side), the pose follows them;
+// a prior on the free velocity (Tracking.NewMapVelocityPrior: the velocity the IMU carried through
+// the loss, with its uncertainty) keeps the IMU's position and velocity (issue 32).
+TEST(PoseOnlyProblem, PriorOnAFreePreviousVelocityHoldsTheImuAgainstLyingObservations) {
+  std::mt19937 rng(21);
+  const ProjectionModel model = testModel();
+  const imu::test::AnalyticTrajectory trajectory;
+  const double t_prev = 2.0, t_cur = 2.0 + 1.0 / 30.0;
+  const imu::NavState prev = trajectory.state(t_prev);
+  const imu::NavState cur = trajectory.state(t_cur);
+  auto pim = std::make_shared<imu::Preintegrated>(imu::ImuBias{}, imu::ImuNoise());
+  pim->integrate(trajectory.samples(t_prev, t_cur, 200.0));
+  const SE3 T_w_b_true(cur.R_w_b, cur.p_w_b);
+  const SE3 T_w_b_seen = T_w_b_true * SE3(Quat::Identity(), Vec3(0.0, 0.03, 0.0));
+
+  PoseOnlyProblem problem;
+  problem.model = model;
+  problem.T_w_b_init = T_w_b_true;
+  problem.v_w_b_init = cur.v_w_b;
+  for (int k = 0; k < 12; ++k) {
+    const Vec3 p_w = visiblePoint(rng, model, T_w_b_seen);
+    const Vec3 p_c = model.T_c_x * (T_w_b_seen.inverse() * p_w);
+    problem.observations.push_back(PoseObservation{p_w, model.camera.project(p_c), p_c.z(), 1.0, 1.0});
+  }
+  InertialLink link;
+  link.T_w_b_prev = SE3(prev.R_w_b, prev.p_w_b);
+  link.v_w_b_prev = prev.v_w_b;
+  link.pim = pim;
+  link.prev_velocity_free = true;
+  problem.inertial = link;
+  const PoseOnlyResult free_velocity = optimizePose(problem);
+  EXPECT_GT(translationError(free_velocity.T_w_b, T_w_b_true), 0.02);
+  EXPECT_GT((free_velocity.v_w_b - cur.v_w_b).norm(), 0.5);
+
+  const double sigma_v = 0.02;
+  problem.inertial->prev_velocity_information = Mat3::Identity() / (sigma_v * sigma_v);
+  const PoseOnlyResult with_prior = optimizePose(problem);
+  EXPECT_LT(translationError(with_prior.T_w_b, T_w_b_true), 0.005);
+  EXPECT_LT((with_prior.v_w_b - cur.v_w_b).norm(), 0.15);
+  // The marginal of a prediction through such a link is finite in position (free: the velocity,
+  // and so the position, unconstrained without observations).
+  const Mat15 predicted = predictedStateInformation(
+      *problem.inertial, InertialState{T_w_b_true, cur.v_w_b, imu::ImuBias{}});
+  const Eigen::SelfAdjointEigenSolver<Mat15> eigen(0.5 * (predicted + predicted.transpose()));
+  EXPECT_GT(eigen.eigenvalues().minCoeff(), 0.0);
+}
+
 // Tracking's information filter over frames: chaining predictedStateInformation frame by frame
 // (each frame's marginal the next one's prior) gives the information of one prediction over the
 // whole interval from the same fixed start (preintegrations compose), and optimizePose without
