@@ -248,7 +248,13 @@ void Tracker::initialiseNewMap(map::Frame& frame) {
   if (options_.tracking.new_map_velocity_prior && imu_initialised_ && frame_information_.valid) {
     const Eigen::LDLT<Mat15> ldlt(0.5 * (frame_information_.information + frame_information_.information.transpose()));
     if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
-      const Mat3 covariance = ldlt.solve(Mat15::Identity()).block<3, 3>(6, 6);
+      // The propagated marginal holds the link's bias and gravity fixed: their error of the world
+      // acceleration, sigma_a (as for the predicted position, tracker_inertial.cc), acts over the
+      // whole loss, sigma_a t in velocity.
+      const double sigma_a = std::max(options_.tracking.acc_bias_sigma_m_s2, init_acceleration_sigma_m_s2_);
+      const double lost_s = std::max(0.0, frame.t_s() - last_tracked_t_s_);
+      const Mat3 covariance = ldlt.solve(Mat15::Identity()).block<3, 3>(6, 6) +
+                              (sigma_a * lost_s) * (sigma_a * lost_s) * Mat3::Identity();
       const Eigen::LDLT<Mat3> velocity(0.5 * (covariance + covariance.transpose()));
       if (velocity.info() == Eigen::Success && velocity.isPositive() && velocity.vectorD().minCoeff() > 0.0) {
         velocity_information = velocity.solve(Mat3::Identity());
