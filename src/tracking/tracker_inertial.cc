@@ -14,6 +14,10 @@ namespace ltlo::tracking {
 
 namespace {
 
+/// Chi2 of the velocity's move from the dead-reckoned prediction above which a new map's velocity
+/// prior is dropped (Tracking.NewMapVelocityPrior): the 95 % test of 3 DoF, as for an observation.
+constexpr double kNewMapVelocityChi2 = optim::kChi2Threshold3Dof;
+
 bool sameState(const SE3& a, const SE3& b) {
   return (a.translation() - b.translation()).norm() == 0.0 &&
          (a.quaternion().coeffs() - b.quaternion().coeffs()).norm() == 0.0;
@@ -252,7 +256,26 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
                               odometry_observations_.end());
   if (problem.observations.empty() && link == nullptr) return 0;
   if (link != nullptr) problem.inertial = *link;
-  const optim::PoseOnlyResult result = optim::optimizePose(problem);
+  optim::PoseOnlyResult result = optim::optimizePose(problem);
+  if (problem.inertial && problem.inertial->prev_velocity_information && imu_prediction_.valid) {
+    // Tracking.NewMapVelocityPrior: the prior is the dead reckoning's velocity, whose marginal
+    // says nothing of how well the frames before the loss knew it. When the frame's observations
+    // move the velocity away from the prediction by more than that marginal allows (chi2 test,
+    // 3 DoF, 95 %), the dead-reckoned velocity is wrong: the link leaves it free as without the
+    // switch.
+    const Eigen::LDLT<Mat15> ldlt(0.5 * (imu_prediction_.information + imu_prediction_.information.transpose()));
+    if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
+      const Mat3 covariance = ldlt.solve(Mat15::Identity()).block<3, 3>(6, 6);
+      const Vec3 dv = result.v_w_b - imu_prediction_.state.v_w_b;
+      const double chi2 = dv.dot(covariance.ldlt().solve(dv));
+      log::debug("frame t = ", frame.t_s(), ": new map's velocity prior, chi2 ", chi2, " (", result.num_inliers,
+                 " inliers), dv = ", dv.transpose());
+      if (!(chi2 <= kNewMapVelocityChi2)) {
+        problem.inertial->prev_velocity_information.reset();
+        result = optim::optimizePose(problem);
+      }
+    }
+  }
   frame.setPose_T_w_b(result.T_w_b);
   if (problem.inertial) {
     // Velocity and biases from the pose-inertial optimisation; its marginal is the next frame's
