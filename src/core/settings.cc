@@ -134,6 +134,7 @@ void visitLocalMapping(O& o, V& v) {
   v.real("LocalMapping.CullMaxImuSpan", o.cull_max_imu_span_s, 0.1, 10.0);
   v.real("LocalMapping.CullImuCutAge", o.cull_imu_cut_age_s, 0.0, 1e6);
   v.boolean("LocalMapping.GaugeVelocityFree", o.gauge_velocity_free);
+  v.boolean("LocalMapping.GaugeVelocityPrior", o.gauge_velocity_prior);
   v.boolean("LocalMapping.EstimateTimeOffset", o.estimate_time_offset);
   v.real("LocalMapping.TimeOffsetPriorSigma", o.time_offset_prior_sigma_s, 1e-4, 0.2);
   v.integer("LocalMapping.TimeOffsetWindow", o.time_offset_window, 3, 1000);

@@ -240,6 +240,7 @@ WindowBaStats LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::sha
   ba.g_w = imu.g_w;
   ba.lambda_imu = options.local_mapping.lambda_imu;
   ba.gauge_velocity_free = options.local_mapping.gauge_velocity_free;
+  ba.gauge_velocity_prior = options.local_mapping.gauge_velocity_prior;
   if (ba.inertial && options.imu_init.loose_early_bias && imu_refinements == 0) {
     // Before the +5 s refinement the estimate comes from the first seconds: the bias the held
     // keyframes carry is known to its acceleration sigma at best, and the fixed-pose sigma of a

@@ -25,6 +25,8 @@ struct WindowKeyFrame {
   bool fixed = false;
   std::vector<double> gamma;  ///< the keyframe's cluster scores (copied once)
   bool velocity_free = false;  ///< fixed, but the velocity optimised (the gauge, gauge_velocity_free)
+  double velocity_prior_sigma_m_s = 0.0;  ///< with velocity_free: the prior's sigma (0: none)
+  Vec3 velocity_prior = Vec3::Zero();     ///< and its mean
 };
 
 struct ObservationRef {
@@ -130,10 +132,20 @@ void addOptimisedKeyFrames(map::Map& map, const std::shared_ptr<map::KeyFrame>& 
   // A map started at the IMU's prediction after a loss (it has an origin in its parent's world):
   // its gauge holds the window's pose, but its velocity is the dead reckoning's and is estimated.
   // The first map's gauge keeps the velocity of the IMU initialisation (at rest: zero).
-  const bool gauge_velocity_free = options.inertial && options.gauge_velocity_free && map.origin().has_value();
+  const std::optional<map::MapOrigin> origin = map.origin();
+  const bool gauge_velocity_free = options.inertial && options.gauge_velocity_free && origin.has_value();
   for (WindowKeyFrame& entry : keyframes) {
     if (entry.kf->id() == gauge || entry.kf->isAnchor()) entry.fixed = true;
-    if (entry.kf->id() == gauge && !entry.kf->isAnchor() && gauge_velocity_free) entry.velocity_free = true;
+    if (entry.kf->id() == gauge && !entry.kf->isAnchor() && gauge_velocity_free) {
+      entry.velocity_free = true;
+      // LocalMapping.GaugeVelocityPrior: about the velocity the map started with, to the
+      // prediction's uncertainty (only while the gauge is still the keyframe the map started at).
+      if (options.gauge_velocity_prior && origin->sigma_velocity_m_s > 0.0 &&
+          std::abs(entry.kf->t_s() - origin->t_s) < 1e-6) {
+        entry.velocity_prior_sigma_m_s = origin->sigma_velocity_m_s;
+        entry.velocity_prior = origin->v_w_b_dead_reckoned;
+      }
+    }
   }
 }
 
@@ -191,6 +203,8 @@ void setUpProblem(const map::KeyFrame& kf, const WindowBaOptions& options, Windo
     ba.bias = entry.kf->bias();
     ba.fixed = entry.fixed;
     ba.velocity_free = entry.fixed && entry.velocity_free;
+    ba.velocity_prior_sigma_m_s = entry.velocity_prior_sigma_m_s;
+    ba.velocity_prior = entry.velocity_prior;
     problem.keyframes.push_back(ba);
   }
 }

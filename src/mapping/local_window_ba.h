@@ -52,6 +52,9 @@ struct WindowBaOptions {
   /// whose velocity is off by the drift of the loss; held, the inertial links pass that error on to
   /// every keyframe of the window and tracking follows it.
   bool gauge_velocity_free = false;
+  /// With gauge_velocity_free: a prior on that velocity about the dead-reckoned one with the
+  /// prediction's standard deviation (map::MapOrigin, LocalMapping.GaugeVelocityPrior).
+  bool gauge_velocity_prior = false;
   double huber_chi2 = 7.815;     ///< rho_H threshold on the whitened |r|^2 (3-D edges; 2-D: 5.991)
   /// The robust VIBA above (Mapping.RobustBeta); false: the plain VIBA.
   bool robust = true;

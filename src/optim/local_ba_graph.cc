@@ -123,6 +123,13 @@ void LocalBaGraph::Impl::ensureInertialVertices(int k) {
   v.velocity = graph.addVertex(std::move(velocity));
   v.gyro_bias = graph.addVertex(std::move(gyro_bias));
   v.acc_bias = graph.addVertex(std::move(acc_bias));
+  if (state_fixed && kf.velocity_free && kf.velocity_prior_sigma_m_s > 0.0) {
+    auto prior = std::make_unique<EdgeVelocityPrior>();
+    prior->setVertex(0, v.velocity);
+    prior->setMeasurement(kf.velocity_prior);
+    prior->setInformation(Mat3::Identity() / (kf.velocity_prior_sigma_m_s * kf.velocity_prior_sigma_m_s));
+    graph.addEdge(std::move(prior));
+  }
 }
 
 void LocalBaGraph::Impl::addGravityVertex() {

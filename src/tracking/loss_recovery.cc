@@ -162,6 +162,8 @@ void LossRecovery::startNewMap(map::Frame& frame, const LossContext& context, Re
     origin->sigma_position_m = sigma_m;
     origin->sigma_rotation_rad = context.stats.predicted_rotation_sigma_rad;
     origin->t_s = frame.t_s();
+    origin->v_w_b_dead_reckoned = frame.v_w_b();
+    origin->sigma_velocity_m_s = context.stats.predicted_velocity_sigma_m_s;
     if (keyframe_in_map && context.imu_since_keyframe && !context.imu_chain_broken) {
       // The IMU from the parent's last keyframe to this frame (the new map's first keyframe).
       origin->parent_keyframe = context.last_kf;
@@ -178,6 +180,9 @@ void LossRecovery::startNewMap(map::Frame& frame, const LossContext& context, Re
     // Before the keyframe leaves tracking (the loop closer reads the origin with it).
     if (origin->imu_across) origin->first_keyframe = context.last_kf;
     created.setOrigin(*origin);
+    log::debug("new map ", created.id(), ": dead-reckoned origin, position sigma ", origin->sigma_position_m,
+               " m, velocity ", origin->v_w_b_dead_reckoned.transpose(), " m/s, sigma ", origin->sigma_velocity_m_s,
+               " m/s");
   }
   carried_first_point_ = map::MapPointId();
   carried_fix_sigma_m_ = 0.0;

@@ -405,6 +405,13 @@ struct LocalMappingOptions {
   /// realsense 13.16 -> 11.06 mm with it, ltlo_s3 ideal 7.89 -> 10.13 mm (docs/results.md)
   /// (LocalMapping.GaugeVelocityFree, 0/1)
   bool gauge_velocity_free = false;
+  /// With LocalMapping.GaugeVelocityFree: the gauge's velocity is estimated with a prior about the
+  /// dead-reckoned velocity the map started with, its standard deviation that of the IMU's
+  /// prediction (the tracker's propagated covariance with the accelerometer-bias drift over the
+  /// loss, map::MapOrigin::sigma_velocity_m_s). A map started after a short loss, whose first
+  /// keyframes see little, keeps about the dead reckoning (as held); after a long loss the window's
+  /// vision takes over (as free). 0: free, no prior (issue 28) (LocalMapping.GaugeVelocityPrior, 0/1)
+  bool gauge_velocity_prior = false;
   /// Estimate the camera-IMU time offset online (what IMU.TimeOffset left), from the keyframe
   /// rotations after each local BA against the gyroscope (mapping/time_offset_estimator.h); tracking
   /// cuts the frames' IMU intervals with it (LocalMapping.EstimateTimeOffset, 0/1)

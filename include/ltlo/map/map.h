@@ -37,6 +37,12 @@ struct MapOrigin {
   /// The parent keyframe's body pose when the map started (the map's world is the parent's as it
   /// was then; corrections of the parent since move it with that keyframe).
   SE3 T_w_b_parent_keyframe;
+  /// The first keyframe's dead-reckoned velocity (m/s, in the parent's world) and the standard
+  /// deviation of the prediction it came from (m/s; 0: unknown), for
+  /// LocalMapping.GaugeVelocityPrior. Not written to atlas files (a loaded map's gauge velocity then
+  /// has no prior).
+  Vec3 v_w_b_dead_reckoned = Vec3::Zero();
+  double sigma_velocity_m_s = 0.0;
 };
 
 /// Thread-safe. mutex_ guards the containers only and is never held while a KeyFrame or MapPoint

@@ -31,6 +31,10 @@ struct BaKeyFrame {
   /// With `fixed`: the velocity is optimised, the pose and biases held (a map's gauge keyframe in a
   /// local visual-inertial window: its velocity may be dead-reckoned, mapping::WindowBaOptions).
   bool velocity_free = false;
+  /// With `velocity_free`: a prior on the velocity about velocity_prior with this standard
+  /// deviation (m/s; 0: none).
+  double velocity_prior_sigma_m_s = 0.0;
+  Vec3 velocity_prior = Vec3::Zero();
 };
 
 struct BaPoint {

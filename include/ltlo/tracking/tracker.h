@@ -83,6 +83,9 @@ struct TrackingStats {
   /// standard deviations of the predicted state (largest axis; 0 without the IMU's information)
   double predicted_position_sigma_m = 0.0;
   double predicted_rotation_sigma_rad = 0.0;
+  /// of the predicted velocity (m/s, largest axis), with the accelerometer-bias drift since the last
+  /// tracked frame (sigma_a t)
+  double predicted_velocity_sigma_m_s = 0.0;
   bool map_refreshed = false;  ///< the last frame's pose was re-derived (map version / active map)
   /// Localisation only: pose inliers among the last frame's temporary points (visual odometry,
   /// tracker_visual_odometry.cc), counted in `inliers` too; 0 when the map alone tracked it.
