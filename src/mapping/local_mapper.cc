@@ -298,9 +298,12 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
     }
     log::info("IMU initialisation from rest at kf ", kf->id(), ": the link is no standstill; waiting for motion");
   }
-  if (!state.initialised && options.imu_init.from_pre_map_rest) {
-    // The rest before the first map (issue 32): gravity and the gyro bias known, the velocities and
-    // b_a from the map's first keyframes.
+  // The rest before the first map (issue 32): gravity and the gyro bias known, the velocities and b_a
+  // from the map's first keyframes. Only the map's first keyframe (its gauge) can carry the rest, so
+  // a map without one builds no chain here.
+  const std::shared_ptr<map::KeyFrame> gauge =
+      !state.initialised && options.imu_init.from_pre_map_rest ? map.keyFrame(map.gaugeKeyFrame()) : nullptr;
+  if (gauge && gauge->preMapRest()) {
     const ImuChain chain = endAtStaticView(imuChainEndingAt(map, kf), options.imu_init.min_static_ratio);
     const std::optional<imu::RestEstimate> rest =
         chain.keyframes.empty() ? std::nullopt : chain.keyframes.front()->preMapRest();
