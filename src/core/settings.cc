@@ -113,6 +113,7 @@ void visitTracking(O& o, V& v) {
   v.boolean("Tracking.StartCarriedLost", o.start_carried_lost);
   v.boolean("Tracking.PreMapImuPose", o.pre_map_imu_pose);
   v.boolean("Tracking.NewMapVelocityPrior", o.new_map_velocity_prior);
+  v.real("Tracking.NewMapVelocityTrust", o.new_map_velocity_trust_s, 0.0, 60.0);
 }
 
 template <typename O, typename V>

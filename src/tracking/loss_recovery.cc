@@ -1,5 +1,6 @@
 #include "ltlo/tracking/loss_recovery.h"
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 
@@ -64,6 +65,12 @@ void LossRecovery::onTrackedFrame(const map::Frame& frame, int min_inliers) {
     carried_first_point_ = map::MapPointId();
   }
   if (std::isnan(tracked_run_start_s_)) tracked_run_start_s_ = frame.t_s();
+  if (untrusted_velocity_sigma_m_s_ > 0.0 &&
+      frame.t_s() - tracked_run_start_s_ >= options_.tracking.new_map_velocity_trust_s) {
+    log::debug("t = ", frame.t_s(), " s: the map started at ", untrusted_velocity_t_s_,
+               " s has tracked its own velocity for ", frame.t_s() - tracked_run_start_s_, " s");
+    untrusted_velocity_sigma_m_s_ = 0.0;
+  }
   if (!carried_first_point_.valid()) {
     anchored_t_s_ = frame.t_s();
     carried_fix_t_s_ = frame.t_s();
@@ -72,6 +79,11 @@ void LossRecovery::onTrackedFrame(const map::Frame& frame, int min_inliers) {
     carried_fix_t_s_ = frame.t_s();
     carried_fix_sigma_m_ = carried_placement_sigma_m_;
   }
+}
+
+double LossRecovery::velocitySigmaFloor_m_s(double t_s, double sigma_a_m_s2) const {
+  if (untrusted_velocity_sigma_m_s_ <= 0.0) return 0.0;
+  return std::hypot(untrusted_velocity_sigma_m_s_, sigma_a_m_s2 * std::max(0.0, t_s - untrusted_velocity_t_s_));
 }
 
 void LossRecovery::updateCarriedSigma(double t_s, double sigma_p, double sigma_a, double bias_drift_m,
@@ -184,6 +196,13 @@ void LossRecovery::startNewMap(map::Frame& frame, const LossContext& context, Re
                " m, velocity ", origin->v_w_b_dead_reckoned.transpose(), " m/s, sigma ", origin->sigma_velocity_m_s,
                " m/s");
   }
+  // Until it has tracked Tracking.NewMapVelocityTrust in a row, the map hands on no velocity more
+  // certain than the one it started with (velocitySigmaFloor_m_s): a map of a few frames, perhaps
+  // on an occluder's points, gives a confident marginal of a wrong velocity (issue 32, ltlo seed 5).
+  untrusted_velocity_sigma_m_s_ = origin && options_.tracking.new_map_velocity_trust_s > 0.0
+                                      ? origin->sigma_velocity_m_s
+                                      : 0.0;
+  untrusted_velocity_t_s_ = frame.t_s();
   carried_first_point_ = map::MapPointId();
   carried_fix_sigma_m_ = 0.0;
   carried_fix_t_s_ = frame.t_s();
@@ -200,6 +219,8 @@ void LossRecovery::writeState(map::ByteWriter& out) const {
   out.f64(carried_fix_sigma_m_);
   out.f64(carried_fix_t_s_);
   out.f64(tracked_run_start_s_);
+  out.f64(untrusted_velocity_sigma_m_s_);
+  out.f64(untrusted_velocity_t_s_);
 }
 
 void LossRecovery::readState(map::ByteReader& in) {
@@ -220,6 +241,13 @@ void LossRecovery::readState(map::ByteReader& in) {
   if (std::isinf(tracked_run_start_s_)) {
     in.failAt(start_offset, "tracked run start is infinite", map::exactNumberText(tracked_run_start_s_));
   }
+  const std::uint64_t untrusted_offset = in.fileOffset();
+  untrusted_velocity_sigma_m_s_ = in.finiteF64("untrusted velocity sigma");
+  if (untrusted_velocity_sigma_m_s_ < 0.0) {
+    in.failAt(untrusted_offset, "untrusted velocity sigma is not a sigma",
+              map::exactNumberText(untrusted_velocity_sigma_m_s_));
+  }
+  untrusted_velocity_t_s_ = in.finiteF64("untrusted velocity time");
 }
 
 }  // namespace ltlo::tracking

@@ -1,6 +1,7 @@
 #include "ltlo/tracking/tracker.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -253,8 +254,16 @@ void Tracker::initialiseNewMap(map::Frame& frame) {
       // whole loss, sigma_a t in velocity.
       const double sigma_a = std::max(options_.tracking.acc_bias_sigma_m_s2, init_acceleration_sigma_m_s2_);
       const double lost_s = std::max(0.0, frame.t_s() - last_tracked_t_s_);
-      const Mat3 covariance = ldlt.solve(Mat15::Identity()).block<3, 3>(6, 6) +
-                              (sigma_a * lost_s) * (sigma_a * lost_s) * Mat3::Identity();
+      Mat3 covariance = ldlt.solve(Mat15::Identity()).block<3, 3>(6, 6) +
+                        (sigma_a * lost_s) * (sigma_a * lost_s) * Mat3::Identity();
+      // A map that has not tracked long enough hands on no velocity more certain than the one it
+      // started with (Tracking.NewMapVelocityTrust): its least variance is raised to that sigma's.
+      const double floor_m_s = loss_.velocitySigmaFloor_m_s(frame.t_s(), sigma_a);
+      if (floor_m_s > 0.0) {
+        const Eigen::SelfAdjointEigenSolver<Mat3> eigen(0.5 * (covariance + covariance.transpose()),
+                                                        Eigen::EigenvaluesOnly);
+        covariance += std::max(0.0, floor_m_s * floor_m_s - eigen.eigenvalues().minCoeff()) * Mat3::Identity();
+      }
       const Eigen::LDLT<Mat3> velocity(0.5 * (covariance + covariance.transpose()));
       if (velocity.info() == Eigen::Success && velocity.isPositive() && velocity.vectorD().minCoeff() > 0.0) {
         velocity_information = velocity.solve(Mat3::Identity());

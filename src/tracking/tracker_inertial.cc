@@ -89,7 +89,10 @@ SE3 Tracker::predictPose_T_w_b(map::Frame& frame) {
         const double sigma_p = largestSigma(covariance.block<3, 3>(3, 3));
         const double lever_m = sigma_r * frame.T_b_c().translation().norm();
         stats_.predicted_rotation_sigma_rad = sigma_r;
-        stats_.predicted_velocity_sigma_m_s = std::hypot(largestSigma(covariance.block<3, 3>(6, 6)), sigma_a * gap_s);
+        // At least the velocity sigma of a map not yet trusted to hand on its own (loss_recovery.h).
+        stats_.predicted_velocity_sigma_m_s =
+            std::max(std::hypot(largestSigma(covariance.block<3, 3>(6, 6)), sigma_a * gap_s),
+                     loss_.velocitySigmaFloor_m_s(frame.t_s(), sigma_a));
         stats_.predicted_position_sigma_m = std::hypot(sigma_p, bias_drift_m) + lever_m;
         // The loss policy's sigma, over an IMU-carried stretch from its last visual fix.
         loss_.updateCarriedSigma(frame.t_s(), sigma_p, sigma_a, bias_drift_m, lever_m);

@@ -329,6 +329,14 @@ struct TrackingOptions {
   /// and a wrong one becomes the motion prior of the next frames' dense segmentation
   /// (Tracking.NewMapVelocityPrior, 0/1)
   bool new_map_velocity_prior = false;
+  /// A map started after a loss hands on its velocity with its own marginal (to the next new map's
+  /// velocity prior and origin, Tracking.NewMapVelocityPrior and LocalMapping.GaugeVelocityPrior)
+  /// only once its frames have tracked this long in a row: before, a few frames against a new map
+  /// that may hold an occluder's points are not evidence of the world's velocity, and the velocity
+  /// sigma handed on is at least the one the map started with, widened by the acceleration error
+  /// since (loss_recovery.h; issue 32, ltlo seed 5: a 0.1-0.3 s map handed on 0.03 m/s for a velocity
+  /// 0.38 m/s off). Seconds; 0: every map's marginal is trusted (Tracking.NewMapVelocityTrust)
+  double new_map_velocity_trust_s = 1.0;
 
   static TrackingOptions load(const SettingsFile& file);
 };

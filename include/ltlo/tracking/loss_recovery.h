@@ -129,6 +129,12 @@ class LossRecovery {
   void updateCarriedSigma(double t_s, double sigma_p, double sigma_a, double bias_drift_m, double lever_m);
   double carriedPositionSigma_m() const { return carried_position_sigma_m_; }
 
+  /// The least velocity sigma (m/s) a frame at t_s may hand on to a new map (its origin and its
+  /// first keyframe's velocity prior): while the active map, started by the loss policy, has not yet
+  /// tracked Tracking.NewMapVelocityTrust in a row, the sigma it started with widened by
+  /// sigma_a_m_s2 per second since; 0 otherwise (the carried marginal alone).
+  double velocitySigmaFloor_m_s(double t_s, double sigma_a_m_s2) const;
+
   /// Maps started by the loss policy (the first map is not counted).
   int mapsCreated() const { return maps_created_; }
 
@@ -171,6 +177,10 @@ class LossRecovery {
   double carried_fix_t_s_ = 0.0;
   /// first frame of the current run of tracked frames (NaN after a lost frame)
   double tracked_run_start_s_ = std::numeric_limits<double>::quiet_NaN();
+  /// A map started at the IMU's prediction whose velocity is not yet trusted (velocitySigmaFloor_m_s):
+  /// the velocity sigma it started with (0: none, or trusted) and its start time.
+  double untrusted_velocity_sigma_m_s_ = 0.0;
+  double untrusted_velocity_t_s_ = 0.0;
 };
 
 }  // namespace ltlo::tracking
