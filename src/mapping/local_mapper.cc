@@ -591,6 +591,7 @@ void LocalMapper::writeState(map::ByteWriter& out) const {
     out.vec3(impl.imu_state.g_w);
     out.mat3(impl.imu_state.acceleration_covariance_w);
     out.u64(impl.imu_state.generation);
+    out.boolean(impl.imu_state.awaiting_own_initialisation);
     const TimeOffsetStatus& offset = impl.time_offset;
     out.boolean(offset.estimated);
     out.f64(offset.shift_s);
@@ -620,6 +621,7 @@ void LocalMapper::readState(map::ByteReader& in) {
   imu.g_w = in.vec3("mapping gravity");
   imu.acceleration_covariance_w = in.mat3("mapping acceleration covariance");
   imu.generation = in.u64("mapping IMU generation");
+  imu.awaiting_own_initialisation = in.boolean("mapping IMU awaiting its own initialisation");
   TimeOffsetStatus offset;
   offset.estimated = in.boolean("time offset estimated");
   offset.shift_s = in.finiteF64("time offset shift");

@@ -117,6 +117,7 @@ void Tracker::writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const {
 
   // The IMU.
   out.boolean(imu_initialised_);
+  out.boolean(early_keyframes_after_init_);
   out.f64(init_acceleration_sigma_m_s2_);
   map::writeBias(bias_, out);
   out.vec3(g_w_);
@@ -248,6 +249,7 @@ void Tracker::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes)
   localisation_imu_ = std::move(window);
 
   imu_initialised_ = in.boolean("IMU initialised");
+  early_keyframes_after_init_ = in.boolean("early keyframes after the IMU initialisation");
   init_acceleration_sigma_m_s2_ = in.finiteF64("IMU acceleration sigma");
   bias_ = map::readBias(in, "tracking bias");
   g_w_ = in.vec3("tracking gravity");

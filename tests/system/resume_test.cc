@@ -8,7 +8,8 @@
 //   - run 2 resumes at frame N (the segmenter's previous frame rebuilt from frame N - 1's images)
 //     and tracks [N, end): its online and final poses of those frames are the continuous run's
 //     (the acceptance is 0.1 mm; they are bit-identical), so are its keyframes and map points.
-// Split before the IMU initialisation (2 s) and after it (6 s).
+// Split before the IMU initialisation (2 s) and after it (6 s); on a blind start, between the IMU
+// initialisation from the rest before the map and the map's own.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -18,6 +19,8 @@
 #include <iterator>
 #include <optional>
 #include <string>
+
+#include <opencv2/core.hpp>
 
 #include "end_to_end_suite.h"
 #include "ltlo/core/log.h"
@@ -38,6 +41,9 @@ constexpr double kSequenceSeconds = 9.0;
 struct ResumeRun {
   RunReport report;
   int frames = 0;
+  /// Local mapping's IMU state when the run stopped: initialised from the rest before the map, its
+  /// own initialisation still to come (ImuInit.FromPreMapRest).
+  bool awaiting_own_imu_initialisation = false;
 };
 
 std::string readBytes(const std::string& path) {
@@ -108,15 +114,21 @@ class ResumeEndToEnd : public EndToEndSuite {
       EXPECT_EQ(point->next_frame_index, static_cast<std::uint64_t>(first));
       EXPECT_EQ(point->last_frame_t_s, frames.frameTime(first - 1));
       EXPECT_FALSE(point->settings_differ);
-      if (point->previous_frame_t_s) system.restorePreviousFrame(frames.load(first - 1));
+      if (point->previous_frame_t_s) {
+        io::RgbdImuFrame previous = frames.load(first - 1);
+        blank(previous);
+        system.restorePreviousFrame(previous);
+      }
     }
     frames.seek(first);
     while (last < 0 || first + result.frames < last) {
       std::optional<io::RgbdImuFrame> input = frames.next();
       if (!input) break;
+      blank(*input);
       system.trackFrame(*input);
       ++result.frames;
     }
+    result.awaiting_own_imu_initialisation = system.imuState().awaiting_own_initialisation;
     system.shutdown();
     if (!save.empty()) system.saveAtlas(save);
     result.report = system.report(1.0);
@@ -158,8 +170,35 @@ class ResumeEndToEnd : public EndToEndSuite {
     }
   }
 
+  /// Frames before this time get a uniform grey image (a view too poor for a map; < 0: none).
+  static void blank(io::RgbdImuFrame& input) {
+    if (input.t_s < blank_until_s_) input.color_bgr.setTo(cv::Scalar(128, 128, 128));
+  }
+
   static inline std::string sequence_;
   static inline std::unique_ptr<ResumeRun> continuous_;
+  static inline double blank_until_s_ = -1.0;
+};
+
+/// The blind start of StandstillEndToEnd (static room, still for 1.5 s, no image until 2.5 s): the
+/// first map starts at 2.5 s and local mapping initialises the IMU from the rest before it at
+/// about 3.2 s, then keeps tracking's early keyframes until its own initialisation (>= 4.5 s).
+class ResumeAfterPreMapRest : public ResumeEndToEnd {
+ public:
+  static void SetUpTestSuite() {
+    createSuiteResources("ltlo_resume_rest_");
+    sequence_ = (root() / "blind_start").string();
+    sim::SimOptions options = shortRunSimOptions(sim::Scenario::kStatic, 1, 6.0);
+    options.stills = {{0.0, 1.5}};
+    sim::writeSequence(options, sequence_, 0);
+    blank_until_s_ = 2.5;
+    continuous_ = std::make_unique<ResumeRun>(run(0, -1, "", false));
+  }
+  static void TearDownTestSuite() {
+    continuous_.reset();
+    blank_until_s_ = -1.0;
+    removeSuiteResources();
+  }
 };
 
 TEST_F(ResumeEndToEnd, ResumedBeforeTheImuInitialisationContinuesExactly) {
@@ -175,6 +214,18 @@ TEST_F(ResumeEndToEnd, ResumedAfterTheImuInitialisationContinuesExactly) {
   // This run's own frames are what it reports; the saved run's records are context only.
   EXPECT_EQ(resumed.report.counts.frames, continuous_->frames - 90);
   EXPECT_EQ(resumed.report.counts.frames_with_pose, continuous_->frames - 90);
+}
+
+TEST_F(ResumeAfterPreMapRest, ResumedBetweenTheInitialisationFromTheRestAndTheMapsOwnContinuesExactly) {
+  // Split at 3.8 s: the IMU initialised from the rest before the map, the map's own initialisation
+  // (and the end of the early keyframes) still to come; both flags travel in the run state.
+  constexpr int kSplit = 57;
+  const ResumeRun first = run(0, kSplit, "", false);
+  ASSERT_TRUE(first.report.counts.imu_initialised);
+  ASSERT_TRUE(first.awaiting_own_imu_initialisation);
+  const ResumeRun resumed = resumeAt(kSplit);
+  expectContinuation(resumed, kSplit);
+  EXPECT_FALSE(resumed.awaiting_own_imu_initialisation);  // the map's own followed, as in one piece
 }
 
 }  // namespace

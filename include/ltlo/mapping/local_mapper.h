@@ -84,7 +84,7 @@ struct ImuState {
   /// Initialised from the rest before the first map (ImuInit.FromPreMapRest), the map's own
   /// initialisation still to come: tracking keeps making keyframes at ImuInit.EarlyKeyFrames'
   /// interval until it (without them the map reached ImuInit.MinKeyFrames only after the first box
-  /// arrived). Not saved in the run state.
+  /// arrived).
   bool awaiting_own_initialisation = false;
   std::uint64_t generation = 0;
 };
