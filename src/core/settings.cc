@@ -161,6 +161,7 @@ void visitLoop(O& o, V& v) {
   v.real("Loop.ProximityMaxDistance", o.proximity_max_distance_m, 0.1, 100.0);
   v.real("Loop.RejoinMaxSigma", o.rejoin_max_sigma_m, 0.01, 100.0);
   v.real("Loop.MaxCorrectionShare", o.max_correction_share, 0.0, 10.0);
+  v.boolean("Loop.WaitForImu", o.wait_for_imu);
   v.boolean("Loop.HoldLoadedMap", o.hold_loaded_map);
 }
 
@@ -212,6 +213,7 @@ void visitImuInit(O& o, V& v) {
   v.real("ImuInit.RefineInterval", o.refine_interval_s, 0.0, 100.0);
   v.real("ImuInit.MinStaticRatio", o.min_static_ratio, 0.0, 1.0);
   v.boolean("ImuInit.LooseEarlyBias", o.loose_early_bias);
+  v.real("ImuInit.MaxAccBias", o.max_acc_bias_m_s2, 0.0, 100.0);
 }
 
 template <typename O, typename V>

@@ -208,6 +208,9 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
   // Right after a correction the place just closed would be found again: no detection (as
   // ORB-SLAM), and the consistency starts afresh afterwards.
   if (keyframes_since_correction <= kKeyFramesBetweenLoops) return false;
+  // Loop.WaitForImu: before the IMU is initialised no correction can be checked against the drift
+  // (plausibleCorrection), and a map's first seconds may rest on a mover.
+  if (options.loops_wait_for_imu && !gravity()) return false;
   const std::vector<std::shared_ptr<map::KeyFrame>> candidates =
       detector.detect(*kf, map, atlas.keyFrameDatabase());
   for (const std::shared_ptr<map::KeyFrame>& candidate : candidates) {

@@ -1,6 +1,7 @@
 #include "imu_initializer.h"
 
 #include <algorithm>
+#include <utility>
 #include <cmath>
 #include <unordered_map>
 #include <unordered_set>
@@ -28,6 +29,18 @@ ImuChain imuChainEndingAt(const map::Map& map, const std::shared_ptr<map::KeyFra
   }
   chain.keyframes.assign(reversed.rbegin(), reversed.rend());
   chain.pims.assign(reversed_pims.rbegin(), reversed_pims.rend());
+  return chain;
+}
+
+ImuChain startAfter(ImuChain chain, double floor_t_s) {
+  if (floor_t_s < 0.0) return chain;
+  std::size_t first = 0;
+  while (first < chain.keyframes.size() && chain.keyframes[first]->t_s() <= floor_t_s) ++first;
+  chain.keyframes.erase(chain.keyframes.begin(), chain.keyframes.begin() + static_cast<std::ptrdiff_t>(first));
+  // pims[k] links keyframes k and k + 1: the links into the dropped keyframes go with them.
+  const std::size_t dropped_links = std::min(first, chain.pims.size());
+  chain.pims.erase(chain.pims.begin(), chain.pims.begin() + static_cast<std::ptrdiff_t>(dropped_links));
+  if (chain.keyframes.empty()) chain.pims.clear();
   return chain;
 }
 
@@ -452,7 +465,7 @@ void predictInertialState(const map::Map& map, map::KeyFrame& kf, const Vec3& g_
 
 std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain, const ImuInitOptions& options,
                                            const RefinementContext& context,
-                                           const std::optional<ImuInitEstimate>& current) {
+                                           const std::optional<ImuInitEstimate>& current, bool* implausible_bias) {
   const map::KeyFrameId newest = chain.keyframes.back()->id();
   auto refine = [&](const Vec3& g_w) {
     ImuRefinementStats stats;
@@ -465,8 +478,27 @@ std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain,
     return refined;
   };
   if (current && options.visual_inertial_refinement) return refine(current->g_w);
+  // The inertial-only initialisation writes its velocities and bias to the chain's keyframes; a
+  // rejected one leaves them as they were.
+  std::vector<std::pair<Vec3, imu::ImuBias>> states_before;
+  if (!current) {
+    for (const std::shared_ptr<map::KeyFrame>& kf : chain.keyframes) states_before.emplace_back(kf->v_w_b(), kf->bias());
+  }
   const std::optional<ImuInitEstimate> inertial_only =
       initialiseImuOnChain(chain, options, current ? current->bias : imu::ImuBias());
+  if (inertial_only && !current && options.max_acc_bias_m_s2 > 0.0 &&
+      inertial_only->bias.b_a.norm() > options.max_acc_bias_m_s2) {
+    for (std::size_t k = 0; k < chain.keyframes.size(); ++k) {
+      chain.keyframes[k]->setVelocity(states_before[k].first);
+      chain.keyframes[k]->setBias(states_before[k].second);
+    }
+    log::warn("IMU initialisation at kf ", newest, " rejected: accelerometer bias (", inertial_only->bias.b_a.transpose(),
+              ") m/s^2, |b_a| ", inertial_only->bias.b_a.norm(), " beyond ImuInit.MaxAccBias ", options.max_acc_bias_m_s2,
+              " (g_w = (", inertial_only->g_w.transpose(), ")): the tracked poses of its ", chain.keyframes.size(),
+              " keyframes do not fit the IMU");
+    if (implausible_bias != nullptr) *implausible_bias = true;
+    return std::nullopt;
+  }
   if (!inertial_only || current || !options.visual_inertial_refinement) return inertial_only;
   log::info("IMU inertial-only initialisation at kf ", newest, ": g_w = (", inertial_only->g_w.transpose(),
             ") m/s^2, b_g = (", inertial_only->bias.b_g.transpose(), ") rad/s, b_a = (",

@@ -35,6 +35,9 @@ ImuChain imuChainEndingAt(const map::Map& map, const std::shared_ptr<map::KeyFra
 /// Empty when no keyframe qualifies.
 ImuChain endAtStaticView(ImuChain chain, double min_static_ratio);
 
+/// `chain` from its first keyframe later than `floor_t_s` on (unchanged for a negative floor).
+ImuChain startAfter(ImuChain chain, double floor_t_s);
+
 struct ImuInitEstimate {
   Vec3 g_w = Vec3::Zero();
   imu::ImuBias bias;
@@ -125,9 +128,12 @@ namespace ltlo::mapping {
 /// the biases and gravity; ORB-SLAM3's initialisation runs its full inertial BA the same way).
 /// `current` given (a refinement): the visual-inertial BA from current->g_w, or without
 /// ImuInit.VisualInertialRefinement the inertial-only initialisation again from current->bias.
-/// nullopt when no finite estimate came out (then nothing of the map changed).
+/// nullopt when no finite estimate came out, or when a first initialisation's inertial-only
+/// accelerometer bias exceeds ImuInit.MaxAccBias (then *implausible_bias is set, if given); in
+/// both cases nothing of the map changed.
 std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain, const ImuInitOptions& options,
                                            const RefinementContext& context,
-                                           const std::optional<ImuInitEstimate>& current);
+                                           const std::optional<ImuInitEstimate>& current,
+                                           bool* implausible_bias = nullptr);
 
 }  // namespace ltlo::mapping

@@ -91,6 +91,9 @@ struct LocalMapper::Impl {
   double first_imu_init_t_s = 0.0;
   /// Keyframe time of an initialisation from rest the full one has not followed yet (-1: none).
   double rest_init_t_s = -1.0;
+  /// A first initialisation rejected for its accelerometer bias (ImuInit.MaxAccBias) ended at this
+  /// keyframe time; the next one uses only later keyframes (-1: none rejected).
+  double imu_chain_floor_t_s = -1.0;
   double last_imu_estimate_t_s = 0.0;  ///< keyframe time of the last (re)estimate
   double last_imu_chain_end_t_s = -1.0;  ///< newest keyframe the last applied estimate used
   std::size_t imu_refinements = 0;  ///< refinements done (index into imu_refinement_delays_s)
@@ -355,7 +358,8 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
   // The estimate ends at the newest keyframe whose view is mostly static (on ltlo_s3 the window
   // that took in the second a box covered 40-90 % of the view moved gravity from 0.13-0.25 to
   // 0.40-0.50 deg off, which then integrated over the occlusion's dead reckoning).
-  const ImuChain chain = endAtStaticView(imuChainEndingAt(map, kf), options.imu_init.min_static_ratio);
+  ImuChain chain = endAtStaticView(imuChainEndingAt(map, kf), options.imu_init.min_static_ratio);
+  chain = startAfter(std::move(chain), imu_chain_floor_t_s);  // refinements too: those poses did not fit
   if (static_cast<int>(chain.keyframes.size()) < std::max(3, options.imu_init.min_keyframes) ||
       chain.span_s() < options.imu_init.min_time_s ||
       (after_rest && chain.keyframes.back()->t_s() - rest_init_t_s < options.imu_init.min_time_s)) {
@@ -372,10 +376,19 @@ bool LocalMapper::Impl::maybeInitialiseImu(map::Map& map, const std::shared_ptr<
                             options.local_mapping.lambda_imu,
                             options.local_mapping.visual_variance_estimation, options.ba_threads, level_sigma2};
   if (initialised) context.max_acceleration_sigma_m_s2 = optim::accelerationSigma(state.acceleration_covariance_w);
-  const std::optional<ImuInitEstimate> estimate = estimateImu(map, chain, options.imu_init, context, current);
+  bool implausible_bias = false;
+  const std::optional<ImuInitEstimate> estimate =
+      estimateImu(map, chain, options.imu_init, context, current, &implausible_bias);
   const bool scheduled = initialised && imu_refinements < options.imu_refinement_delays_s.size() &&
                          kf->t_s() - first_imu_init_t_s >= options.imu_refinement_delays_s[imu_refinements];
   if (!estimate) {
+    if (!initialised && implausible_bias) {
+      // ImuInit.MaxAccBias: the poses of this chain were wrong (estimateImu warned); the next
+      // initialisation starts after them, once ImuInit.MinTime of new keyframes is covered.
+      imu_chain_floor_t_s = chain.keyframes.back()->t_s();
+      log::warn("IMU initialisation: the next one uses the keyframes after t = ", imu_chain_floor_t_s, " s");
+      return false;
+    }
     if (!initialised) {
       log::warn("IMU initialisation at kf ", kf->id(), " gave a non-finite estimate; retrying later");
       return false;
@@ -605,6 +618,7 @@ void LocalMapper::writeState(map::ByteWriter& out) const {
   out.i32(impl.sequence);
   out.f64(impl.first_imu_init_t_s);
   out.f64(impl.rest_init_t_s);
+  out.f64(impl.imu_chain_floor_t_s);
   out.f64(impl.last_imu_estimate_t_s);
   out.f64(impl.last_imu_chain_end_t_s);
   out.u64(impl.imu_refinements);
@@ -639,6 +653,7 @@ void LocalMapper::readState(map::ByteReader& in) {
   impl.sequence = in.i32InRange("mapping sequence", 0, std::numeric_limits<std::int32_t>::max());
   impl.first_imu_init_t_s = in.finiteF64("first IMU initialisation time");
   impl.rest_init_t_s = in.finiteF64("IMU initialisation at rest time");
+  impl.imu_chain_floor_t_s = in.finiteF64("IMU chain floor after a rejected initialisation");
   impl.last_imu_estimate_t_s = in.finiteF64("last IMU estimate time");
   impl.last_imu_chain_end_t_s = in.finiteF64("last IMU chain end");
   const std::uint64_t refinements_offset = in.fileOffset();

@@ -50,9 +50,11 @@ mapping::LocalMapperOptions localMapperOptions(const Settings& settings, const S
   return mapper_options;
 }
 
-loop::LoopCloserOptions loopCloserOptions(const Settings& settings, const tracking::TrackerOptions& tracker_options) {
+loop::LoopCloserOptions loopCloserOptions(const Settings& settings, const tracking::TrackerOptions& tracker_options,
+                                          bool use_imu) {
   loop::LoopCloserOptions closer_options;
   closer_options.loop = settings.loop;
+  closer_options.loops_wait_for_imu = use_imu && settings.loop.wait_for_imu;
   closer_options.rejoin_search = tracking::reacquireSearchOptions(tracker_options);
   closer_options.virtual_baseline_m = settings.tracking.virtual_baseline_m;
   closer_options.min_point_beta = settings.local_mapping.min_point_beta;

@@ -28,8 +28,10 @@ tracking::TrackerOptions trackerOptions(const Settings& settings, bool use_imu);
 mapping::LocalMapperOptions localMapperOptions(const Settings& settings, const SensorCalib& calib,
                                                std::shared_ptr<const bow::Vocabulary> vocabulary, bool use_imu);
 
-/// Loop settings and the map-rejoin search of the tracker's re-acquisition (`tracker_options`).
-loop::LoopCloserOptions loopCloserOptions(const Settings& settings, const tracking::TrackerOptions& tracker_options);
+/// Loop settings and the map-rejoin search of the tracker's re-acquisition (`tracker_options`); with
+/// `use_imu`, Loop.WaitForImu.
+loop::LoopCloserOptions loopCloserOptions(const Settings& settings, const tracking::TrackerOptions& tracker_options,
+                                          bool use_imu);
 
 /// The segmentation step the settings ask for (Seg.Enable, Seg.DenseInit), or the ground-truth
 /// masks of the --oracle-masks ablation; its stages go to `timing`.

@@ -82,7 +82,7 @@ System::System(const Settings& settings, std::shared_ptr<const bow::Vocabulary> 
     mapping_control.hold_tracking = [this] { world_gate_.beginChange(); };
     mapping_control.release_tracking = [this] { world_gate_.endChange(); };
   }
-  closer_ = std::make_unique<loop::LoopCloser>(*atlas_, loopCloserOptions(settings_, tracker_options),
+  closer_ = std::make_unique<loop::LoopCloser>(*atlas_, loopCloserOptions(settings_, tracker_options, use_imu_),
                                                std::move(mapping_control), &timing_);
 
   if (options_.resume) restoreRunState();  // before any thread sees the stages

@@ -207,6 +207,34 @@ TEST(LoopCloser, WithGravityALoopCorrectingMoreThanTheDriftAllowsIsRejected) {
               correction_m);
 }
 
+// Loop.WaitForImu: with an IMU, a map closes no BoW loop until the IMU is initialised (gravity
+// known), so every correction can be checked against the drift; it closes the same loop once it is.
+// Without the switch the loop closes before the initialisation too.
+TEST(LoopCloser, WithAnImuNoLoopIsClosedBeforeTheImuIsInitialised) {
+  auto runWith = [&](bool wait_for_imu, int initialised_at_step) {
+    map::Atlas atlas(world().vocabulary->numWords());
+    LoopCloserOptions options = closerOptions();
+    options.loop.proximity = false;
+    options.loops_wait_for_imu = wait_for_imu;
+    int step = 0;
+    MappingControl control;
+    control.gravity_w = [&step, initialised_at_step] {
+      return step >= initialised_at_step ? std::optional<Vec3>(Vec3(0.0, 0.0, -9.81)) : std::nullopt;
+    };
+    LoopCloser closer(atlas, options, control);
+    SceneBuilder scene(atlas, driftStep());
+    for (step = 0; step < kLoopSteps; ++step) closer.processKeyFrame(scene.add(step));
+    return closer.events();
+  };
+  const std::vector<LoopEvent> closed = runWith(false, kLoopSteps);
+  ASSERT_EQ(closed.size(), 1u);
+  EXPECT_TRUE(runWith(true, kLoopSteps).empty());  // the IMU never initialised
+  const std::vector<LoopEvent> after_initialisation = runWith(true, 0);
+  ASSERT_EQ(after_initialisation.size(), 1u);
+  EXPECT_EQ(after_initialisation.front().current, closed.front().current);
+  EXPECT_EQ(after_initialisation.front().loop, closed.front().loop);
+}
+
 // The yaw a guided place match fixes (GuidedPlaceMatch::yaw_sigma_rad, which gates the rejoin and
 // the proximity loop): a keyframe seeing the whole view of a mapped place pins its yaw; the same
 // place seen through a strip of the image (the rest covered) holds as many matches in a narrow

@@ -1,13 +1,14 @@
 // bench_segmentation: the segmentation kernels of the tracking thread against references in the
 // same run (report the ratios; the machine's load cancels out).
 //
-//   BM_DepthKMeans          DepthKMeans on a generated 320x240 depth image (the base of VGA input):
-//                           K = 24, 3 Lloyd iterations on the 80x60 samples, the assignment of all
-//                           pixels with labels, counts and V_i.
+//   BM_DepthKMeans/K        DepthKMeans on a generated 320x240 depth image (the base of VGA input):
+//                           K = 24, 48, 64 (Seg.Clusters), 3 Lloyd iterations on the 80x60 samples,
+//                           the assignment of all pixels with labels, counts and V_i.
 //   BM_CvKmeansSamePoints   reference: cv::kmeans on all the same 320x240 points (3 iterations, one
 //                           attempt, one thread), which gives labels only.
 //   BM_DenseSolve           DenseSolver on a generated pushed-box pair (dense_solver_test.cc's scene)
 //                           with the default schedule (state on levels 2-1) and the brightness change.
+//   BM_DenseSolveClusters/K the same solve on K = 24, 48, 64 depth clusters (the cost of Seg.Clusters).
 //   BM_DenseSolveNoBrightness  reference: the same solve with Seg.AffineBrightness 0 (Eq. 61 as it
 //                           stands).
 //   BM_DenseSolveFullSchedule  reference: the same solve without the early stop (Dense.StepTolerance 0:
@@ -35,14 +36,16 @@ const test::SyntheticDepth& depthScene() {
 }
 
 void BM_DepthKMeans(benchmark::State& state) {
-  DepthKMeans kmeans{DepthKMeansOptions{}};
+  DepthKMeansOptions options;
+  options.num_clusters = static_cast<int>(state.range(0));
+  DepthKMeans kmeans{options};
   DepthClusters clusters;
   for (auto _ : state) {
     kmeans.cluster(depthScene().depth_m, depthScene().camera, &clusters);
     benchmark::DoNotOptimize(clusters.labels.data);
   }
 }
-BENCHMARK(BM_DepthKMeans)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DepthKMeans)->Arg(24)->Arg(48)->Arg(64)->Unit(benchmark::kMillisecond);
 
 void BM_CvKmeansSamePoints(benchmark::State& state) {
   cv::setNumThreads(1);
@@ -75,7 +78,7 @@ struct DensePair {
   std::vector<double> previous_gamma;
   DensePrior prior;
 
-  explicit DensePair(int finest_level) {
+  explicit DensePair(int finest_level, int num_clusters = DepthKMeansOptions().num_clusters) {
     const PinholeCamera camera(525.0, 525.0, 319.5, 239.5, 640, 480);
     const SE3 T_c_o(Quat::Identity(), Vec3(0.05, 0.15, 1.1));
     const SE3 T_w_c_b = SE3(so3ExpQuat(Vec3(0.0, 0.015, 0.0)), Vec3(0.008, 0.0, 0.028));
@@ -84,7 +87,9 @@ struct DensePair {
     DenseOptions dense;
     dense.finest_level = finest_level;
     const DenseFrameOptions options = DenseFrameOptions::from(SegmentationOptions(), dense);
-    DepthKMeans kmeans{DepthKMeansOptions{}};
+    DepthKMeansOptions kmeans_options;
+    kmeans_options.num_clusters = num_clusters;
+    DepthKMeans kmeans{kmeans_options};
     auto prepare = [&](const SE3& T_w_c, DenseFrame* frame) {
       box.T_w_o = T_w_c * T_c_o;
       const test::RgbdFrame rgbd = test::renderRoom(camera, T_w_c, box);
@@ -105,8 +110,9 @@ struct DensePair {
   }
 };
 
-void denseSolve(benchmark::State& state, int finest_level, double step_tolerance_px, bool affine_brightness = true) {
-  const DensePair pair(finest_level);
+void denseSolve(benchmark::State& state, int finest_level, double step_tolerance_px, bool affine_brightness = true,
+                int num_clusters = DepthKMeansOptions().num_clusters) {
+  const DensePair pair(finest_level, num_clusters);
   DenseOptions dense;
   dense.finest_level = finest_level;
   dense.step_tolerance_px = step_tolerance_px;
@@ -127,10 +133,14 @@ void BM_DenseSolveNoBrightness(benchmark::State& state) {
 }
 void BM_DenseSolveFullSchedule(benchmark::State& state) { denseSolve(state, 1, 0.0); }
 void BM_DenseSolveQvga(benchmark::State& state) { denseSolve(state, 0, DenseOptions().step_tolerance_px); }
+void BM_DenseSolveClusters(benchmark::State& state) {
+  denseSolve(state, 1, DenseOptions().step_tolerance_px, true, static_cast<int>(state.range(0)));
+}
 BENCHMARK(BM_DenseSolve)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DenseSolveNoBrightness)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DenseSolveFullSchedule)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DenseSolveQvga)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DenseSolveClusters)->Arg(24)->Arg(48)->Arg(64)->Unit(benchmark::kMillisecond);
 
 const DensePair& levelOnePair() {
   static const DensePair pair(1);

@@ -490,6 +490,12 @@ struct LoopOptions {
   /// of one texture 4.6 m apart: a 4.3 m correction, issue 32), not drift
   /// (Loop.MaxCorrectionShare, [0, 10]; 0: no limit)
   double max_correction_share = 0.0;
+  /// With an IMU, a BoW loop within one map is closed only once the IMU is initialised: only then
+  /// can Loop.MaxCorrectionShare bound the correction by the drift, and a map's first seconds may
+  /// rest on a mover (an occluded start's provisional points; a loop of its 7th keyframe onto its
+  /// first, 1.1 s apart, moved the map by 0.44 m, issue 32). ORB-SLAM3 waits likewise
+  /// (Loop.WaitForImu, 0/1; no effect without an IMU)
+  bool wait_for_imu = false;
   /// The full BA after a loop or merge sees only the matches of that one keyframe; the keyframes
   /// that follow keep observing the old side. This many keyframes after a correction the full BA
   /// runs once more, with that evidence (Loop.RefineKeyFrames; 0: off)
@@ -641,6 +647,13 @@ struct ImuInitOptions {
   /// keyframes it cost ltlo_s1 2.7 mm (0.017 -> 0.020 m).
   /// 0: held exactly from the first initialisation (ImuInit.LooseEarlyBias, 0/1)
   bool loose_early_bias = false;
+  /// A first initialisation (in motion) whose inertial-only accelerometer bias is larger than this
+  /// is rejected before anything of the map changes, and the next one starts after its keyframes:
+  /// no consumer IMU is that far off (the BMI055 of a D435i: 70 mg = 0.69 m/s^2 at most), so the
+  /// tracked poses it was fitted to are wrong, e.g. followed a box that held the view at an
+  /// occluded start (18.6 deg of gravity, b_a 2.9 m/s^2, issue 32). m/s^2; 0: any bias accepted
+  /// (ImuInit.MaxAccBias, [0, 100])
+  double max_acc_bias_m_s2 = 1.5;
 
   static ImuInitOptions load(const SettingsFile& file);
 };

@@ -50,6 +50,9 @@ struct LoopCloserOptions {
   /// (LocalMapping.VisualVarianceEstimation).
   bool visual_variance_estimation = true;
   bool run_global_ba = true;       ///< full BA after each loop (in its own thread)
+  /// The run has an IMU and Loop.WaitForImu is on: no BoW loop within a map before
+  /// MappingControl::gravity_w has a value.
+  bool loops_wait_for_imu = false;
   /// The rejoin's guided search (Loop.Rejoin): windows, gate, keyframes, descriptor distance (the
   /// tracker's re-acquisition settings); its sigmas come from each map's MapOrigin.
   place::GuidedPlaceMatchOptions rejoin_search;
