@@ -26,6 +26,8 @@
 #   new_map_velocity_off  Tracking.NewMapVelocityPrior = 0: a map started after an IMU-carried loss leaves its
 #                    first keyframe's velocity free (the next frame's pose alone fixes it)
 #   loop_wait_off    Loop.WaitForImu = 0: BoW loops within a map also before its IMU is initialised
+#   acc_bias_gate_off  ImuInit.MaxAccBias = 0: a first IMU initialisation is accepted whatever its
+#                    accelerometer bias
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -82,6 +84,7 @@ variant_args() {
     premap_rest_off) echo "${full[@]}" --set ImuInit.FromPreMapRest=0 ;;
     new_map_velocity_off) echo "${full[@]}" --set Tracking.NewMapVelocityPrior=0 ;;
     loop_wait_off) echo "${full[@]}" --set Loop.WaitForImu=0 ;;
+    acc_bias_gate_off) echo "${full[@]}" --set ImuInit.MaxAccBias=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

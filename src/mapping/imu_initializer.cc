@@ -433,6 +433,13 @@ std::optional<ImuInitEstimate> refineImuWithVisualInertialBa(map::Map& map, cons
               " keyframes, the current estimate's is ", context.max_acceleration_sigma_m_s2, " m/s^2");
     return std::nullopt;
   }
+  const Vec3& refined_b_a = result.keyframes[window.optimised_end - 1].bias.b_a;
+  if (!(refined_b_a.norm() <= context.max_acc_bias_m_s2)) {
+    log::info("IMU refinement not applied: accelerometer bias (", refined_b_a.transpose(), ") m/s^2 beyond ",
+              context.max_acc_bias_m_s2, " m/s^2 (ImuInit.MaxAccBias), g_w = (", result.g_w.transpose(), ")");
+    if (stats != nullptr) stats->implausible_bias = true;
+    return std::nullopt;
+  }
 
   // ---- write back (what went bad meanwhile is skipped) ----
   writeRefinement(map, window, points, result);
@@ -467,44 +474,57 @@ std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain,
                                            const RefinementContext& context,
                                            const std::optional<ImuInitEstimate>& current, bool* implausible_bias) {
   const map::KeyFrameId newest = chain.keyframes.back()->id();
-  auto refine = [&](const Vec3& g_w) {
+  auto refine = [&](const Vec3& g_w, const RefinementContext& refine_context, bool* implausible) {
     ImuRefinementStats stats;
     const std::optional<ImuInitEstimate> refined =
-        refineImuWithVisualInertialBa(map, chain, g_w, options, context, &stats);
+        refineImuWithVisualInertialBa(map, chain, g_w, options, refine_context, &stats);
     log::info("IMU visual-inertial BA at kf ", newest, ": ", stats.optimised_keyframes, " keyframes optimised, ",
               stats.fixed_keyframes, " held, ", stats.points, " points, ", stats.observations,
               " observations (camera noise ", stats.visual_sigma_scale, " x the model), chi2 ",
               stats.initial_chi2, " -> ", stats.final_chi2, (refined ? "" : " (not applied)"));
+    if (implausible != nullptr) *implausible = stats.implausible_bias;
     return refined;
   };
-  if (current && options.visual_inertial_refinement) return refine(current->g_w);
-  // The inertial-only initialisation writes its velocities and bias to the chain's keyframes; a
-  // rejected one leaves them as they were.
+  if (current && options.visual_inertial_refinement) return refine(current->g_w, context, nullptr);
+  // A first initialisation: ImuInit.MaxAccBias gates the estimate that would be applied. The
+  // inertial-only step writes its velocities and bias to the chain's keyframes; a rejected estimate
+  // leaves them as they were (the refinement writes only what it applies).
+  const bool gated = !current && options.max_acc_bias_m_s2 > 0.0;
   std::vector<std::pair<Vec3, imu::ImuBias>> states_before;
-  if (!current) {
+  if (gated) {
     for (const std::shared_ptr<map::KeyFrame>& kf : chain.keyframes) states_before.emplace_back(kf->v_w_b(), kf->bias());
   }
-  const std::optional<ImuInitEstimate> inertial_only =
-      initialiseImuOnChain(chain, options, current ? current->bias : imu::ImuBias());
-  if (inertial_only && !current && options.max_acc_bias_m_s2 > 0.0 &&
-      inertial_only->bias.b_a.norm() > options.max_acc_bias_m_s2) {
+  auto reject = [&](const ImuInitEstimate& estimate, const char* which) -> std::optional<ImuInitEstimate> {
     for (std::size_t k = 0; k < chain.keyframes.size(); ++k) {
       chain.keyframes[k]->setVelocity(states_before[k].first);
       chain.keyframes[k]->setBias(states_before[k].second);
     }
-    log::warn("IMU initialisation at kf ", newest, " rejected: accelerometer bias (", inertial_only->bias.b_a.transpose(),
-              ") m/s^2, |b_a| ", inertial_only->bias.b_a.norm(), " beyond ImuInit.MaxAccBias ", options.max_acc_bias_m_s2,
-              " (g_w = (", inertial_only->g_w.transpose(), ")): the tracked poses of its ", chain.keyframes.size(),
-              " keyframes do not fit the IMU");
+    log::warn("IMU initialisation at kf ", newest, " rejected: ", which, " accelerometer bias (",
+              estimate.bias.b_a.transpose(), ") m/s^2, |b_a| ", estimate.bias.b_a.norm(), " beyond ImuInit.MaxAccBias ",
+              options.max_acc_bias_m_s2, " (g_w = (", estimate.g_w.transpose(), ")): the tracked poses of its ",
+              chain.keyframes.size(), " keyframes do not fit the IMU");
     if (implausible_bias != nullptr) *implausible_bias = true;
     return std::nullopt;
+  };
+  auto plausible = [&](const ImuInitEstimate& estimate) {
+    return !gated || estimate.bias.b_a.norm() <= options.max_acc_bias_m_s2;
+  };
+  const std::optional<ImuInitEstimate> inertial_only =
+      initialiseImuOnChain(chain, options, current ? current->bias : imu::ImuBias());
+  if (!inertial_only) return inertial_only;
+  if (current || !options.visual_inertial_refinement) {
+    return plausible(*inertial_only) ? inertial_only : reject(*inertial_only, "its");
   }
-  if (!inertial_only || current || !options.visual_inertial_refinement) return inertial_only;
   log::info("IMU inertial-only initialisation at kf ", newest, ": g_w = (", inertial_only->g_w.transpose(),
             ") m/s^2, b_g = (", inertial_only->bias.b_g.transpose(), ") rad/s, b_a = (",
             inertial_only->bias.b_a.transpose(), ") m/s^2");
-  const std::optional<ImuInitEstimate> refined = refine(inertial_only->g_w);
-  return refined ? refined : inertial_only;
+  RefinementContext first_context = context;
+  if (gated) first_context.max_acc_bias_m_s2 = options.max_acc_bias_m_s2;
+  bool refined_implausible = false;
+  const std::optional<ImuInitEstimate> refined = refine(inertial_only->g_w, first_context, &refined_implausible);
+  if (refined) return refined;
+  if (refined_implausible) return reject(*inertial_only, "refined, and inertial-only");
+  return plausible(*inertial_only) ? inertial_only : reject(*inertial_only, "its");
 }
 
 }  // namespace ltlo::mapping

@@ -89,6 +89,9 @@ struct RefinementContext {
   /// the refined states) is at most this (m/s^2): the current estimate's, so a refinement over a
   /// shorter or worse window (a new map's first seconds) never replaces a better-informed estimate.
   double max_acceleration_sigma_m_s2 = std::numeric_limits<double>::infinity();
+  /// ... and only when its accelerometer bias is at most this (m/s^2): a first initialisation's
+  /// ImuInit.MaxAccBias (estimateImu sets it).
+  double max_acc_bias_m_s2 = std::numeric_limits<double>::infinity();
 };
 
 struct ImuRefinementStats {
@@ -99,6 +102,8 @@ struct ImuRefinementStats {
   double visual_sigma_scale = 1.0;  ///< estimated camera noise over the modelled one (sqrt of the variance factor)
   double initial_chi2 = 0.0;
   double final_chi2 = 0.0;
+  /// not written: its accelerometer bias was beyond RefinementContext::max_acc_bias_m_s2
+  bool implausible_bias = false;
 };
 
 /// The refinement of the IMU initialisation (ORB-SLAM3's VI-BA 1 and 2, without scale): a full
@@ -128,9 +133,11 @@ namespace ltlo::mapping {
 /// the biases and gravity; ORB-SLAM3's initialisation runs its full inertial BA the same way).
 /// `current` given (a refinement): the visual-inertial BA from current->g_w, or without
 /// ImuInit.VisualInertialRefinement the inertial-only initialisation again from current->bias.
-/// nullopt when no finite estimate came out, or when a first initialisation's inertial-only
-/// accelerometer bias exceeds ImuInit.MaxAccBias (then *implausible_bias is set, if given); in
-/// both cases nothing of the map changed.
+/// nullopt when no finite estimate came out, or when a first initialisation's accelerometer bias
+/// exceeds ImuInit.MaxAccBias (then *implausible_bias is set, if given): the refined estimate's, or
+/// the inertial-only one's when no refinement is applied (the visual-inertial BA often corrects an
+/// inertial-only estimate that took the tracked poses as exact). In both cases nothing of the map
+/// changed.
 std::optional<ImuInitEstimate> estimateImu(map::Map& map, const ImuChain& chain, const ImuInitOptions& options,
                                            const RefinementContext& context,
                                            const std::optional<ImuInitEstimate>& current,

@@ -37,7 +37,7 @@ DepthClusters clusterScene(const test::SyntheticDepth& scene, DepthKMeansOptions
 TEST(DepthKMeans, ClustersStayOnOneSurfaceAndNoDepthIsLabelK) {
   const test::SyntheticDepth scene = test::makeTwoPlanesAndBox(320, 240);
   const DepthClusters clusters = clusterScene(scene);
-  ASSERT_EQ(clusters.num_clusters, 24);
+  ASSERT_EQ(clusters.num_clusters, DepthKMeansOptions().num_clusters);
   ASSERT_EQ(clusters.labels.type(), CV_8U);
   ASSERT_EQ(clusters.labels.size(), scene.depth_m.size());
   const std::vector<std::map<int, int>> surfaces = surfacesPerCluster(clusters, scene.surface);

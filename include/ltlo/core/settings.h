@@ -647,8 +647,9 @@ struct ImuInitOptions {
   /// keyframes it cost ltlo_s1 2.7 mm (0.017 -> 0.020 m).
   /// 0: held exactly from the first initialisation (ImuInit.LooseEarlyBias, 0/1)
   bool loose_early_bias = false;
-  /// A first initialisation (in motion) whose inertial-only accelerometer bias is larger than this
-  /// is rejected before anything of the map changes, and the next one starts after its keyframes:
+  /// A first initialisation (in motion) whose accelerometer bias is larger than this (after the
+  /// visual-inertial BA, or inertial-only without it) is rejected before anything of the map
+  /// changes, and the next one starts after its keyframes:
   /// no consumer IMU is that far off (the BMI055 of a D435i: 70 mg = 0.69 m/s^2 at most), so the
   /// tracked poses it was fitted to are wrong, e.g. followed a box that held the view at an
   /// occluded start (18.6 deg of gravity, b_a 2.9 m/s^2, issue 32). m/s^2; 0: any bias accepted
