@@ -210,7 +210,7 @@ bool LoopCloser::Impl::tryLoop(const std::shared_ptr<map::KeyFrame>& kf, map::Ma
   if (keyframes_since_correction <= kKeyFramesBetweenLoops) return false;
   // Loop.WaitForImu: before the IMU is initialised no correction can be checked against the drift
   // (plausibleCorrection), and a map's first seconds may rest on a mover.
-  if (options.loops_wait_for_imu && !gravity()) return false;
+  if (options.loop.wait_for_imu && !gravity()) return false;
   const std::vector<std::shared_ptr<map::KeyFrame>> candidates =
       detector.detect(*kf, map, atlas.keyFrameDatabase());
   for (const std::shared_ptr<map::KeyFrame>& candidate : candidates) {

@@ -1,10 +1,10 @@
 #include "imu_initializer.h"
 
 #include <algorithm>
-#include <utility>
 #include <cmath>
 #include <unordered_map>
 #include <unordered_set>
+#include <utility>
 
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
@@ -40,7 +40,6 @@ ImuChain startAfter(ImuChain chain, double floor_t_s) {
   // pims[k] links keyframes k and k + 1: the links into the dropped keyframes go with them.
   const std::size_t dropped_links = std::min(first, chain.pims.size());
   chain.pims.erase(chain.pims.begin(), chain.pims.begin() + static_cast<std::ptrdiff_t>(dropped_links));
-  if (chain.keyframes.empty()) chain.pims.clear();
   return chain;
 }
 

@@ -54,7 +54,7 @@ loop::LoopCloserOptions loopCloserOptions(const Settings& settings, const tracki
                                           bool use_imu) {
   loop::LoopCloserOptions closer_options;
   closer_options.loop = settings.loop;
-  closer_options.loops_wait_for_imu = use_imu && settings.loop.wait_for_imu;
+  closer_options.loop.wait_for_imu = use_imu && settings.loop.wait_for_imu;
   closer_options.rejoin_search = tracking::reacquireSearchOptions(tracker_options);
   closer_options.virtual_baseline_m = settings.tracking.virtual_baseline_m;
   closer_options.min_point_beta = settings.local_mapping.min_point_beta;

@@ -215,7 +215,7 @@ TEST(LoopCloser, WithAnImuNoLoopIsClosedBeforeTheImuIsInitialised) {
     map::Atlas atlas(world().vocabulary->numWords());
     LoopCloserOptions options = closerOptions();
     options.loop.proximity = false;
-    options.loops_wait_for_imu = wait_for_imu;
+    options.loop.wait_for_imu = wait_for_imu;
     int step = 0;
     MappingControl control;
     control.gravity_w = [&step, initialised_at_step] {

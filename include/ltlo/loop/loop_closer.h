@@ -38,7 +38,9 @@ class ByteWriter;
 namespace ltlo::loop {
 
 struct LoopCloserOptions {
-  LoopOptions loop;  ///< enabled, consistency, inliers, full BA iterations, static ratio
+  /// enabled, consistency, inliers, full BA iterations, static ratio; wait_for_imu only when the run
+  /// has an IMU (without one gravity never comes)
+  LoopOptions loop;
   /// Virtual stereo baseline of the RGB-D edges of the full BA (m).
   double virtual_baseline_m = 0.08;
   /// Points with a lower static score beta stay out of the full and welding BA
@@ -50,9 +52,6 @@ struct LoopCloserOptions {
   /// (LocalMapping.VisualVarianceEstimation).
   bool visual_variance_estimation = true;
   bool run_global_ba = true;       ///< full BA after each loop (in its own thread)
-  /// The run has an IMU and Loop.WaitForImu is on: no BoW loop within a map before
-  /// MappingControl::gravity_w has a value.
-  bool loops_wait_for_imu = false;
   /// The rejoin's guided search (Loop.Rejoin): windows, gate, keyframes, descriptor distance (the
   /// tracker's re-acquisition settings); its sigmas come from each map's MapOrigin.
   place::GuidedPlaceMatchOptions rejoin_search;
