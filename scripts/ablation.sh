@@ -16,8 +16,12 @@
 #   no_imu           --no-imu: RGB-D only
 # and, for the harder worlds (issue 32; not in the default list):
 #   start_off        the occluded start's handling off: Tracking.StartProvisional = 0, StartReacquireSpeed = 0,
-#                    StartRecoveryCutsImu = 0, StartCarriedLost = 0, StartRecoveryGauge = 0
+#                    StartRecoveryCutsImu = 0, StartCarriedLost = 0, StartRecoveryGauge = 0, StartMotionCheck = 0
 #   start_gauge_off  Tracking.StartRecoveryGauge = 0 only (a start relocalised on a later keyframe keeps kf0)
+#   start_motion_off Tracking.StartMotionCheck = 0 only (a start whose tracking changes worlds without a loss
+#                    is not recovered)
+#   gyro_gate_off    Tracking.GyroRotationGate = 0: before the IMU is initialised a pose may turn away from the
+#                    gyroscope's rotation
 #   zupt_off         Tracking.Zupt = 0 and Tracking.ZuptNoKeyFrames = 0: no zero-velocity update at standstill
 #   premap_off       Tracking.PreMapImuPose = 0: no pose (and the map at the origin) while the view is too poor
 #                    for the first map
@@ -77,8 +81,11 @@ variant_args() {
     no_imu) echo "${full[@]}" --no-imu ;;
     start_off)
       echo "${full[@]}" --set Tracking.StartProvisional=0 --set Tracking.StartReacquireSpeed=0 \
-        --set Tracking.StartRecoveryCutsImu=0 --set Tracking.StartCarriedLost=0 --set Tracking.StartRecoveryGauge=0 ;;
+        --set Tracking.StartRecoveryCutsImu=0 --set Tracking.StartCarriedLost=0 --set Tracking.StartRecoveryGauge=0 \
+        --set Tracking.StartMotionCheck=0 ;;
     start_gauge_off) echo "${full[@]}" --set Tracking.StartRecoveryGauge=0 ;;
+    start_motion_off) echo "${full[@]}" --set Tracking.StartMotionCheck=0 ;;
+    gyro_gate_off) echo "${full[@]}" --set Tracking.GyroRotationGate=0 ;;
     zupt_off) echo "${full[@]}" --set Tracking.Zupt=0 --set Tracking.ZuptNoKeyFrames=0 ;;
     premap_off) echo "${full[@]}" --set Tracking.PreMapImuPose=0 ;;
     premap_rest_off) echo "${full[@]}" --set ImuInit.FromPreMapRest=0 ;;

@@ -110,6 +110,8 @@ void visitTracking(O& o, V& v) {
   v.real("Tracking.StartReacquireSpeed", o.start_reacquire_speed_m_s, 0.0, 10.0);
   v.boolean("Tracking.StartRecoveryCutsImu", o.start_recovery_cuts_imu);
   v.boolean("Tracking.StartRecoveryGauge", o.start_recovery_gauge);
+  v.real("Tracking.StartMotionCheck", o.start_motion_check_m_s2, 0.0, 100.0);
+  v.real("Tracking.GyroRotationGate", o.gyro_rotation_gate_deg, 0.0, 180.0);
   v.boolean("Tracking.StartCarriedLost", o.start_carried_lost);
   v.boolean("Tracking.PreMapImuPose", o.pre_map_imu_pose);
   v.boolean("Tracking.NewMapVelocityPrior", o.new_map_velocity_prior);

@@ -17,6 +17,13 @@ using detail::clearMatches;
 using detail::isMatched;
 using detail::staticKeypointsWithDepth;
 
+namespace {
+/// Tracking.StartMotionCheck's spacing of the poses of a window, s: 1 mm of tracking noise is then
+/// about 0.25 m/s^2 of gravity, while the 0.3-0.5 m/s a robot's motion missed while tracking
+/// followed a mover is 3-5 m/s^2.
+constexpr double kStartMotionWindowS = 0.1;
+}  // namespace
+
 const char* trackingStateName(TrackingState state) {
   switch (state) {
     case TrackingState::kNotInitialised: return "not-initialised";
@@ -32,7 +39,8 @@ Tracker::Tracker(map::Atlas& atlas, const TrackerOptions& options, std::vector<f
       level_sigma2_(std::move(level_sigma2)),
       loss_(options),
       loaded_start_pending_(options.start_in_loaded_atlas),
-      velocity_unknown_(options.start_in_loaded_atlas) {
+      velocity_unknown_(options.start_in_loaded_atlas),
+      start_motion_(imu::PoseGravityCheckOptions{kStartMotionWindowS, options.tracking.start_motion_check_m_s2}) {
   LTLO_ASSERT(!level_sigma2_.empty(), "the tracker needs the per-level keypoint variances");
   LTLO_ASSERT(!options_.tracking.localisation_only || options_.start_in_loaded_atlas,
               "localisation only needs a loaded atlas to localise in");
@@ -45,6 +53,7 @@ void Tracker::forceLost() {
 TrackingState Tracker::track(map::Frame& frame) {
   const TrackingState state = trackFrame(frame);
   if (!provisional_points_.empty() && state != TrackingState::kNotInitialised) checkProvisionalPoints(frame);
+  checkStartMotion(frame, state);
   if (options_.tracking.localisation_only) updateLocalisationImu(frame, frame_map_localised_);
   return state;
 }
@@ -54,6 +63,7 @@ TrackingState Tracker::trackFrame(map::Frame& frame) {
   stats_ = TrackingStats();
   frame_tracked_ = false;
   frame_information_ = StateInformation();
+  pose_sigma_m_ = std::numeric_limits<double>::infinity();
   imu_prediction_ = ImuPrediction();
   start_predicted_T_w_b_.reset();
   frame_posed_before_map_ = false;
@@ -168,6 +178,14 @@ LossContext Tracker::lossContext(const map::Frame& frame, bool was_lost) {
   context.T_w_b_imu = imu_prediction_.state.T_w_b;
   context.last_tracked_t_s = last_tracked_t_s_;
   context.start_reacquire_sigma_m = startReacquireSigma(frame);
+  // A lost previous frame was held at the gyroscope's rotation (Tracking.StartReacquireSpeed), so the
+  // chain goes back to the last tracked frame.
+  if (!imu_initialised_ && options_.tracking.gyro_rotation_gate_deg > 0.0 && frame.imu_from_last_frame &&
+      last_frame_ && last_frame_->hasPose()) {
+    context.gyro_R_w_b =
+        normalizeRotation(prev_T_w_b_.rotationMatrix() * frame.imu_from_last_frame->correctedDeltaR(bias_));
+    context.gyro_gate_rad = options_.tracking.gyro_rotation_gate_deg * M_PI / 180.0;
+  }
   return context;
 }
 

@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "ltlo/core/log.h"
 #include "ltlo/imu/inertial_residual.h"
@@ -13,6 +14,18 @@
 namespace ltlo::tracking {
 
 namespace {
+
+/// Position sigma along the least constrained direction of a pose's marginal information
+/// [dphi; drho] (rho in the body frame, so its norm is the world's), m; infinity when singular.
+double positionSigma_m(const Mat6& pose_information) {
+  const Eigen::LDLT<Mat6> ldlt(0.5 * (pose_information + pose_information.transpose()));
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || pose_information.isZero()) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const Mat3 covariance = ldlt.solve(Mat6::Identity()).block<3, 3>(3, 3);
+  const double largest = Eigen::SelfAdjointEigenSolver<Mat3>(0.5 * (covariance + covariance.transpose())).eigenvalues().maxCoeff();
+  return largest > 0.0 ? std::sqrt(largest) : std::numeric_limits<double>::infinity();
+}
 
 /// Chi2 of the velocity's move from the dead-reckoned prediction above which a new map's velocity
 /// prior is dropped (Tracking.NewMapVelocityPrior): the 95 % test of 3 DoF, as for an observation.
@@ -281,6 +294,7 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
     }
   }
   frame.setPose_T_w_b(result.T_w_b);
+  pose_sigma_m_ = positionSigma_m(result.pose_information);
   if (problem.inertial) {
     // Velocity and biases from the pose-inertial optimisation; its marginal is the next frame's
     // prior.

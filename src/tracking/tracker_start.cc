@@ -5,7 +5,7 @@
 // world (an ltlo start with the box over 62 % of the view: tracking lost at 0.23 s, then recovered
 // near the origin on the first keyframe's box points, 0.3 m behind the truth from then on).
 //
-// Three remedies, each with its switch:
+// Four remedies, each with its switch:
 //  - the first keyframe's points are provisional (Tracking.StartProvisional): later frames, whose
 //    segmentation has a motion prior from the gyroscope (later the IMU), vote on each with the
 //    gamma of the cluster it lands on where the frame's depth matches the point's; a point seen on
@@ -20,6 +20,11 @@
 //    box lands in that keyframe's world, which is off the first keyframe's by the motion missed;
 //    that keyframe becomes the map's gauge and the keyframes before it leave the map
 //    (Tracking.StartRecoveryGauge), so neither BA nor a loop onto them mixes the two worlds.
+//  - tracking may also change worlds without a loss: it follows the box, then the room, and the
+//    keyframes made in between stay in the box's world. Before the IMU is initialised the tracked
+//    poses are checked against the IMU by the gravity every three of them imply
+//    (imu/pose_gravity_check.h, Tracking.StartMotionCheck); a window that disagrees recovers the frame
+//    as a relocalisation does (the IMU chain cut, the reference keyframe the gauge).
 //
 // Thread safety: the erasure is Map::eraseMapPoint, the call local BA makes from the mapping thread
 // for the points it finds dynamic (thread-safe; it takes topology_mutex_, then the map's, the
@@ -119,30 +124,71 @@ void Tracker::checkProvisionalPoints(const map::Frame& frame) {
 
 void Tracker::onStartRecovery(const map::Frame& frame) {
   if (imu_initialised_ || frame.t_s() > start_window_end_t_s_) return;
-  if (options_.tracking.start_recovery_cuts_imu && imu_since_keyframe_) {
-    // The pose jumped back onto the map's world points: until here tracking may have followed a
-    // mover that held most of the view, and the keyframes it made carry that motion (ltlo's occluded
-    // start with the box over 61 % of the view: the first 0.37 s of motion missed, 0.18 m, and the
-    // IMU initialised 19 deg off over them). Their IMU chain ends here; the initialisation uses the next.
-    imu_since_keyframe_.reset();
-    imu_chain_broken_ = true;
-    log::info("occluded start: recovered at t = ", frame.t_s(), " s before the IMU initialisation: the next keyframe ",
-              "starts a new IMU chain (the keyframes before were posed while a mover may have held the view)");
+  // The pose jumped back onto the map's world points: until here tracking may have followed a
+  // mover that held most of the view, and the keyframes it made carry that motion (ltlo's occluded
+  // start with the box over 61 % of the view: the first 0.37 s of motion missed, 0.18 m, and the
+  // IMU initialised 19 deg off over them).
+  cutStartImuChain(frame, "recovered");
+  // Relocalised (not re-acquired around the prediction, which stays in the world tracking was
+  // in): the frame may have landed in the world of a keyframe made while tracking followed a
+  // mover, which differs from the first keyframe's. The map grows on in the world it landed in,
+  // so the keyframes posed before, in the other world, leave the map (ltlo occluded start, seed 3:
+  // relocalised on kf1 at 0.37 s, whose points are 12.8 cm off kf0's; kf0 stayed 12 cm off every
+  // later keyframe, and the proximity loop kf41 ~ kf0 at 29 s pulled the map towards it).
+  if (!stats_.reacquired) moveStartGauge(frame, "relocalised on");
+}
+
+void Tracker::checkStartMotion(const map::Frame& frame, TrackingState state) {
+  if (options_.tracking.start_motion_check_m_s2 <= 0.0) return;
+  const bool in_window = !imu_initialised_ && frame.t_s() <= start_window_end_t_s_;
+  const bool tracked = state == TrackingState::kOk && frame_tracked_ && frame.hasPose() && !stats_.relocalised &&
+                       !stats_.reacquired && frame.imu_from_last_frame.has_value() && std::isfinite(pose_sigma_m_);
+  if (!in_window || !tracked) {
+    if (!start_motion_.empty() && !in_window) {
+      log::info("start motion check: largest gravity difference ", start_motion_.state().max_error_m_s2, " m/s^2 over ",
+                start_motion_.state().windows, " windows to t = ", frame.t_s(), " s, ", start_motion_recoveries_,
+                " recoveries");
+    }
+    start_motion_.reset();
+    return;
   }
-  if (options_.tracking.start_recovery_gauge && !stats_.reacquired && reference_kf_.valid()) {
-    // Relocalised (not re-acquired around the prediction, which stays in the world tracking was
-    // in): the frame may have landed in the world of a keyframe made while tracking followed a
-    // mover, which differs from the first keyframe's. The map grows on in the world it landed in,
-    // so the keyframes posed before, in the other world, leave the map (ltlo occluded start, seed 3:
-    // relocalised on kf1 at 0.37 s, whose points are 12.8 cm off kf0's; kf0 stayed 12 cm off every
-    // later keyframe, and the proximity loop kf41 ~ kf0 at 29 s pulled the map towards it).
-    map::Map& active = activeMap();
-    const map::KeyFrameId previous = active.moveGaugeTo(reference_kf_);
-    if (previous == reference_kf_) return;
-    const int erased = eraseKeyFramesBefore(active, frame.t_s());
-    log::info("occluded start: relocalised on ", reference_kf_, ", now the map's gauge in place of ", previous, "; ",
-              erased, " keyframes posed before it erased");
-  }
+  const imu::Preintegrated& pim = *frame.imu_from_last_frame;
+  const imu::PoseGravityVerdict verdict =
+      start_motion_.add(frame.t_s(), frame.T_w_b(), pose_sigma_m_, pim.correctedDeltaR(bias_),
+                        pim.correctedDeltaV(bias_), pim.correctedDeltaP(bias_), pim.dt_s());
+  if (!verdict.checked) return;
+  log::debug("start motion check t = ", frame.t_s(), " s: g_w = ", verdict.g_w.transpose(), ", difference ",
+             verdict.error_m_s2, " m/s^2 (bound ", verdict.bound_m_s2, ", position sigma ", pose_sigma_m_, " m)");
+  if (verdict.consistent) return;
+  // The poses changed velocity by about error * 0.1 s with no force the accelerometer felt: tracking
+  // changed the world it follows (ltlo occluded start, seed 3, Seg.Clusters 64: tracking followed the
+  // box for 0.27 s, then the room, without a loss; kf1 and kf2, made in between, stayed 13 cm off kf0).
+  ++start_motion_recoveries_;
+  log::info("occluded start: the tracked motion to t = ", frame.t_s(), " s disagrees with the IMU (gravity ",
+            verdict.error_m_s2, " m/s^2 off the earlier windows'): tracking changed the world it follows");
+  cutStartImuChain(frame, "the motion check failed");
+  moveStartGauge(frame, "the motion check moved it to");
+  start_motion_.reset();
+}
+
+void Tracker::cutStartImuChain(const map::Frame& frame, const char* why) {
+  if (!options_.tracking.start_recovery_cuts_imu || !imu_since_keyframe_) return;
+  // The keyframes before were posed while a mover may have held the view; their IMU chain ends here
+  // and the initialisation uses the next.
+  imu_since_keyframe_.reset();
+  imu_chain_broken_ = true;
+  log::info("occluded start: ", why, " at t = ", frame.t_s(), " s before the IMU initialisation: the next keyframe ",
+            "starts a new IMU chain (the keyframes before were posed while a mover may have held the view)");
+}
+
+void Tracker::moveStartGauge(const map::Frame& frame, const char* why) {
+  if (!options_.tracking.start_recovery_gauge || !reference_kf_.valid()) return;
+  map::Map& active = activeMap();
+  const map::KeyFrameId previous = active.moveGaugeTo(reference_kf_);
+  if (previous == reference_kf_) return;
+  const int erased = eraseKeyFramesBefore(active, frame.t_s());
+  log::info("occluded start: ", why, " ", reference_kf_, ", now the map's gauge in place of ", previous, "; ", erased,
+            " keyframes posed before it erased");
 }
 
 int Tracker::eraseKeyFramesBefore(map::Map& active, double recovered_t_s) {

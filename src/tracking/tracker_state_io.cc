@@ -159,6 +159,29 @@ void Tracker::writeState(map::ByteWriter& out, map::KeyFrameRefs& refs) const {
   out.f64(provisional_from_t_s_);
   out.f64(start_window_end_t_s_);
   out.i32(provisional_erased_);
+
+  // Tracking.StartMotionCheck (tracker_start.cc).
+  const imu::PoseGravityCheck::State& motion = start_motion_.state();
+  out.u64(motion.nodes.size());
+  for (const imu::PoseGravityCheck::Node& node : motion.nodes) {
+    out.f64(node.t_s);
+    out.mat3(node.R_w_b);
+    out.vec3(node.p_w_b);
+    out.f64(node.sigma_m);
+  }
+  const auto writeInterval = [&out](const imu::PoseGravityCheck::Interval& interval) {
+    out.mat3(interval.dR);
+    out.vec3(interval.dV);
+    out.vec3(interval.dP);
+    out.f64(interval.dt_s);
+  };
+  out.u64(motion.intervals.size());
+  for (const imu::PoseGravityCheck::Interval& interval : motion.intervals) writeInterval(interval);
+  writeInterval(motion.open);
+  out.vec3(motion.g_sum);
+  out.i32(motion.windows);
+  out.f64(motion.max_error_m_s2);
+  out.i32(start_motion_recoveries_);
 }
 
 void Tracker::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes) {
@@ -303,6 +326,38 @@ void Tracker::readState(map::ByteReader& in, const map::RunKeyFrames& keyframes)
     in.failAt(window_offset, "start window end is not a time", map::exactNumberText(start_window_end_t_s_));
   }
   provisional_erased_ = in.i32InRange("provisional points erased", 0, kMaxCount);
+
+  imu::PoseGravityCheck::State motion;
+  const std::uint64_t nodes_offset = in.fileOffset();
+  motion.nodes.resize(in.count("start motion check nodes", 8 + 9 * 8 + 3 * 8 + 8));
+  if (motion.nodes.size() > 3) in.failAt(nodes_offset, "more than 3 start motion check nodes", std::to_string(motion.nodes.size()));
+  for (imu::PoseGravityCheck::Node& node : motion.nodes) {
+    node.t_s = in.finiteF64("start motion check node time");
+    node.R_w_b = in.mat3("start motion check node rotation");
+    node.p_w_b = in.vec3("start motion check node position");
+    node.sigma_m = in.finiteF64("start motion check node sigma");
+  }
+  const auto readInterval = [&in]() {
+    imu::PoseGravityCheck::Interval interval;
+    interval.dR = in.mat3("start motion check interval");
+    interval.dV = in.vec3("start motion check interval");
+    interval.dP = in.vec3("start motion check interval");
+    interval.dt_s = in.finiteF64("start motion check interval");
+    return interval;
+  };
+  const std::uint64_t intervals_offset = in.fileOffset();
+  motion.intervals.resize(in.count("start motion check intervals", 9 * 8 + 6 * 8 + 8));
+  if (motion.intervals.size() + 1 != std::max<std::size_t>(motion.nodes.size(), 1)) {
+    in.failAt(intervals_offset, "start motion check intervals do not join its " + std::to_string(motion.nodes.size()) + " nodes",
+              std::to_string(motion.intervals.size()));
+  }
+  for (imu::PoseGravityCheck::Interval& interval : motion.intervals) interval = readInterval();
+  motion.open = readInterval();
+  motion.g_sum = in.vec3("start motion check gravity sum");
+  motion.windows = in.i32InRange("start motion check windows", 0, kMaxCount);
+  motion.max_error_m_s2 = in.finiteF64("start motion check largest difference");
+  start_motion_.restore(std::move(motion));
+  start_motion_recoveries_ = in.i32InRange("start motion check recoveries", 0, kMaxCount);
 }
 
 }  // namespace ltlo::tracking

@@ -22,6 +22,7 @@
 /// Tracker).
 #include <limits>
 #include <memory>
+#include <optional>
 
 #include "ltlo/core/lie.h"
 #include "ltlo/imu/preintegration.h"
@@ -64,6 +65,11 @@ struct LossContext {
   /// of the lost frame's prediction (its rotation the gyroscope's) for the guided re-acquisition;
   /// infinity: none.
   double start_reacquire_sigma_m = std::numeric_limits<double>::infinity();
+  /// Before the IMU is initialised (Tracking.GyroRotationGate): the frame's rotation R_w_b as the
+  /// gyroscope carries it from the previous frame's; a tracked or recovered pose whose rotation is
+  /// further from it than gyro_gate_rad makes the frame lost. Absent: no gate.
+  std::optional<Mat3> gyro_R_w_b = std::nullopt;
+  double gyro_gate_rad = 0.0;
 };
 
 /// The Tracker's steps the loss policy runs: the searches of a lost frame (tracker_reacquire.cc)

@@ -33,6 +33,7 @@
 
 #include "ltlo/core/lie.h"
 #include "ltlo/imu/imu_types.h"
+#include "ltlo/imu/pose_gravity_check.h"
 #include "ltlo/imu/preintegration.h"
 #include "ltlo/map/frame.h"
 #include "ltlo/map/keyframe.h"
@@ -75,6 +76,9 @@ struct TrackingStats {
   /// the lost frame re-acquired the active map by the IMU-guided search (Tracking.Reacquire; then
   /// relocalised is set too)
   bool reacquired = false;
+  /// the tracked or recovered pose turned further from the gyroscope's rotation than
+  /// Tracking.GyroRotationGate (before the IMU is initialised): the frame was made lost
+  bool gyro_rejected = false;
   bool new_map = false;        ///< the frame started a new map
   /// the frame extended the active map at its IMU-predicted pose (lost, Tracking.MaxImuPositionSigma)
   bool map_extended = false;
@@ -458,6 +462,9 @@ class Tracker : private RecoverySteps {
   ImuPrediction imu_prediction_;
   /// The current frame's state information (set by optimisePose and the lost path).
   StateInformation frame_information_;
+  /// Standard deviation of the frame's position along its least constrained direction from the last
+  /// pose optimisation's marginal information, m (infinity: unconstrained; Tracking.StartMotionCheck)
+  double pose_sigma_m_ = std::numeric_limits<double>::infinity();
   /// The previous frame's (the link's "last frame").
   StateInformation prev_information_;
   imu::ImuBias prev_bias_;
@@ -506,6 +513,17 @@ class Tracker : private RecoverySteps {
   /// Tracking.StartRecoveryGauge: a frame relocalised on another keyframe than the gauge makes it the
   /// map's gauge, and the keyframes made before it are erased.
   void onStartRecovery(const map::Frame& frame);
+  /// Tracking.StartMotionCheck: every frame tracked (not recovered) within the start window before
+  /// the IMU is initialised adds its pose and IMU interval to start_motion_; a window whose gravity
+  /// disagrees recovers the frame like a relocalised one (the IMU chain cut with
+  /// Tracking.StartRecoveryCutsImu, the gauge moved with Tracking.StartRecoveryGauge). Any other
+  /// frame starts the check afresh.
+  void checkStartMotion(const map::Frame& frame, TrackingState state);
+  /// Tracking.StartRecoveryCutsImu: the next keyframe starts a new IMU chain (`why` for the log).
+  void cutStartImuChain(const map::Frame& frame, const char* why);
+  /// Tracking.StartRecoveryGauge: the reference keyframe becomes the map's gauge and the keyframes
+  /// made before the frame are erased (`why` for the log).
+  void moveStartGauge(const map::Frame& frame, const char* why);
   /// Erases the keyframes older than `recovered_t_s` other than the reference keyframe
   /// (Tracking.StartRecoveryGauge); returns how many.
   int eraseKeyFramesBefore(map::Map& active, double recovered_t_s);
@@ -515,6 +533,9 @@ class Tracker : private RecoverySteps {
     int static_votes = 0;
   };
   std::vector<ProvisionalPoint> provisional_points_;
+  /// Tracking.StartMotionCheck's poses and gravity estimates since the last reset
+  imu::PoseGravityCheck start_motion_;
+  int start_motion_recoveries_ = 0;  ///< frames recovered by it
   double provisional_from_t_s_ = 0.0;   ///< the first keyframe's time
   /// End of the start window (the first keyframe's time + Tracking.StartProvisional; -infinity: none)
   double start_window_end_t_s_ = -std::numeric_limits<double>::infinity();
