@@ -294,7 +294,10 @@ int Tracker::optimisePose(map::Frame& frame, const SE3& T_w_b_init, bool drop_ou
     }
   }
   frame.setPose_T_w_b(result.T_w_b);
-  pose_sigma_m_ = positionSigma_m(result.pose_information);
+  // Only Tracking.StartMotionCheck reads it, and only before the IMU is initialised.
+  if (!imu_initialised_ && options_.tracking.start_motion_check_m_s2 > 0.0) {
+    pose_sigma_m_ = positionSigma_m(result.pose_information);
+  }
   if (problem.inertial) {
     // Velocity and biases from the pose-inertial optimisation; its marginal is the next frame's
     // prior.

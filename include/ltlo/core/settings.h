@@ -311,23 +311,11 @@ struct TrackingOptions {
   /// map: the frame landed in that keyframe's world, which differs from the first keyframe's when
   /// the keyframe was made while tracking followed a mover (Tracking.StartRecoveryGauge, 0/1)
   bool start_recovery_gauge = false;
-  /// Within the same window, before the IMU is initialised, the tracked poses are checked against
-  /// the IMU: every three poses about 0.1 s apart, with the preintegrated deltas between them, give an
-  /// estimate of gravity without knowing the velocity (imu/pose_gravity_check.h). One that differs by
-  /// more than this from the earlier ones' mean means the poses changed velocity without a force the
-  /// accelerometer felt: tracking changed the world it follows (from a mover that held the view to
-  /// the room behind it). The frame then recovers as a relocalised one does (a new IMU chain with
-  /// Tracking.StartRecoveryCutsImu; with Tracking.StartRecoveryGauge the reference keyframe becomes
-  /// the gauge and the keyframes before the frame leave the map) (Tracking.StartMotionCheck, m/s^2,
-  /// [0, 100]; 0: no check)
+  /// Within the same window, before the IMU is initialised: the pose-gravity check's bound, above which
+  /// the frame recovers as a relocalised one (tracker_start.cc) (Tracking.StartMotionCheck, m/s^2, [0, 100]; 0: off)
   double start_motion_check_m_s2 = 0.0;
-  /// Before the IMU is initialised (any map), a tracked, re-acquired or relocalised pose whose
-  /// rotation differs from the previous frame's carried by the gyroscope by more than this is not
-  /// taken: the frame is lost, held at the gyroscope's rotation. No inertial term holds the pose
-  /// optimisation's rotation then, and a view held by a mover can turn it by degrees in one frame.
-  /// A lost frame is held at the gyroscope's rotation too, so the chain goes back to the last
-  /// tracked frame; while poses keep disagreeing, the loss policy starts a new map in the
-  /// gyroscope's orientation (Tracking.GyroRotationGate, deg, [0, 180]; 0: no gate)
+  /// Before any map's IMU initialisation, the largest turn of a pose from the gyroscope's rotation before the
+  /// frame is made lost (loss_recovery.cc) (Tracking.GyroRotationGate, deg, [0, 180]; 0: off)
   double gyro_rotation_gate_deg = 0.0;
   /// Before the IMU is initialised, frames lost with the gyroscope's prediction
   /// (Tracking.StartReacquireSpeed) form a carried stretch of the final trajectory like the IMU's

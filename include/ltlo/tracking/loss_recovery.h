@@ -67,7 +67,9 @@ struct LossContext {
   double start_reacquire_sigma_m = std::numeric_limits<double>::infinity();
   /// Before the IMU is initialised (Tracking.GyroRotationGate): the frame's rotation R_w_b as the
   /// gyroscope carries it from the previous frame's; a tracked or recovered pose whose rotation is
-  /// further from it than gyro_gate_rad makes the frame lost. Absent: no gate.
+  /// further from it than gyro_gate_rad makes the frame lost. Lost frames are held at the
+  /// gyroscope's rotation too, so the chain reaches back to the last tracked frame; while poses keep
+  /// disagreeing, the loss policy starts a new map in the gyroscope's orientation. Absent: no gate.
   std::optional<Mat3> gyro_R_w_b = std::nullopt;
   double gyro_gate_rad = 0.0;
 };
