@@ -13,6 +13,8 @@
 #   seg_off          Seg.Enable = 0: every frame one static cluster (the static core)
 #   dense_init_off   Seg.DenseInit = 0: depth clusters with gamma = 1, only local mapping refines them
 #   robust_beta_off  Mapping.RobustBeta = 0: plain VIBA on tracking's Gamma, no beta, no dynamic points deleted
+#   reference_off    Dense.ReferenceBaseline = 0: the Gamma step judges the clusters against the previous frame
+#                    only (a mover keeping pace with the camera passes as static)
 #   no_imu           --no-imu: RGB-D only
 # and, for the harder worlds (issue 32; not in the default list):
 #   start_off        the occluded start's handling off: Tracking.StartProvisional = 0, StartReacquireSpeed = 0,
@@ -78,6 +80,7 @@ variant_args() {
     seg_off) echo "${full[@]}" --set Seg.Enable=0 ;;
     dense_init_off) echo "${full[@]}" --set Seg.DenseInit=0 ;;
     robust_beta_off) echo "${full[@]}" --set Mapping.RobustBeta=0 ;;
+    reference_off) echo "${full[@]}" --set Dense.ReferenceBaseline=0 ;;
     no_imu) echo "${full[@]}" --no-imu ;;
     start_off)
       echo "${full[@]}" --set Tracking.StartProvisional=0 --set Tracking.StartReacquireSpeed=0 \

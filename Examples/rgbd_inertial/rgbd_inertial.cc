@@ -243,6 +243,18 @@ long resumeAt(const Arguments& args, io::SequenceReader& reader, const system::R
                          "saved in " + args.load_atlas + " at t = " + std::to_string(resume.last_frame_t_s) +
                          " s: another sequence");
   }
+  // The segmenter's kept frames (Dense.ReferenceBaseline), oldest first, found by their times.
+  int search_from = static_cast<int>(next) - 2;
+  for (const double t_s : resume.kept_frame_t_s) {
+    int index = search_from;
+    while (index >= 0 && reader.frameTime(index) > t_s) --index;
+    if (index < 0 || reader.frameTime(index) != t_s) {
+      throw InputError(reader.directory(), 0,
+                       "has no frame at t = " + std::to_string(t_s) + " s, a frame the run saved in " + args.load_atlas +
+                           " keeps: another sequence");
+    }
+    slam.restoreKeptFrame(reader.load(index));
+  }
   if (resume.previous_frame_t_s) slam.restorePreviousFrame(reader.load(static_cast<int>(next) - 1));
   log::info(kProgram, ": resuming the run of ", args.load_atlas, " at frame ", next);
   return next;

@@ -179,6 +179,7 @@ void visitDense(O& o, V& v) {
   v.real("Dense.LambdaD", o.lambda_d, 0.0, 1e6);
   v.real("Dense.OcclusionGap", o.occlusion_gap_m, 0.01, 10.0);
   v.real("Dense.MaxPriorChi2", o.max_prior_chi2, 0.1, 1e9);
+  v.real("Dense.ReferenceBaseline", o.reference_baseline_s, 0.0, 10.0);
   v.real("Dense.PriorVelocitySigma", o.prior_velocity_sigma_m_s, 1e-4, 10.0);
   v.real("Dense.PriorAngularRateSigma", o.prior_angular_rate_sigma_rad_s, 1e-4, 100.0);
   v.real("Dense.PriorGyroBiasSigma", o.prior_gyro_bias_sigma_rad_s, 0.0, 1.0);

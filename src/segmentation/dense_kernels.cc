@@ -295,7 +295,7 @@ void accumulateImageTerm(const DenseLevel& previous, const DenseLevel& current, 
 
 void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
                      const float* previous_gamma_of_label, const ResidualParams& params, const Brightness& brightness,
-                     ClusterEvidence* out) {
+                     ClusterEvidence* out, float max_pixel_cost) {
   const LevelCamera& camera = previous.camera;
   const float inv_c2 = 1.0f / (params.cauchy_c * params.cauchy_c);
   const float half_c2 = 0.5f * params.cauchy_c * params.cauchy_c;
@@ -319,7 +319,7 @@ void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, cons
     const float predicted_I = brightness.gain * current.intensity_at[i] + brightness.offset;
     const float scaled_I = params.alpha_intensity * current.weight_I[i] * (s[kLookupI] - predicted_I);
     const float scaled_D = current.weight_D[i] * (s[kLookupD] - p.Z);
-    out->cost_sum[k] += cauchy(scaled_I, inv_c2, half_c2) + cauchy(scaled_D, inv_c2, half_c2);
+    out->cost_sum[k] += std::min(cauchy(scaled_I, inv_c2, half_c2) + cauchy(scaled_D, inv_c2, half_c2), max_pixel_cost);
     ++out->num_pixels[k];
   }
 }

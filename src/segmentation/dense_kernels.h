@@ -5,6 +5,7 @@
 // equations of the camera motion or into per-cluster evidence. Compiled at -O3: the accumulation
 // is written over fixed-width lanes so the compiler vectorises it.
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "ltlo/core/eigen_types.h"
@@ -119,9 +120,10 @@ struct ClusterEvidence {
   std::vector<int> prior_count;
   void reset(int num_labels);
 };
-/// The intensity residual carries `brightness` (gain 1 and offset 0: exactly Eq. 61).
+/// The intensity residual carries `brightness` (gain 1 and offset 0: exactly Eq. 61). Each pixel
+/// adds at most `max_pixel_cost` to its cluster's cost (infinity: the cost as it is).
 void clusterEvidence(const DenseLevel& previous, const DenseLevel& current, const Warp& warp,
                      const float* previous_gamma_of_label, const ResidualParams& params, const Brightness& brightness,
-                     ClusterEvidence* out);
+                     ClusterEvidence* out, float max_pixel_cost = std::numeric_limits<float>::infinity());
 
 }  // namespace ltlo::segmentation::detail

@@ -19,6 +19,21 @@ namespace {
 /// Below this many pixels with both residuals, a cluster's mean cost is shrunk towards "no
 /// evidence" (a_k = (sum - c^ n) / max(n, kMinEvidencePixels)): a few pixels say little.
 constexpr int kMinEvidencePixels = 8;
+/// The reference (DenseReference) is used only where it agrees with the previous frame on at least
+/// this share of the pixels the previous frame finds static: one that calls most of them dynamic has
+/// a pose or images that do not fit the frame's (a mover over nearly the whole view leaves a sliver
+/// of background that a few pixels of pose error turn over).
+constexpr double kMinReferenceAgreement = 0.5;
+/// The price of calling a pixel dynamic against the reference, in units of Dense.DynamicCost: the
+/// pose between the two frames comes from tracking and the IMU over several frames, so a static
+/// cluster's cost grows with the baseline (pose error, more parallax at depth edges); a mover's
+/// grows with its motion, several times the previous frame's.
+constexpr double kReferenceCostFactor = 2.0;
+/// Against the reference a pixel adds at most this many times that price to its cluster's cost, so
+/// the cluster's mean exceeds the price only when about half its pixels or more disagree: a depth
+/// cluster that straddles a mover's edge is not turned over by its part on the mover (which moved
+/// far over the baseline and costs much), only a cluster that is mostly mover.
+constexpr double kReferencePixelCostCap = 2.0;
 /// Depth at which a step's image motion is measured for the convergence test, m: about the nearest
 /// an RGB-D sensor measures (0.3-0.5 m); farther points move less under the same translation.
 constexpr double kNearPointDepth_m = 0.5;
@@ -185,6 +200,7 @@ double brightnessChange(const detail::Brightness& a, const detail::Brightness& b
 struct detail::DenseSolverBuffers {
   RowScratch rows;
   ClusterEvidence evidence;
+  ClusterEvidence reference_evidence;
   BrightnessBlocks blocks;
 };
 
@@ -197,7 +213,7 @@ class DenseSolve {
  public:
   DenseSolve(const DenseSolverOptions& options, detail::DenseSolverBuffers& buffers, const DenseFrame& previous,
              const std::vector<double>& previous_gamma, const DenseFrame& current,
-             const std::vector<ClusterEdge>& edges, const DensePrior& prior);
+             const std::vector<ClusterEdge>& edges, const DensePrior& prior, const DenseReference* reference);
 
   /// Runs the solve (once per DenseSolve).
   DenseResult run();
@@ -207,6 +223,10 @@ class DenseSolve {
   void fitBrightness(int level);
   /// Gamma step at the state, on `level`: Eq. 60 evidence per cluster and the warped prior.
   void gammaStep(int level, bool record_prediction_cost);
+  /// The data coefficients against the reference at the state on `level`
+  /// (result_.reference_coefficient); false when the reference is not to be used (it calls most of
+  /// what the previous frame finds static dynamic: its pose or images disagree with the frame's).
+  bool referenceEvidence(int level);
   /// The image motion of a body step delta = [phi; rho] at `level`, px: a point kNearPointDepth_m
   /// in front of the camera moves by at most about f (|eps_phi| + |eps_rho| / z) (eps: camera twist).
   double stepPx(const Vec6& delta, int level) const;
@@ -244,6 +264,9 @@ class DenseSolve {
   const DenseFrame& previous_;
   const DenseFrame& current_;
   const DensePrior& prior_;
+  const DenseReference* reference_;  ///< null: the previous frame alone
+  int reference_level_ = -1;         ///< the level result_.reference_coefficient was taken on
+  bool reference_used_ = false;      ///< and whether it is used there
   const int num_clusters_;  ///< K of the current frame
   const bool with_imu_;
   const detail::ResidualParams params_;
@@ -267,12 +290,14 @@ class DenseSolve {
 
 DenseSolve::DenseSolve(const DenseSolverOptions& options, detail::DenseSolverBuffers& buffers,
                        const DenseFrame& previous, const std::vector<double>& previous_gamma,
-                       const DenseFrame& current, const std::vector<ClusterEdge>& edges, const DensePrior& prior)
+                       const DenseFrame& current, const std::vector<ClusterEdge>& edges, const DensePrior& prior,
+                       const DenseReference* reference)
     : options_(options),
       buffers_(buffers),
       previous_(previous),
       current_(current),
       prior_(prior),
+      reference_(reference),
       num_clusters_(current.numClusters()),
       with_imu_(prior.kind == DensePrior::Kind::kImu),
       params_{static_cast<float>(options.alpha_intensity), static_cast<float>(options.cauchy_c),
@@ -318,8 +343,59 @@ void DenseSolve::gammaStep(int level, bool record_prediction_cost) {
     problem_.prior[kk] = m > 0 ? evidence.prior_sum[kk] / m : 1.0;
     if (record_prediction_cost && n > 0) result_.cost_at_prediction[kk] = evidence.cost_sum[kk] / n;
   }
+  // Against the reference once per level (at the level's first Gamma step): the later steps' state
+  // differs by a fraction of a pixel of the level, which the baseline's motion dwarfs.
+  if (reference_ != nullptr && level != reference_level_) {
+    reference_level_ = level;
+    reference_used_ = referenceEvidence(level);
+  }
+  if (reference_used_) {
+    for (int k = 0; k < K; ++k) {
+      const auto kk = static_cast<std::size_t>(k);
+      problem_.data[kk] = std::max(problem_.data[kk], result_.reference_coefficient[kk]);
+    }
+  }
   gamma_ = solveGamma(problem_, gamma_);
   for (int k = 0; k < K; ++k) gamma_of_label_[static_cast<std::size_t>(k)] = static_cast<float>(gamma_[static_cast<std::size_t>(k)]);
+}
+
+bool DenseSolve::referenceEvidence(int level) {
+  const int K = num_clusters_;
+  const SE3 T_ref_cur = reference_->T_w_c.inverse() * (state_.T_w_b * prior_.T_b_c);
+  detail::Warp warp;
+  const Mat3 R = T_ref_cur.rotationMatrix();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) warp.R[3 * r + c] = static_cast<float>(R(r, c));
+    warp.t[r] = static_cast<float>(T_ref_cur.translation()(r));
+  }
+  // I_ref ~ g I_prev + o and I_prev ~ a I_cur + b: I_ref ~ g a I_cur + (g b + o).
+  detail::Brightness brightness;
+  brightness.gain = static_cast<float>(reference_->gain * brightness_.gain);
+  brightness.offset = static_cast<float>(reference_->gain * brightness_.offset + reference_->offset);
+  detail::ClusterEvidence& evidence = buffers_.reference_evidence;
+  evidence.reset(K + 1);
+  // The temporal prior this pass also sums is not used (the previous frame's is).
+  const double price = kReferenceCostFactor * options_.dynamic_cost;
+  detail::clusterEvidence(reference_->frame->level(level), current_.level(level), warp,
+                          previous_gamma_of_label_.data(), params_, brightness, &evidence,
+                          static_cast<float>(kReferencePixelCostCap * price));
+  result_.reference_coefficient.assign(static_cast<std::size_t>(K) + 1, 0.0);
+  // The pixels the previous frame finds static (problem_.data < 0) and the share of them the
+  // reference agrees with.
+  long static_px = 0, agreeing_px = 0;
+  for (int k = 0; k < K; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    const int n = evidence.num_pixels[kk];
+    result_.reference_coefficient[kk] =
+        (evidence.cost_sum[kk] - price * n) / std::max(n, kMinEvidencePixels);
+    if (problem_.data[kk] < 0.0 && n >= kMinEvidencePixels) {
+      const int n_frame = buffers_.evidence.num_pixels[kk];
+      static_px += n_frame;
+      if (result_.reference_coefficient[kk] <= 0.0) agreeing_px += n_frame;
+    }
+  }
+  result_.reference_used = static_px > 0 && agreeing_px >= kMinReferenceAgreement * static_px;
+  return result_.reference_used;
 }
 
 double DenseSolve::stepPx(const Vec6& delta, int level) const {
@@ -512,13 +588,15 @@ DenseSolver::~DenseSolver() = default;
 
 DenseResult DenseSolver::solve(const DenseFrame& previous, const std::vector<double>& previous_gamma,
                                const DenseFrame& current, const std::vector<ClusterEdge>& edges,
-                               const DensePrior& prior) {
+                               const DensePrior& prior, const DenseReference* reference) {
   LTLO_ASSERT(!previous.empty() && !current.empty() && previous.numLevels() == current.numLevels(),
               "dense frames of " << previous.numLevels() << " and " << current.numLevels() << " levels");
   LTLO_ASSERT(static_cast<int>(previous_gamma.size()) == previous.numClusters() + 1,
               previous_gamma.size() << " previous scores for " << previous.numClusters() << " clusters");
   LTLO_ASSERT(prior.kind != DensePrior::Kind::kImu || prior.pim != nullptr, "an IMU prior needs the preintegration");
-  return DenseSolve(options_, *buffers_, previous, previous_gamma, current, edges, prior).run();
+  LTLO_ASSERT(reference == nullptr || (reference->frame != nullptr && reference->frame->numLevels() == current.numLevels()),
+              "a reference frame without the current frame's levels");
+  return DenseSolve(options_, *buffers_, previous, previous_gamma, current, edges, prior, reference).run();
 }
 
 }  // namespace ltlo::segmentation

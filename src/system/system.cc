@@ -359,7 +359,10 @@ void System::restoreRunState() {
   ResumePoint point;
   point.next_frame_index = loaded_run_->header.next_frame_index;
   point.last_frame_t_s = loaded_run_->header.last_frame_t_s;
-  if (tracking::FrameSegmenter* segmenter = tracker_->segmenter()) point.previous_frame_t_s = segmenter->previousFrameTime();
+  if (tracking::FrameSegmenter* segmenter = tracker_->segmenter()) {
+    point.previous_frame_t_s = segmenter->previousFrameTime();
+    point.kept_frame_t_s = segmenter->keptFrameTimes();
+  }
   point.settings_differ = fingerprint != settingsFingerprint();
   if (point.settings_differ) {
     log::warn("system: the atlas's run was saved with other settings than this run's: the resumed run is not its "
@@ -371,9 +374,19 @@ void System::restoreRunState() {
   if (!point.previous_frame_t_s) loaded_run_.reset();
 }
 
+void System::restoreKeptFrame(const io::RgbdImuFrame& frame) {
+  if (!resume_point_ || !loaded_run_ || tracker_->segmenter()->keptFrameTimes().empty()) {
+    throw std::logic_error("System::restoreKeptFrame: no resumed run waits for a kept frame");
+  }
+  tracker_->segmenter()->restoreKeptFrame(frame);
+}
+
 void System::restorePreviousFrame(const io::RgbdImuFrame& previous) {
   if (!resume_point_ || !resume_point_->previous_frame_t_s || !loaded_run_) {
     throw std::logic_error("System::restorePreviousFrame: no resumed run waits for its previous frame");
+  }
+  if (!tracker_->segmenter()->keptFrameTimes().empty()) {
+    throw std::logic_error("System::restorePreviousFrame before restoreKeptFrame of every kept frame");
   }
   tracker_->segmenter()->restorePreviousFrame(previous);
   loaded_run_.reset();

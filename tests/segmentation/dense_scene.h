@@ -4,6 +4,7 @@
 // about 70 % of the view that moves with the body (the pushed / carried box of the LTLO scenarios),
 // or with the box out of sight. Helpers prepare the dense frames and clusters, build IMU priors and
 // measure the static IoU of a segmentation.
+#include <cmath>
 #include <functional>
 #include <vector>
 
@@ -36,6 +37,13 @@ struct Scene {
   Vec3 omega_b = Vec3(0.03, 0.45, -0.05);
   /// false: the box stays 50 m behind the first camera (the static room alone)
   bool with_box = true;
+  /// true: the box moves through the world at box_velocity_w from where it is at t = 0 instead of
+  /// with the body (a mover that keeps its own pace)
+  bool box_in_world = false;
+  Vec3 box_velocity_w = Vec3::Zero();
+  /// true: depth noise of a structured-light sensor, sigma(z) = 1.2 mm + 1.9 mm (z - 0.4 m)^2 per
+  /// pixel (Nguyen et al. 2012's Kinect model), the same at every call for the same t_s
+  bool depth_noise = false;
   /// texture contrast of every surface (renderRoom)
   double contrast = 1.0;
 
@@ -51,8 +59,21 @@ struct Scene {
   RgbdFrame render(double t_s) const {
     BoxInWorld box;
     box.T_w_o = with_box ? T_w_b(t_s) * T_b_o : SE3(Quat::Identity(), Vec3(0.0, 0.0, -50.0));
+    if (with_box && box_in_world) box.T_w_o = SE3(Quat::Identity(), box_velocity_w * t_s) * T_w_b(0.0) * T_b_o;
     box.half_size_m = Vec3(0.35, 0.45, 0.3);
-    return renderRoom(camera, T_w_b(t_s) * T_b_c, box, contrast);
+    RgbdFrame frame = renderRoom(camera, T_w_b(t_s) * T_b_c, box, contrast);
+    if (depth_noise) {
+      cv::RNG rng(static_cast<std::uint64_t>(std::llround((t_s + 10.0) * 1e6)));
+      for (int r = 0; r < frame.depth_m.rows; ++r) {
+        float* z = frame.depth_m.ptr<float>(r);
+        for (int c = 0; c < frame.depth_m.cols; ++c) {
+          if (!(z[c] > 0.0f)) continue;
+          const double d = z[c] - 0.4;
+          z[c] += static_cast<float>(rng.gaussian(0.0012 + 0.0019 * d * d));
+        }
+      }
+    }
+    return frame;
   }
 };
 

@@ -8,7 +8,8 @@
 //   - run 2 resumes at frame N (the segmenter's previous frame rebuilt from frame N - 1's images)
 //     and tracks [N, end): its online and final poses of those frames are the continuous run's
 //     (the acceptance is 0.1 mm; they are bit-identical), so are its keyframes and map points.
-// Split before the IMU initialisation (2 s) and after it (6 s); on a blind start, between the IMU
+// Split before the IMU initialisation (2 s) and after it (6 s, where the segmenter also keeps earlier
+// frames as references, rebuilt from their images); on a blind start, between the IMU
 // initialisation from the rest before the map and the map's own.
 #include <gtest/gtest.h>
 
@@ -44,6 +45,8 @@ struct ResumeRun {
   /// Local mapping's IMU state when the run stopped: initialised from the rest before the map, its
   /// own initialisation still to come (ImuInit.FromPreMapRest).
   bool awaiting_own_imu_initialisation = false;
+  /// Frames the segmenter kept as references (Dense.ReferenceBaseline) at the resume.
+  int kept_frames = 0;
 };
 
 std::string readBytes(const std::string& path) {
@@ -114,6 +117,16 @@ class ResumeEndToEnd : public EndToEndSuite {
       EXPECT_EQ(point->next_frame_index, static_cast<std::uint64_t>(first));
       EXPECT_EQ(point->last_frame_t_s, frames.frameTime(first - 1));
       EXPECT_FALSE(point->settings_differ);
+      for (const double t_s : point->kept_frame_t_s) {  // oldest first, before the previous frame
+        int index = first - 2;
+        while (index >= 0 && frames.frameTime(index) > t_s) --index;
+        EXPECT_GE(index, 0) << "no frame at the kept time " << t_s;
+        if (index < 0) return result;
+        io::RgbdImuFrame kept = frames.load(index);
+        blank(kept);
+        system.restoreKeptFrame(kept);
+      }
+      result.kept_frames = static_cast<int>(point->kept_frame_t_s.size());
       if (point->previous_frame_t_s) {
         io::RgbdImuFrame previous = frames.load(first - 1);
         blank(previous);
@@ -211,6 +224,9 @@ TEST_F(ResumeEndToEnd, ResumedBeforeTheImuInitialisationContinuesExactly) {
 TEST_F(ResumeEndToEnd, ResumedAfterTheImuInitialisationContinuesExactly) {
   const ResumeRun resumed = resumeAt(90);
   expectContinuation(resumed, 90);
+  // The segmenter's reference frames (Dense.ReferenceBaseline 0.3 s, one kept every 0.15 s: at
+  // 15 Hz every third frame, up to 4; 2 here) came back from their images with the previous frame.
+  EXPECT_GE(resumed.kept_frames, 1);
   // This run's own frames are what it reports; the saved run's records are context only.
   EXPECT_EQ(resumed.report.counts.frames, continuous_->frames - 90);
   EXPECT_EQ(resumed.report.counts.frames_with_pose, continuous_->frames - 90);

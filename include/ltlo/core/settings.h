@@ -361,6 +361,15 @@ struct DenseOptions {
   /// whitened motion-prior residual (chi^2) above which the dense state is rejected and the
   /// prediction kept (Dense.MaxPriorChi2, [0.1, 1e9])
   double max_prior_chi2 = 30.0;
+  /// The Gamma step's second baseline: an earlier frame, at least this long before the current
+  /// one (the newest such frame of a few kept every half of it), also judges the clusters: each
+  /// cluster's mean Eq. 60 cost against that frame at the same state is a second data coefficient,
+  /// and the larger of the two counts. A mover that keeps pace with the camera shifts a pixel or two
+  /// and a centimetre of depth between frames, which the noise hides, but ten times that over the
+  /// baseline. Only with the IMU term (the poses between come from the IMU); after a map jump of the
+  /// previous pose the kept frames go. s; 0: the previous frame alone (Dense.ReferenceBaseline,
+  /// [0, 10])
+  double reference_baseline_s = 0.3;
   /// standard deviation of the previous frame's velocity, m/s: widens the IMU term of Eq. 59 (the
   /// previous state is held fixed) and sets the constant-velocity translation prior, sigma dt
   /// (Dense.PriorVelocitySigma, [1e-4, 10])

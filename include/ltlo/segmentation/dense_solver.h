@@ -128,6 +128,27 @@ struct DensePrior {
   double prev_velocity_sigma_m_s = 0.05;
 };
 
+/// An earlier frame that judges the clusters over a longer baseline than the previous frame's
+/// (Dense.ReferenceBaseline). On each pyramid level (at its first Gamma step, then kept for the
+/// level) each current cluster's mean Eq. 60 cost is also taken against this frame at the state
+/// (warp T_ref_cur = T_w_c_ref^-1 T_w_b T_b_c, the same occlusion rule), at twice the price per pixel
+/// and with each pixel's cost capped at twice that price (a cluster that straddles a mover's edge is
+/// not turned over by its part on the mover), and the cluster's data coefficient is the larger of
+/// the two: the reference can only call a cluster more dynamic. A reference that calls most of the
+/// pixels the previous frame finds static dynamic is not used. A surface seen behind the reference's (a box there then, gone now) gives
+/// no evidence, so a mover of the reference does not make the background dynamic; a surface now in
+/// front of the reference's (a mover come closer) or beside it does.
+struct DenseReference {
+  /// built with the same options as the current frame, its labels set (not owned)
+  const DenseFrame* frame = nullptr;
+  /// the reference camera in the world of the prior
+  SE3 T_w_c;
+  /// brightness from the reference to the previous frame, I_ref(x) ~ gain I_prev(x) + offset (the
+  /// solve composes it with its own estimate previous -> current)
+  double gain = 1.0;
+  double offset = 0.0;
+};
+
 /// What the solve found.
 struct DenseResult {
   SE3 T_w_b;
@@ -142,6 +163,12 @@ struct DenseResult {
   std::vector<double> cost_at_prediction;
   /// a_k of the last Gamma step (K + 1; 0 for the no-depth cluster), diagnostics
   std::vector<double> data_coefficient;
+  /// With a reference: the data coefficient against it in the last Gamma step (K + 1; 0 for the
+  /// no-depth cluster; empty without a reference), diagnostics
+  std::vector<double> reference_coefficient;
+  /// the reference was used in the last Gamma step (it agreed with the previous frame on most of
+  /// what that finds static)
+  bool reference_used = false;
   /// the state moved from the prediction and passed the prior gate
   bool state_refined = false;
   /// the refined state failed the prior gate (state = prediction)
@@ -167,9 +194,11 @@ class DenseSolver {
 
   /// Solves Eq. 59 for `current` against `previous` (both built with the same options, labels set)
   /// whose scores were `previous_gamma` (previous.numClusters() + 1 entries). `edges` is V_i of the
-  /// current clusters.
+  /// current clusters. With `reference` (not null), an earlier frame judges the clusters too
+  /// (DenseReference).
   DenseResult solve(const DenseFrame& previous, const std::vector<double>& previous_gamma,
-                    const DenseFrame& current, const std::vector<ClusterEdge>& edges, const DensePrior& prior);
+                    const DenseFrame& current, const std::vector<ClusterEdge>& edges, const DensePrior& prior,
+                    const DenseReference* reference = nullptr);
 
   const DenseSolverOptions& options() const { return options_; }
 

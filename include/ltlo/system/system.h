@@ -126,6 +126,10 @@ struct ResumePoint {
   /// The time of the previous frame whose images restorePreviousFrame needs (the segmenter rebuilds
   /// its pyramid and clusters from them); nullopt when none is needed.
   std::optional<double> previous_frame_t_s;
+  /// Earlier frames (s, oldest first) the segmenter keeps as references (Dense.ReferenceBaseline),
+  /// rebuilt from their images too: restoreKeptFrame with each, in this order, before
+  /// restorePreviousFrame. Empty when none is kept (then previous_frame_t_s may still be set).
+  std::vector<double> kept_frame_t_s;
   /// The saved run's settings differed from this run's (the continuation is then not exact).
   bool settings_differ = false;
 };
@@ -197,6 +201,9 @@ class System {
   /// sequence's frame next_frame_index - 1), from which the segmenter rebuilds its previous frame.
   /// Call before the first trackFrame. Throws InputError when it is another frame.
   void restorePreviousFrame(const io::RgbdImuFrame& previous);
+  /// A resumed run whose ResumePoint::kept_frame_t_s is not empty: the images of the next of those
+  /// frames (in their order, before restorePreviousFrame). Throws InputError when it is another frame.
+  void restoreKeptFrame(const io::RgbdImuFrame& frame);
 
   /// Stage durations of all threads ("tracking.*", "mapping.*", "loop.*").
   TimingStats& timing() { return timing_; }

@@ -14,7 +14,17 @@
 /// Every segmented frame (tracked or not) becomes the previous frame of the next one: its pyramid,
 /// labels and Gamma are kept. Without a previous frame (the first one, or after a frame without
 /// images) every cluster is static.
+///
+/// Reference frames (Dense.ReferenceBaseline = B > 0, segmentation::DenseReference): while the
+/// motion prior is the IMU term, a frame every B / 2 s is kept once the next frame's prior gives its
+/// tracked pose (its PreparedFrame moves out of the two working slots into a small ring; the ring's
+/// oldest goes back as the spare, so nothing is copied or allocated once the ring is full). Each
+/// solve takes the newest kept frame at least B old. The kept poses follow the world corrections the
+/// IMU prior applies to the previous pose; a correction of more than kReferenceJumpM /
+/// kReferenceJumpRad (a loop or a merge moved the map), a prior without the IMU term or a frame
+/// without images clears the ring.
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "ltlo/core/settings.h"
@@ -59,6 +69,10 @@ class DenseSegmenter final : public FrameSegmenter {
   void readState(map::ByteReader& in) override;
   std::optional<double> previousFrameTime() const override { return previous_pending_; }
   void restorePreviousFrame(const io::RgbdImuFrame& previous) override;
+  /// The kept frames (Dense.ReferenceBaseline) are rebuilt from their images too, before the
+  /// previous frame; their poses and brightness come from the state.
+  std::vector<double> keptFrameTimes() const override;
+  void restoreKeptFrame(const io::RgbdImuFrame& frame) override;
 
   /// The last solve (diagnostics, tests); empty gamma before the second frame.
   const segmentation::DenseResult& lastResult() const { return last_result_; }
@@ -71,6 +85,38 @@ class DenseSegmenter final : public FrameSegmenter {
   std::shared_ptr<const Undistorter> undistorter_;  // null or inactive: the images are ideal already
   std::unique_ptr<PreparedFrame> frames_[2];  // [current_] is being prepared / segmented
   int current_ = 0;
+
+  /// A kept frame (Dense.ReferenceBaseline).
+  struct KeptFrame {
+    std::unique_ptr<PreparedFrame> frame;
+    /// its body pose in the world of the last prior
+    SE3 T_w_b;
+    /// brightness from it to the previous frame: I_kept ~ gain I_prev + offset
+    double gain = 1.0;
+    double offset = 0.0;
+  };
+  /// Updates the kept frames before a solve: drops them without the IMU term or on a large world
+  /// correction, else carries them by the correction; the previous frame is kept when it was marked.
+  void updateKeptFrames(const MotionPrior& prior, const segmentation::DensePrior& dense_prior);
+  /// After a solve: the kept frames' brightness carried to the current frame, and whether the
+  /// current frame is to be kept.
+  void afterSolve(const MotionPrior& prior, double t_s);
+  /// The newest kept frame at least Dense.ReferenceBaseline older than `t_s` (nullptr: none).
+  const KeptFrame* referenceFor(double t_s) const;
+  void clearKeptFrames();
+  /// Debug log: what the reference changed.
+  std::string referenceSummary() const;
+  std::vector<KeptFrame> kept_;  ///< oldest first
+  std::vector<std::unique_ptr<PreparedFrame>> spare_frames_;
+  bool keep_previous_ = false;  ///< the previous frame is to be kept once its pose is known
+  /// Restored kept frames whose images restoreKeptFrame has not had yet (from kept_.size() on).
+  struct PendingKept {
+    double t_s = 0.0;
+    SE3 T_w_b;
+    double gain = 1.0;
+    double offset = 0.0;
+  };
+  std::vector<PendingKept> pending_kept_;
   bool has_previous_ = false;
   std::vector<double> previous_gamma_;
   double previous_t_s_ = 0.0;  ///< time of the previous frame (when has_previous_)

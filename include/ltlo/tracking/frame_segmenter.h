@@ -18,6 +18,7 @@
 /// the dense segmenter of thesis Eq. 59-64 and the --oracle-masks ablation elsewhere.
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "ltlo/core/calib.h"
 #include "ltlo/core/lie.h"
@@ -113,6 +114,12 @@ class FrameSegmenter {
   /// Rebuilds the previous frame's image work from its input, as segment() left it; throws
   /// InputError when `previous` is not the frame previousFrameTime() names.
   virtual void restorePreviousFrame(const io::RgbdImuFrame& previous) { (void)previous; }
+  /// After readState: the times (s, oldest first) of earlier frames the segmenter keeps whose images
+  /// restoreKeptFrame needs, one call each in this order, before restorePreviousFrame (the dense
+  /// segmenter's reference frames, Dense.ReferenceBaseline). Default: none.
+  virtual std::vector<double> keptFrameTimes() const { return {}; }
+  /// Rebuilds the next of them from its input; throws InputError when `frame` is not that frame.
+  virtual void restoreKeptFrame(const io::RgbdImuFrame& frame) { (void)frame; }
 };
 
 /// Seg.Enable = 0: every frame is one static cluster (the static core's behaviour, for ablations).
