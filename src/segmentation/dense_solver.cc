@@ -73,8 +73,8 @@ struct State {
   imu::ImuBias bias;
 };
 
-detail::Warp warpOf(const DensePrior& prior, const SE3& T_w_b) {
-  const SE3 T_prev_cur = (prior.T_w_b_prev * prior.T_b_c).inverse() * (T_w_b * prior.T_b_c);
+/// The warp of the current camera into an earlier one, T_prev_cur, as floats.
+detail::Warp warpFrom(const SE3& T_prev_cur) {
   const Mat3 R = T_prev_cur.rotationMatrix();
   detail::Warp warp;
   for (int r = 0; r < 3; ++r) {
@@ -82,6 +82,10 @@ detail::Warp warpOf(const DensePrior& prior, const SE3& T_w_b) {
     warp.t[r] = static_cast<float>(T_prev_cur.translation()(r));
   }
   return warp;
+}
+
+detail::Warp warpOf(const DensePrior& prior, const SE3& T_w_b) {
+  return warpFrom((prior.T_w_b_prev * prior.T_b_c).inverse() * (T_w_b * prior.T_b_c));
 }
 
 /// The image motion still to come after a Gauss-Newton step of step_px, px, from the level's
@@ -361,13 +365,7 @@ void DenseSolve::gammaStep(int level, bool record_prediction_cost) {
 
 bool DenseSolve::referenceEvidence(int level) {
   const int K = num_clusters_;
-  const SE3 T_ref_cur = reference_->T_w_c.inverse() * (state_.T_w_b * prior_.T_b_c);
-  detail::Warp warp;
-  const Mat3 R = T_ref_cur.rotationMatrix();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) warp.R[3 * r + c] = static_cast<float>(R(r, c));
-    warp.t[r] = static_cast<float>(T_ref_cur.translation()(r));
-  }
+  const detail::Warp warp = warpFrom(reference_->T_w_c.inverse() * (state_.T_w_b * prior_.T_b_c));
   // I_ref ~ g I_prev + o and I_prev ~ a I_cur + b: I_ref ~ g a I_cur + (g b + o).
   detail::Brightness brightness;
   brightness.gain = static_cast<float>(reference_->gain * brightness_.gain);

@@ -29,7 +29,10 @@ constexpr std::size_t kMaxKeptFrames = 4;
 /// A world correction of the previous pose beyond these (a loop closure or a merge, not local
 /// mapping's millimetres) clears the kept frames: their poses would be in another world.
 constexpr double kReferenceJumpM = 0.02;
-constexpr double kReferenceJumpRad = 0.5 * 3.14159265358979323846 / 180.0;
+constexpr double kReferenceJumpRad = 0.5 * M_PI / 180.0;
+/// Frame times that jitter around a multiple of the half baseline still keep every frame and find
+/// the frame one baseline back, s.
+constexpr double kKeptTimeToleranceS = 1e-3;
 
 Mat6 poseInformation(const Mat3& rotation_covariance, double translation_sigma_m) {
   Mat6 information = Mat6::Zero();
@@ -245,8 +248,7 @@ void DenseSegmenter::afterSolve(const MotionPrior& prior, double t_s) {
     kept.gain *= last_result_.brightness_gain;
   }
   const double newest_t_s = kept_.empty() ? -std::numeric_limits<double>::infinity() : kept_.back().frame->t_s;
-  // 1 ms: frame times that jitter around a multiple of the half baseline still keep every one.
-  keep_previous_ = t_s - newest_t_s >= 0.5 * dense_.reference_baseline_s - 1e-3;
+  keep_previous_ = t_s - newest_t_s >= 0.5 * dense_.reference_baseline_s - kKeptTimeToleranceS;
 }
 
 std::string DenseSegmenter::referenceSummary() const {
@@ -263,7 +265,7 @@ std::string DenseSegmenter::referenceSummary() const {
 
 const DenseSegmenter::KeptFrame* DenseSegmenter::referenceFor(double t_s) const {
   for (auto it = kept_.rbegin(); it != kept_.rend(); ++it) {
-    if (t_s - it->frame->t_s >= dense_.reference_baseline_s - 1e-3) return &*it;
+    if (t_s - it->frame->t_s >= dense_.reference_baseline_s - kKeptTimeToleranceS) return &*it;
   }
   return nullptr;
 }
