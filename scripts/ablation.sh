@@ -15,6 +15,8 @@
 #   robust_beta_off  Mapping.RobustBeta = 0: plain VIBA on tracking's Gamma, no beta, no dynamic points deleted
 #   reference_off    Dense.ReferenceBaseline = 0: the Gamma step judges the clusters against the previous frame
 #                    only (a mover keeping pace with the camera passes as static)
+#   fixed_ratio_off  LocalMapping.MaxFixedObservationRatio = 0: local BA takes every fixed observation (its cost
+#                    grows with the laps of a revisited room)
 #   no_imu           --no-imu: RGB-D only
 # and, for the harder worlds (issue 32; not in the default list):
 #   start_off        the occluded start's handling off: Tracking.StartProvisional = 0, StartReacquireSpeed = 0,
@@ -81,6 +83,7 @@ variant_args() {
     dense_init_off) echo "${full[@]}" --set Seg.DenseInit=0 ;;
     robust_beta_off) echo "${full[@]}" --set Mapping.RobustBeta=0 ;;
     reference_off) echo "${full[@]}" --set Dense.ReferenceBaseline=0 ;;
+    fixed_ratio_off) echo "${full[@]}" --set LocalMapping.MaxFixedObservationRatio=0 ;;
     no_imu) echo "${full[@]}" --no-imu ;;
     start_off)
       echo "${full[@]}" --set Tracking.StartProvisional=0 --set Tracking.StartReacquireSpeed=0 \

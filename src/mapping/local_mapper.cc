@@ -235,6 +235,7 @@ WindowBaStats LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::sha
   ba.max_fixed_keyframes = static_cast<std::size_t>(options.local_mapping.max_fixed_keyframes);
   ba.max_fixed_observations_per_point =
       static_cast<std::size_t>(options.local_mapping.max_fixed_observations_per_point);
+  ba.max_fixed_observation_ratio = options.local_mapping.max_fixed_observation_ratio;
   ba.iterations = options.local_mapping.ba_iterations;
   ba.bf_px_m = options.bf_px_m;
   ba.min_point_beta = options.local_mapping.min_point_beta;
@@ -580,6 +581,8 @@ void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_m
   entry.ba_fixed_keyframes = ba.fixed_keyframes;
   entry.ba_points = ba.points;
   entry.ba_observations = ba.observations;
+  entry.ba_fixed_observations = ba.fixed_observations;
+  entry.ba_fixed_observation_limit = ba.fixed_observation_limit;
   entry.t_s = kf.t_s();
   entry.keyframe_id = kf.id().value;
   entry.mapping_ms = mapping_ms;

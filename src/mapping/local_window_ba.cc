@@ -61,6 +61,8 @@ struct Window {
   std::vector<ObservationRef> refs;                    ///< problem order
   std::vector<ProbePoint> probes;
   optim::LocalBaProblem problem;
+  int fixed_observations = 0;               ///< observations in the problem by fixed keyframes
+  std::size_t fixed_observation_limit = 0;  ///< the per-point limit applied (0: none)
 };
 
 /// A point seen from outside its distance range or viewing cone is not expected in the image
@@ -264,7 +266,46 @@ void addPoint(const std::shared_ptr<map::MapPoint>& point, const KeyFrameIndex& 
                                       ? static_cast<int>(point_refs.front().keyframe)
                                       : -1);
   problem.observations.insert(problem.observations.end(), observations.begin(), observations.end());
+  for (const ObservationRef& ref : point_refs) {
+    if (ref.keyframe >= window_end) ++window->fixed_observations;
+  }
   window->refs.insert(window->refs.end(), point_refs.begin(), point_refs.end());
+}
+
+/// LocalMapping.MaxFixedObservationRatio: the largest per-point limit on the observations from fixed
+/// keyframes (window keyframes from `window_end` on) under which `points` keep at most `ratio` times
+/// as many of them as the optimised keyframes make (window keyframes before `window_end`), at least 1;
+/// 0 when all of them fit (or the ratio is 0).
+std::size_t fixedObservationLimit(const std::vector<std::shared_ptr<map::MapPoint>>& points,
+                                  const KeyFrameIndex& index_of, std::size_t window_end, double ratio) {
+  if (ratio <= 0.0) return 0;
+  // points_with_more[m]: the points with more than m fixed observers. Limit n keeps
+  // sum over p of min(count_p, n) = sum over m < n of points_with_more[m].
+  std::vector<std::size_t> points_with_more;
+  std::size_t fixed_total = 0, window_total = 0;
+  for (const std::shared_ptr<map::MapPoint>& point : points) {
+    std::size_t count = 0;
+    for (const auto& [observer, index] : point->observations()) {
+      const auto it = index_of.find(observer);
+      if (it == index_of.end()) continue;
+      if (it->second >= window_end) {
+        ++count;
+      } else {
+        ++window_total;
+      }
+    }
+    if (count > points_with_more.size()) points_with_more.resize(count, 0);
+    for (std::size_t m = 0; m < count; ++m) ++points_with_more[m];
+    fixed_total += count;
+  }
+  const double budget = ratio * static_cast<double>(window_total);
+  if (static_cast<double>(fixed_total) <= budget) return 0;
+  std::size_t kept = 0;
+  for (std::size_t limit = 0; limit < points_with_more.size(); ++limit) {
+    kept += points_with_more[limit];
+    if (static_cast<double>(kept) > budget) return std::max<std::size_t>(limit, 1);
+  }
+  return 0;
 }
 
 /// Probe points for Eq. 56: the static points of the fixed keyframes (from `window_end` on) the
@@ -297,8 +338,13 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
       addObservedPoints(map, options, window_end, &window, &index_of, &point_seen);
   // ---- the problem ----
   setUpProblem(*kf, options, &window);
+  std::size_t limit = options.max_fixed_observations_per_point;
+  const std::size_t ratio_limit =
+      fixedObservationLimit(points, index_of, window_end, options.max_fixed_observation_ratio);
+  if (ratio_limit > 0 && (limit == 0 || ratio_limit < limit)) limit = ratio_limit;
+  window.fixed_observation_limit = limit;
   for (const std::shared_ptr<map::MapPoint>& point : points) {
-    addPoint(point, index_of, level_sigma2, window_end, options.max_fixed_observations_per_point, &window);
+    addPoint(point, index_of, level_sigma2, window_end, limit, &window);
   }
   if (options.robust) addProbePoints(map, options, window_end, &point_seen, &window);
   return window;
@@ -580,6 +626,8 @@ WindowBaStats localWindowBundleAdjust(map::Map& map, const std::shared_ptr<map::
   const Window window = collectWindow(map, kf, options, level_sigma2);
   stats.points = static_cast<int>(window.problem.points.size());
   stats.observations = static_cast<int>(window.problem.observations.size());
+  stats.fixed_observations = window.fixed_observations;
+  stats.fixed_observation_limit = static_cast<int>(window.fixed_observation_limit);
   stats.inertial_links = static_cast<int>(window.problem.inertial.size());
   for (const WindowKeyFrame& entry : window.keyframes) (entry.fixed ? stats.fixed_keyframes : stats.optimised_keyframes)++;
   if (stats.optimised_keyframes == 0 || window.problem.observations.empty()) return stats;

@@ -37,6 +37,11 @@ struct WindowBaOptions {
   /// observations of one point from fixed keyframes kept, those of the fixed keyframes sharing most
   /// points first (0: all)
   std::size_t max_fixed_observations_per_point = 0;
+  /// Observations from fixed keyframes at most this many times those of the optimised keyframes (0:
+  /// no limit): when the window's points have more, the per-point limit above is lowered to the
+  /// largest that keeps them within it (at least 1). Bounds local BA on revisited places; a window
+  /// within it is built as without it.
+  double max_fixed_observation_ratio = 0.0;
   double bf_px_m = 40.0;
   double min_point_beta = 0.5;   ///< points with a lower static score are left out (robust: deleted)
   int num_threads = 1;
@@ -72,6 +77,8 @@ struct WindowBaStats {
   int fixed_keyframes = 0;
   int points = 0;
   int observations = 0;
+  int fixed_observations = 0;       ///< of observations, those by fixed keyframes
+  int fixed_observation_limit = 0;  ///< the per-point limit on fixed observations applied (0: none)
   int inertial_links = 0;
   int outliers_erased = 0;
   int dynamic_points_erased = 0;  ///< robust: beta ended below min_point_beta

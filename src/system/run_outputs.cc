@@ -24,7 +24,7 @@ namespace {
 constexpr const char* kKeyFramesHeader = "# t tx ty tz qx qy qz qw id map static_area_ratio";
 constexpr const char* kMappingTimelineHeader =
     "# t keyframe_id mapping_ms atlas_keyframes atlas_map_points resident_mb ba_optimised ba_fixed ba_points "
-    "ba_observations";
+    "ba_observations ba_fixed_observations ba_fixed_observation_limit";
 constexpr const char* kPlyVertexLayout[] = {"property float x",     "property float y",
                                             "property float z",     "property uchar red",
                                             "property uchar green", "property uchar blue",
@@ -97,7 +97,8 @@ void writeMappingTimeline(const std::string& path, const std::vector<mapping::Ma
     out << std::fixed << std::setprecision(6) << entry.t_s << ' ' << entry.keyframe_id << ' ' << std::setprecision(3)
         << entry.mapping_ms << ' ' << entry.atlas_keyframes << ' ' << entry.atlas_map_points << ' '
         << std::setprecision(1) << entry.resident_mb << ' ' << entry.ba_optimised_keyframes << ' '
-        << entry.ba_fixed_keyframes << ' ' << entry.ba_points << ' ' << entry.ba_observations << '\n';
+        << entry.ba_fixed_keyframes << ' ' << entry.ba_points << ' ' << entry.ba_observations << ' '
+        << entry.ba_fixed_observations << ' ' << entry.ba_fixed_observation_limit << '\n';
   }
   if (!out) throw InputError(path, 0, "write failed");
 }

@@ -1,7 +1,8 @@
 // The size of local BA's problem on a revisited place (issue 32): 30 keyframes, as laps over one
-// spot leave them, all see the same 60 points. LocalMapping.MaxFixedObservationsPerPoint bounds the
-// observations each point takes from the fixed keyframes, so the problem stops growing with the
-// laps, and the optimised keyframes still return to their true poses (noise-free observations).
+// spot leave them, all see the same 60 points. LocalMapping.MaxFixedObservationsPerPoint and
+// LocalMapping.MaxFixedObservationRatio bound the observations each point takes from the fixed
+// keyframes, so the problem stops growing with the laps, and the optimised keyframes still return to
+// their true poses (noise-free observations).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -66,15 +67,17 @@ struct RevisitedSpot {
 struct CapResult {
   WindowBaStats stats;
   double largest_error_m = 0.0;  ///< optimised keyframes' position error after the BA
+  SE3 pose_after;                ///< the newest keyframe's pose after the BA
 };
 
 /// Visual local BA around the newest keyframe, moved 3 cm off the truth first.
-CapResult runWindow(std::size_t max_fixed_observations_per_point) {
+CapResult runWindow(std::size_t max_fixed_observations_per_point, double max_fixed_observation_ratio = 0.0) {
   RevisitedSpot spot;
   WindowBaOptions options;
   options.window_size = kWindow;
   options.max_fixed_keyframes = 50;
   options.max_fixed_observations_per_point = max_fixed_observations_per_point;
+  options.max_fixed_observation_ratio = max_fixed_observation_ratio;
   options.robust = false;
   options.bf_px_m = 262.5 * 0.5;
   const auto& newest = spot.keyframes.back();
@@ -86,6 +89,7 @@ CapResult runWindow(std::size_t max_fixed_observations_per_point) {
     result.largest_error_m =
         std::max(result.largest_error_m, (kf->T_w_b().translation() - truePose(n).translation()).norm());
   }
+  result.pose_after = spot.keyframes.back()->T_w_b();
   return result;
 }
 
@@ -107,6 +111,44 @@ TEST(LocalBaProblemSize, FixedObservationsPerPointAreCapped) {
   // Both recover the true poses (exact data): the cap drops redundant constraints only.
   EXPECT_LT(all.largest_error_m, 1e-4);
   EXPECT_LT(capped.largest_error_m, 1e-4);
+}
+
+// LocalMapping.MaxFixedObservationRatio: a window whose fixed observations fit the ratio to the
+// optimised keyframes' observations is left as it is (the same problem, the same result to the bit);
+// one that does not gets the largest per-point limit that fits (at least one), and with a per-point
+// limit as well the smaller of the two counts.
+TEST(LocalBaProblemSize, FixedObservationRatioLowersThePerPointLimitOnlyWhenExceeded) {
+  constexpr int kFixedPerPoint = kKeyFrames - kWindow;  // 25 fixed observers of every point
+  constexpr double kWindowObservations = kPoints * kWindow;
+  const CapResult all = runWindow(0);
+  ASSERT_EQ(all.stats.fixed_observations, kPoints * kFixedPerPoint);
+  ASSERT_EQ(all.stats.observations - all.stats.fixed_observations, kPoints * kWindow);
+  EXPECT_EQ(all.stats.fixed_observation_limit, 0);
+
+  const CapResult fits = runWindow(0, kFixedPerPoint / static_cast<double>(kWindow));  // exactly 5
+  EXPECT_EQ(fits.stats.fixed_observation_limit, 0);
+  EXPECT_EQ(fits.stats.observations, all.stats.observations);
+  EXPECT_TRUE(fits.pose_after.translation() == all.pose_after.translation());
+  EXPECT_TRUE(fits.pose_after.quaternion().coeffs() == all.pose_after.quaternion().coeffs());
+
+  const CapResult one_short = runWindow(0, (kPoints * kFixedPerPoint - 1) / kWindowObservations);
+  EXPECT_EQ(one_short.stats.fixed_observation_limit, kFixedPerPoint - 1);
+  EXPECT_EQ(one_short.stats.fixed_observations, kPoints * (kFixedPerPoint - 1));
+
+  const CapResult seven = runWindow(0, 7.5 / kWindow);  // 7.5 a point
+  EXPECT_EQ(seven.stats.fixed_observation_limit, 7);
+  EXPECT_EQ(seven.stats.fixed_observations, kPoints * 7);
+  EXPECT_EQ(seven.stats.observations, kPoints * (kWindow + 7));
+  EXPECT_LT(seven.largest_error_m, 1e-4);
+
+  const CapResult tiny = runWindow(0, 0.01);  // below one a point: one a point all the same
+  EXPECT_EQ(tiny.stats.fixed_observation_limit, 1);
+  EXPECT_EQ(tiny.stats.fixed_observations, kPoints);
+  EXPECT_LT(tiny.largest_error_m, 1e-4);
+
+  EXPECT_EQ(runWindow(4, 7.5 / kWindow).stats.fixed_observation_limit, 4);  // the per-point limit is smaller
+  EXPECT_EQ(runWindow(9, 7.5 / kWindow).stats.fixed_observation_limit, 7);  // the ratio's is
+  EXPECT_EQ(runWindow(9, 0.0).stats.fixed_observation_limit, 9);
 }
 
 }  // namespace

@@ -209,6 +209,8 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
       entry.ba_fixed_keyframes = 20 + k / 20;
       entry.ba_points = 500;
       entry.ba_observations = 1000 + k;
+      entry.ba_fixed_observations = 600 + k;
+      entry.ba_fixed_observation_limit = k > 300 ? 4 : 0;
     }
     timeline.push_back(entry);
   }
@@ -246,16 +248,19 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   int lines = 0;
   double t_s = 0.0, mapping_ms = 0.0, resident_mb = 0.0;
   std::uint64_t id = 0, keyframes = 0, points = 0;
-  int ba_optimised = 0, ba_fixed = 0, ba_points = 0, ba_observations = 0;
+  int ba_optimised = 0, ba_fixed = 0, ba_points = 0, ba_observations = 0, ba_fixed_observations = 0;
+  int ba_fixed_limit = -1;
   while (std::getline(in, line)) {
     std::istringstream(line) >> t_s >> id >> mapping_ms >> keyframes >> points >> resident_mb >> ba_optimised >>
-        ba_fixed >> ba_points >> ba_observations;
+        ba_fixed >> ba_points >> ba_observations >> ba_fixed_observations >> ba_fixed_limit;
     ++lines;
   }
   EXPECT_EQ(ba_optimised, 10);
   EXPECT_EQ(ba_fixed, 50);
   EXPECT_EQ(ba_points, 500);
   EXPECT_EQ(ba_observations, 1600);
+  EXPECT_EQ(ba_fixed_observations, 1200);
+  EXPECT_EQ(ba_fixed_limit, 4);
   EXPECT_EQ(lines, 601);
   EXPECT_NEAR(t_s, 300.0, 1e-9);
   EXPECT_EQ(id, 600u);

@@ -159,6 +159,12 @@ struct LocalMappingOptions {
   /// MaxFixedObservationsPerPoint, [0, 1000]; 0: all). A point seen from every lap of a revisited
   /// room is held by a few fixed views as well as by all: the rest only add cost (issue 32)
   int max_fixed_observations_per_point = 0;
+  /// Observations of local BA's points from fixed keyframes at most this many times those from the
+  /// optimised keyframes (LocalMapping.MaxFixedObservationRatio, [0, 1000]; 0: no limit). Above it,
+  /// the per-point limit above is lowered to the largest that fits. A young map's windows stay whole;
+  /// a revisited room's stop growing with every lap, so the mapping cost per keyframe is bounded on
+  /// long runs (issue 32). A ratio, not a count: the same value holds at any image size
+  double max_fixed_observation_ratio = 0.0;
   /// solver iterations per state step (LocalMapping.Iterations, [1, 1000])
   int ba_iterations = 10;
   /// Robust VIBA (Mapping.RobustBeta, 0/1): 1 alternates the state/point step with the closed-form

@@ -20,6 +20,8 @@ struct MappingTimelineEntry {
   int ba_fixed_keyframes = 0;
   int ba_points = 0;
   int ba_observations = 0;
+  int ba_fixed_observations = 0;       ///< of ba_observations, those by fixed keyframes
+  int ba_fixed_observation_limit = 0;  ///< the per-point limit on them applied (0: none)
 };
 
 }  // namespace ltlo::mapping
