@@ -236,7 +236,7 @@ void movePointsWithKeyFrames(const map::Map& map, const std::unordered_map<map::
       by = point->referenceKeyFrame();
     }
     if (!by.valid() || correction.count(by) == 0) {
-      const std::map<map::KeyFrameId, int> observations = point->observations();
+      const map::Observations observations = point->observations();
       by = map::KeyFrameId();
       for (const auto& [id, index] : observations) {
         if (correction.count(id) > 0) {

@@ -110,10 +110,10 @@ bool Map::addObservation(KeyFrame& kf, int keypoint_index, MapPoint& point) {
   if (slot.valid() && slot != point.id()) return false;  // the keypoint already has another point
   std::lock_guard<std::mutex> point_lock(point.mutex_);
   if (point.bad_) return false;
-  const auto seen = point.observations_.find(kf.id());
-  if (seen != point.observations_.end() && seen->second != keypoint_index) return false;  // seen at another keypoint
+  const int seen_at = point.indexInLocked(kf.id());
+  if (seen_at >= 0 && seen_at != keypoint_index) return false;  // seen at another keypoint
   kf.map_points_[static_cast<std::size_t>(keypoint_index)] = point.id();
-  point.observations_[kf.id()] = keypoint_index;
+  point.setObservationLocked(kf.id(), keypoint_index);
   if (!point.reference_.valid()) point.reference_ = kf.id();
   return true;
 }
@@ -312,7 +312,7 @@ bool Map::eraseMapPoint(MapPointId id) {
 void Map::eraseMapPointUnserialised(MapPointId id) {
   const std::shared_ptr<MapPoint> point = mapPoint(id);
   if (!point) return;
-  if (const std::optional<std::map<KeyFrameId, int>> observations = point->setBad(MapPointId())) {
+  if (const std::optional<Observations> observations = point->setBad(MapPointId())) {
     for (const auto& [kf_id, index] : *observations) {
       if (const std::shared_ptr<KeyFrame> kf = keyFrame(kf_id)) kf->eraseMapPoint(index, id);
     }
@@ -327,7 +327,7 @@ bool Map::replaceMapPoint(MapPointId old_id, MapPointId replacement) {
   const std::shared_ptr<MapPoint> old_point = mapPoint(old_id);
   const std::shared_ptr<MapPoint> new_point = mapPoint(replacement);
   if (!old_point || !new_point || new_point->isBad()) return false;
-  const std::optional<std::map<KeyFrameId, int>> observations = old_point->setBad(replacement);
+  const std::optional<Observations> observations = old_point->setBad(replacement);
   if (!observations) return false;
   for (const auto& [kf_id, index] : *observations) {
     const std::shared_ptr<KeyFrame> kf = keyFrame(kf_id);

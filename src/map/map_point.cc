@@ -23,9 +23,23 @@ void MapPoint::setPosition(const Vec3& p_w) {
   p_w_ = p_w;
 }
 
-std::map<KeyFrameId, int> MapPoint::observations() const {
+namespace {
+
+/// The first observation whose keyframe is not before `kf` (the list is sorted by keyframe id).
+Observations::const_iterator lowerBound(const Observations& observations, KeyFrameId kf) {
+  return std::lower_bound(observations.begin(), observations.end(), kf,
+                          [](const std::pair<KeyFrameId, int>& entry, KeyFrameId id) { return entry.first < id; });
+}
+
+}  // namespace
+
+Observations MapPoint::observations() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return observations_;
+}
+void MapPoint::observationsInto(Observations* out) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  out->assign(observations_.begin(), observations_.end());
 }
 int MapPoint::numObservations() const {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -33,9 +47,21 @@ int MapPoint::numObservations() const {
 }
 std::optional<int> MapPoint::indexIn(KeyFrameId kf) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = observations_.find(kf);
-  if (it == observations_.end()) return std::nullopt;
-  return it->second;
+  const int index = indexInLocked(kf);
+  if (index < 0) return std::nullopt;
+  return index;
+}
+int MapPoint::indexInLocked(KeyFrameId kf) const {
+  const auto it = lowerBound(observations_, kf);
+  return it != observations_.end() && it->first == kf ? it->second : -1;
+}
+void MapPoint::setObservationLocked(KeyFrameId kf, int keypoint_index) {
+  const auto it = lowerBound(observations_, kf);
+  if (it != observations_.end() && it->first == kf) {
+    observations_[static_cast<std::size_t>(it - observations_.begin())].second = keypoint_index;
+  } else {
+    observations_.insert(it, {kf, keypoint_index});
+  }
 }
 KeyFrameId MapPoint::referenceKeyFrame() const {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -45,24 +71,25 @@ KeyFrameId MapPoint::referenceKeyFrame() const {
 bool MapPoint::addObservation(KeyFrameId kf, int keypoint_index) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (bad_) return false;
-  observations_[kf] = keypoint_index;
+  setObservationLocked(kf, keypoint_index);
   if (!reference_.valid()) reference_ = kf;
   return true;
 }
 
 int MapPoint::eraseObservation(KeyFrameId kf) {
   std::lock_guard<std::mutex> lock(mutex_);
-  observations_.erase(kf);
+  const auto it = lowerBound(observations_, kf);
+  if (it != observations_.end() && it->first == kf) observations_.erase(it);
   if (reference_ == kf) reference_ = observations_.empty() ? KeyFrameId() : observations_.begin()->first;
   return static_cast<int>(observations_.size());
 }
 
-std::optional<std::map<KeyFrameId, int>> MapPoint::setBad(MapPointId replaced_by) {
+std::optional<Observations> MapPoint::setBad(MapPointId replaced_by) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (bad_) return std::nullopt;
   bad_ = true;
   replaced_by_ = replaced_by;
-  std::map<KeyFrameId, int> observations;
+  Observations observations;
   observations.swap(observations_);
   return observations;
 }
@@ -79,19 +106,21 @@ void MapPoint::setDescriptor(const features::Descriptor& descriptor) {
 int MapPoint::medianDescriptorIndex(const std::vector<features::Descriptor>& descriptors) {
   const std::size_t n = descriptors.size();
   if (n == 0) return -1;
-  std::vector<std::vector<int>> distances(n, std::vector<int>(n, 0));
+  // Row-major n x n distances in one block (a point seen on every lap of a long run has tens).
+  std::vector<int> distances(n * n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t j = i + 1; j < n; ++j) {
-      distances[i][j] = distances[j][i] = features::hammingDistance(descriptors[i], descriptors[j]);
+      distances[i * n + j] = distances[j * n + i] = features::hammingDistance(descriptors[i], descriptors[j]);
     }
   }
   int best_index = 0;
   int best_median = 257;
+  const auto median_rank = static_cast<long>((n - 1) / 2);
   for (std::size_t i = 0; i < n; ++i) {
-    std::vector<int>& row = distances[i];
+    const auto row = distances.begin() + static_cast<long>(i * n);
     // Lower median of the n distances (including 0 to itself), so two descriptors tie at 0.
-    std::nth_element(row.begin(), row.begin() + static_cast<long>((n - 1) / 2), row.end());
-    const int median = row[(n - 1) / 2];
+    std::nth_element(row, row + median_rank, row + static_cast<long>(n));
+    const int median = row[median_rank];
     if (median < best_median) {
       best_median = median;
       best_index = static_cast<int>(i);

@@ -1,4 +1,5 @@
 // The points section of the atlas file (atlas_file.h): every map point with its observations.
+#include <algorithm>
 #include <string>
 
 #include "atlas_file_access.h"
@@ -22,10 +23,10 @@ void writeMapPoint(const MapPoint& point, MapId map, const AtlasSnapshot& snapsh
   out.i32(point.numVisible());
   out.i32(point.numFound());
   out.f64(point.beta());
-  std::map<KeyFrameId, int> observations = point.observations();
-  for (auto it = observations.begin(); it != observations.end();) {
-    it = snapshot.saved(it->first) ? std::next(it) : observations.erase(it);
-  }
+  Observations observations = point.observations();
+  observations.erase(std::remove_if(observations.begin(), observations.end(),
+                                    [&](const std::pair<KeyFrameId, int>& entry) { return !snapshot.saved(entry.first); }),
+                     observations.end());
   out.u64(observations.size());
   for (const auto& [kf, index] : observations) {
     out.u64(kf.value);

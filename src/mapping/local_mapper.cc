@@ -26,6 +26,14 @@ double angleDeg(const Vec3& a, const Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
 }
 
+/// A keyframe's processing split by step (ms), for the mapping timeline.
+struct MappingPhaseTimes {
+  double points_ms = 0.0;
+  double ba_ms = 0.0;
+  double keyframe_culling_ms = 0.0;
+  double imu_ms = 0.0;
+};
+
 }  // namespace
 
 struct LocalMapper::Impl {
@@ -47,7 +55,8 @@ struct LocalMapper::Impl {
   void process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded);
   /// Appends `kf`'s entry to the mapping timeline (atlas sizes and memory read now) with its local
   /// BA's problem size `ba`.
-  void recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba);
+  void recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba,
+                      const MappingPhaseTimes& phases);
   WindowBaStats localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const ImuState& imu,
                          bool threaded, LocalMapperCounters& delta);
   /// Initialises or refines the IMU estimate when due; true when it did.
@@ -109,6 +118,15 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
   if (timing != nullptr) timer.emplace(*timing, "mapping.keyframe");
   LocalMapperCounters delta;
   WindowBaStats ba_stats;
+  MappingPhaseTimes phases;
+  auto phase_start = start;
+  // The milliseconds since the previous phase ended (the timeline's per-phase columns).
+  auto end_phase = [&phase_start]() {
+    const auto now = std::chrono::steady_clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - phase_start).count();
+    phase_start = now;
+    return ms;
+  };
   map::Map* map = atlas.map(kf->mapId());
   if (map != nullptr && !kf->isBad()) {
     ++sequence;
@@ -123,6 +141,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     fusion.min_point_beta = options.local_mapping.min_point_beta;
     const FusionStats fused = fuseWithNeighbours(*map, *kf, fusion, level_sigma2);
     delta.fused_points += fused.replaced + fused.linked;
+    phases.points_ms = end_phase();
 
     // 3. Local (visual-inertial) BA, unless more keyframes wait (ORB-SLAM: they come first).
     const ImuState imu = [&] {
@@ -135,6 +154,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
       ba_stats = localBundleAdjust(*map, kf, imu, threaded, delta);
       ++delta.local_ba_runs;
     }
+    phases.ba_ms = end_phase();
 
     // 4. Keyframe culling.
     KeyFrameCullingOptions culling;
@@ -150,6 +170,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
       ++delta.culled_keyframes;
     }
     if (cut_links > 0) log::debug("culling at kf ", kf->id(), ": ", cut_links, " old keyframes culled, IMU chain cut");
+    phases.keyframe_culling_ms = end_phase();
 
     // 5. IMU initialisation and its refinements.
     if (options.use_imu && maybeInitialiseImu(*map, kf)) ++delta.imu_initialisations;
@@ -158,6 +179,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
     if (options.use_imu && options.local_mapping.estimate_time_offset && !kf->isBad()) {
       updateTimeOffset(*map, *kf, imu);
     }
+    phases.imu_ms = end_phase();
   }
   std::function<void(const std::shared_ptr<map::KeyFrame>&)> callback;
   {
@@ -174,7 +196,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
   }
   if (timer) timer->stop();
   recordTimeline(*kf, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-                 ba_stats);
+                 ba_stats, phases);
   // 6. Hand on (loop closing).
   if (callback) callback(kf);
 }
@@ -575,14 +597,21 @@ TimeOffsetStatus LocalMapper::timeOffset() const {
   return impl_->time_offset;
 }
 
-void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba) {
+void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba,
+                                       const MappingPhaseTimes& phases) {
   MappingTimelineEntry entry;
+  entry.points_ms = phases.points_ms;
+  entry.ba_ms = phases.ba_ms;
+  entry.keyframe_culling_ms = phases.keyframe_culling_ms;
+  entry.imu_ms = phases.imu_ms;
   entry.ba_optimised_keyframes = ba.optimised_keyframes;
   entry.ba_fixed_keyframes = ba.fixed_keyframes;
   entry.ba_points = ba.points;
   entry.ba_observations = ba.observations;
   entry.ba_fixed_observations = ba.fixed_observations;
   entry.ba_fixed_observation_limit = ba.fixed_observation_limit;
+  entry.ba_probe_points = ba.probe_points;
+  entry.ba_iterations = ba.solver_iterations;
   entry.t_s = kf.t_s();
   entry.keyframe_id = kf.id().value;
   entry.mapping_ms = mapping_ms;

@@ -160,13 +160,15 @@ std::vector<std::shared_ptr<map::MapPoint>> addObservedPoints(map::Map& map, con
   std::vector<WindowKeyFrame>& keyframes = window->keyframes;
   std::vector<std::shared_ptr<map::MapPoint>> points;
   std::unordered_map<map::KeyFrameId, int> fixed_counts;
+  map::Observations observations;
   for (std::size_t k = 0; k < window_end; ++k) {
     for (const map::MapPointId id : keyframes[k].kf->mapPoints()) {
       if (!id.valid() || !point_seen->insert(id).second) continue;
       const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
       if (!point || point->isBad() || point->beta() < options.min_point_beta) continue;
       points.push_back(point);
-      for (const auto& [observer, index] : point->observations()) {
+      point->observationsInto(&observations);
+      for (const auto& [observer, index] : observations) {
         if (index_of->count(observer) == 0) ++fixed_counts[observer];
       }
     }
@@ -214,17 +216,18 @@ void setUpProblem(const map::KeyFrame& kf, const WindowBaOptions& options, Windo
 /// `point` with its observations by the window's keyframes into the problem, unless they leave it
 /// unconstrained. Of its observations by the fixed observers (window keyframes from `window_end`
 /// on, ordered by the points they share with the window), at most `max_fixed_observations` (0: all)
-/// enter, the first in that order.
+/// enter, the first in that order. *point_observations_buffer is scratch space, reused across points.
 void addPoint(const std::shared_ptr<map::MapPoint>& point, const KeyFrameIndex& index_of,
               const std::vector<float>& level_sigma2, std::size_t window_end, std::size_t max_fixed_observations,
-              Window* window) {
+              map::Observations* point_observations_buffer, Window* window) {
   optim::LocalBaProblem& problem = window->problem;
   const std::size_t point_index = window->points.size();
   const double beta = point->beta();
   std::vector<optim::BaObservation> observations;
   std::vector<ObservationRef> point_refs;
   bool has_depth = false;
-  const std::map<map::KeyFrameId, int> point_observations = point->observations();
+  point->observationsInto(point_observations_buffer);
+  const map::Observations& point_observations = *point_observations_buffer;
   // The window index below which a fixed observer's observation is kept (all when uncapped).
   std::size_t fixed_index_limit = window->keyframes.size();
   if (max_fixed_observations > 0) {
@@ -283,9 +286,11 @@ std::size_t fixedObservationLimit(const std::vector<std::shared_ptr<map::MapPoin
   // sum over p of min(count_p, n) = sum over m < n of points_with_more[m].
   std::vector<std::size_t> points_with_more;
   std::size_t fixed_total = 0, window_total = 0;
+  map::Observations observations;
   for (const std::shared_ptr<map::MapPoint>& point : points) {
     std::size_t count = 0;
-    for (const auto& [observer, index] : point->observations()) {
+    point->observationsInto(&observations);
+    for (const auto& [observer, index] : observations) {
       const auto it = index_of.find(observer);
       if (it == index_of.end()) continue;
       if (it->second >= window_end) {
@@ -343,8 +348,9 @@ Window collectWindow(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, co
       fixedObservationLimit(points, index_of, window_end, options.max_fixed_observation_ratio);
   if (ratio_limit > 0 && (limit == 0 || ratio_limit < limit)) limit = ratio_limit;
   window.fixed_observation_limit = limit;
+  map::Observations observations;
   for (const std::shared_ptr<map::MapPoint>& point : points) {
-    addPoint(point, index_of, level_sigma2, window_end, limit, &window);
+    addPoint(point, index_of, level_sigma2, window_end, limit, &observations, &window);
   }
   if (options.robust) addProbePoints(map, options, window_end, &point_seen, &window);
   return window;
@@ -604,6 +610,7 @@ void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowB
     // States and points for fixed Gamma, B.
     graph.setStaticWeights(staticWeights(window, layout, scores));
     summary = graph.optimize(options.iterations);
+    stats.solver_iterations += summary.iterations;
     // A new keyframe waits: stop after this round's score step (it costs a few ms), so B and Gamma
     // follow the states however busy the mapper is.
     stats.aborted = options.stop_flag != nullptr && options.stop_flag->load();
@@ -629,6 +636,7 @@ WindowBaStats localWindowBundleAdjust(map::Map& map, const std::shared_ptr<map::
   stats.fixed_observations = window.fixed_observations;
   stats.fixed_observation_limit = static_cast<int>(window.fixed_observation_limit);
   stats.inertial_links = static_cast<int>(window.problem.inertial.size());
+  stats.probe_points = static_cast<int>(window.probes.size());
   for (const WindowKeyFrame& entry : window.keyframes) (entry.fixed ? stats.fixed_keyframes : stats.optimised_keyframes)++;
   if (stats.optimised_keyframes == 0 || window.problem.observations.empty()) return stats;
 
@@ -644,6 +652,7 @@ WindowBaStats localWindowBundleAdjust(map::Map& map, const std::shared_ptr<map::
   const optim::LocalBaResult result = optim::localBundleAdjust(window.problem, ba_options);
   stats.aborted = options.stop_flag != nullptr && options.stop_flag->load();
   stats.final_chi2 = result.summary.final_chi2;
+  stats.solver_iterations = result.summary.iterations;
   writeStates(window, result);
   stats.outliers_erased = eraseOutlierObservations(map, window, result.inliers);
   return stats;

@@ -83,6 +83,8 @@ struct WindowBaStats {
   int outliers_erased = 0;
   int dynamic_points_erased = 0;  ///< robust: beta ended below min_point_beta
   int score_steps = 0;            ///< robust: Gamma/B steps completed
+  int probe_points = 0;           ///< robust: points of the fixed keyframes only, projected for Eq. 56
+  int solver_iterations = 0;      ///< of the optimiser, over all rounds
   double c_hat = 0.0;             ///< robust: the last c^ of Eq. 53
   bool aborted = false;          ///< the stop flag was raised during the optimisation
   double final_chi2 = 0.0;

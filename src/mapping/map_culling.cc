@@ -86,18 +86,29 @@ std::optional<map::Map::ImuLink> imuChainOnCulling(const map::Map& map, const ma
   return std::nullopt;
 }
 
-/// Share of `kf`'s points with depth that min_other_observers other keyframes see at the same or a
-/// finer scale (octave at most one above); 0 without such points.
-double redundantShare(const map::Map& map, const map::KeyFrame& kf, int min_other_observers) {
+}  // namespace
+
+// Stops as soon as the answer is certain: with w points judged so far, r of them redundant, and
+// at most n left, the share can reach at most (r + n) / (w + n) (issue 32: on a revisited map
+// every point has many observers, and most candidates fail early).
+bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other_observers, double ratio) {
+  const std::vector<map::MapPointId> ids = kf.mapPoints();
+  int left = 0;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    if (ids[i].valid() && kf.depth_m(static_cast<int>(i)) > 0.0f) ++left;
+  }
   int with_depth = 0;
   int redundant = 0;
-  const std::vector<map::MapPointId> ids = kf.mapPoints();
+  map::Observations observations;
   for (std::size_t i = 0; i < ids.size(); ++i) {
     if (!ids[i].valid() || kf.depth_m(static_cast<int>(i)) <= 0.0f) continue;
+    // (Rounding is monotone, so the bound fails the ratio only if the share would.)
+    if (static_cast<double>(redundant + left) / (with_depth + left) < ratio) return false;
+    --left;
     const std::shared_ptr<map::MapPoint> point = map.mapPoint(ids[i]);
     if (!point || point->isBad()) continue;
     ++with_depth;
-    const std::map<map::KeyFrameId, int> observations = point->observations();
+    point->observationsInto(&observations);
     if (static_cast<int>(observations.size()) <= min_other_observers) continue;
     const int octave = kf.keypoints()[i].octave;
     int observers = 0;
@@ -112,10 +123,8 @@ double redundantShare(const map::Map& map, const map::KeyFrame& kf, int min_othe
     }
     if (observers >= min_other_observers) ++redundant;
   }
-  return with_depth == 0 ? 0.0 : static_cast<double>(redundant) / with_depth;
+  return with_depth > 0 && static_cast<double>(redundant) / with_depth >= ratio;
 }
-
-}  // namespace
 
 std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::KeyFrame& current,
                                                     const KeyFrameCullingOptions& options, int* cut_links) {
@@ -135,7 +144,7 @@ std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::Ke
       if (!allowed) continue;
       imu_link = *allowed;
     }
-    if (redundantShare(map, *kf, options.min_other_observers) < options.redundant_ratio) continue;
+    if (!mostlyRedundant(map, *kf, options.min_other_observers, options.redundant_ratio)) continue;
     if (map.eraseKeyFrame(id, imu_link)) {
       culled.push_back(id);
       if (cut_links != nullptr && imu_link == map::Map::ImuLink::kCut) ++*cut_links;

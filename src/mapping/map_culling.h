@@ -64,6 +64,10 @@ struct KeyFrameCullingOptions {
   double cut_imu_min_age_s = 0.0;
 };
 
+/// Whether at least `ratio` of `kf`'s points with depth are seen by min_other_observers other
+/// keyframes at the same or a finer scale (octave at most one above); false without such points.
+bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other_observers, double ratio);
+
 /// Culls the redundant covisibles of `current` (only keyframes older than `current`, never its
 /// predecessor in time or an origin keyframe): those whose points with depth are seen at the same or a finer scale by
 /// min_other_observers other keyframes for at least redundant_ratio of them. Returns the culled ids;

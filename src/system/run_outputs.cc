@@ -24,7 +24,7 @@ namespace {
 constexpr const char* kKeyFramesHeader = "# t tx ty tz qx qy qz qw id map static_area_ratio";
 constexpr const char* kMappingTimelineHeader =
     "# t keyframe_id mapping_ms atlas_keyframes atlas_map_points resident_mb ba_optimised ba_fixed ba_points "
-    "ba_observations ba_fixed_observations ba_fixed_observation_limit";
+    "ba_observations ba_fixed_observations ba_fixed_observation_limit ba_probe_points ba_iterations points_ms ba_ms keyframe_culling_ms imu_ms";
 constexpr const char* kPlyVertexLayout[] = {"property float x",     "property float y",
                                             "property float z",     "property uchar red",
                                             "property uchar green", "property uchar blue",
@@ -98,7 +98,9 @@ void writeMappingTimeline(const std::string& path, const std::vector<mapping::Ma
         << entry.mapping_ms << ' ' << entry.atlas_keyframes << ' ' << entry.atlas_map_points << ' '
         << std::setprecision(1) << entry.resident_mb << ' ' << entry.ba_optimised_keyframes << ' '
         << entry.ba_fixed_keyframes << ' ' << entry.ba_points << ' ' << entry.ba_observations << ' '
-        << entry.ba_fixed_observations << ' ' << entry.ba_fixed_observation_limit << '\n';
+        << entry.ba_fixed_observations << ' ' << entry.ba_fixed_observation_limit << ' ' << entry.ba_probe_points << ' '
+        << entry.ba_iterations << ' ' << std::setprecision(3)
+        << entry.points_ms << ' ' << entry.ba_ms << ' ' << entry.keyframe_culling_ms << ' ' << entry.imu_ms << '\n';
   }
   if (!out) throw InputError(path, 0, "write failed");
 }

@@ -62,6 +62,29 @@ TEST(MapPointGeometry, NormalAndDistancesFromObservations) {
   EXPECT_EQ(point->predictScale(0.01, test::scaleFactors()), 3);  // clamped
 }
 
+// The observation list stays sorted by keyframe id, one entry per keyframe, however it is built.
+TEST(MapPointObservations, SortedByKeyFrameWhateverTheOrderOfLinksAndErasures) {
+  Map map;
+  test::SceneBuilder scene(map, 24);
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  for (int k = 0; k < 6; ++k) kfs.push_back(scene.addKeyFrame());
+  const std::shared_ptr<MapPoint> point = map.createMapPoint(Vec3(0.1, 0.2, 2.0), kfs[3]->id());
+  for (const int k : {3, 0, 5, 1, 4}) ASSERT_TRUE(map.addObservation(*kfs[static_cast<std::size_t>(k)], 7 + k, *point));
+  EXPECT_FALSE(map.addObservation(*kfs[0], 9, *point));  // kf0 sees it at keypoint 7 already
+  map.eraseObservation(*kfs[5], 12);
+  map.eraseObservation(*kfs[1], 8);
+  ASSERT_TRUE(map.addObservation(*kfs[2], 9, *point));
+  const Observations expected = {{kfs[0]->id(), 7}, {kfs[2]->id(), 9}, {kfs[3]->id(), 10}, {kfs[4]->id(), 11}};
+  EXPECT_EQ(point->observations(), expected);
+  Observations reused(17, {KeyFrameId(), -1});
+  point->observationsInto(&reused);
+  EXPECT_EQ(reused, expected);
+  EXPECT_EQ(point->indexIn(kfs[4]->id()), std::optional<int>(11));
+  EXPECT_EQ(point->indexIn(kfs[1]->id()), std::nullopt);
+  EXPECT_EQ(point->numObservations(), 4);
+  EXPECT_EQ(point->referenceKeyFrame(), kfs[3]->id());
+}
+
 TEST(MapPointFusion, ReplaceMovesObservationsAndMarksTheOldPoint) {
   Map map;
   test::SceneBuilder scene(map, 23);

@@ -3,6 +3,7 @@
 // (redundancy, origin, the IMU time-span rule); the IMU chain's end at the newest mostly-static view.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -209,6 +210,39 @@ TEST(KeyFrameCulling, OldKeyFramesAreCulledWithTheirImuLinkCut) {
   RedundantChain off(2.0);
   options.cut_imu_min_age_s = 0.0;
   EXPECT_TRUE(cullRedundantKeyFrames(off.map, *off.keyframes[6], options).empty());
+}
+
+// The redundancy test stops early once its answer is certain; its answer must be the full count's
+// at every ratio, including at the boundary (36 of 40 points is exactly 0.9).
+TEST(KeyFrameCulling, RedundancyDecisionEqualsTheFullCountAtEveryRatio) {
+  std::mt19937 rng(29);
+  for (int trial = 0; trial < 12; ++trial) {
+    RedundantChain scene(0.1);
+    // Points kf1 sees with fewer than 3 others: observations by kf2..kf4 (or kf2..kf5) erased.
+    std::vector<int> order(40);
+    for (int k = 0; k < 40; ++k) order[static_cast<std::size_t>(k)] = k;
+    std::shuffle(order.begin(), order.end(), rng);
+    const int lonely = trial < 2 ? 4 + trial : std::uniform_int_distribution<int>(0, 40)(rng);
+    for (int j = 0; j < lonely; ++j) {
+      const int k = order[static_cast<std::size_t>(j)];
+      const int last = std::uniform_int_distribution<int>(4, 5)(rng);
+      for (int n = 2; n <= last; ++n) scene.map.eraseObservation(*scene.keyframes[static_cast<std::size_t>(n)], k);
+    }
+    const map::KeyFrame& kf1 = *scene.keyframes[1];
+    int redundant = 0, with_depth = 0;
+    for (const map::MapPointId id : kf1.mapPoints()) {
+      const std::shared_ptr<map::MapPoint> point = scene.map.mapPoint(id);
+      if (!point) continue;
+      ++with_depth;
+      if (point->numObservations() - 1 >= 3) ++redundant;
+    }
+    ASSERT_EQ(with_depth, 40);
+    EXPECT_EQ(redundant, 40 - lonely);
+    for (const double ratio : {0.5, 0.7, 0.875, 0.9, 0.9 + 1e-12, 0.95, 1.0}) {
+      EXPECT_EQ(mostlyRedundant(scene.map, kf1, 3, ratio), static_cast<double>(redundant) / with_depth >= ratio)
+          << lonely << " lonely points, ratio " << ratio;
+    }
+  }
 }
 
 TEST(RecentPointCulling, ErasesPointsNotConfirmedByLaterKeyFrames) {

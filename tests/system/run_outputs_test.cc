@@ -211,7 +211,13 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
       entry.ba_observations = 1000 + k;
       entry.ba_fixed_observations = 600 + k;
       entry.ba_fixed_observation_limit = k > 300 ? 4 : 0;
+      entry.ba_probe_points = 300 + k;
+      entry.ba_iterations = 7;
     }
+    entry.points_ms = 2.0 + 0.01 * k;
+    entry.ba_ms = 0.8 * entry.mapping_ms;
+    entry.keyframe_culling_ms = 0.5;
+    entry.imu_ms = 1.25;
     timeline.push_back(entry);
   }
   const MappingTimelineSummary summary = summariseMappingTimeline(timeline, 60.0);
@@ -245,16 +251,35 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   std::string header, line;
   std::getline(in, header);
   EXPECT_EQ(header.rfind("# t keyframe_id mapping_ms", 0), 0u);
+  {
+    std::istringstream names(header);
+    std::string name;
+    int columns = -1;  // the leading '#'
+    while (names >> name) ++columns;
+    EXPECT_EQ(columns, 18) << header;
+    EXPECT_NE(header.find("ba_probe_points ba_iterations points_ms ba_ms keyframe_culling_ms imu_ms"), std::string::npos);
+  }
   int lines = 0;
   double t_s = 0.0, mapping_ms = 0.0, resident_mb = 0.0;
   std::uint64_t id = 0, keyframes = 0, points = 0;
   int ba_optimised = 0, ba_fixed = 0, ba_points = 0, ba_observations = 0, ba_fixed_observations = 0;
-  int ba_fixed_limit = -1;
+  int ba_fixed_limit = -1, ba_probes = 0, ba_iterations = 0;
+  double points_ms = 0.0, ba_ms = 0.0, culling_ms = 0.0, imu_ms = 0.0;
+  std::string rest;
   while (std::getline(in, line)) {
-    std::istringstream(line) >> t_s >> id >> mapping_ms >> keyframes >> points >> resident_mb >> ba_optimised >>
-        ba_fixed >> ba_points >> ba_observations >> ba_fixed_observations >> ba_fixed_limit;
+    std::istringstream row(line);
+    row >> t_s >> id >> mapping_ms >> keyframes >> points >> resident_mb >> ba_optimised >> ba_fixed >> ba_points >>
+        ba_observations >> ba_fixed_observations >> ba_fixed_limit >> ba_probes >> ba_iterations >> points_ms >> ba_ms >>
+        culling_ms >> imu_ms;
+    EXPECT_TRUE(row && !(row >> rest)) << line;  // every column, no more
     ++lines;
   }
+  EXPECT_EQ(ba_probes, 900);
+  EXPECT_EQ(ba_iterations, 7);
+  EXPECT_NEAR(points_ms, 8.0, 1e-3);
+  EXPECT_NEAR(ba_ms, 0.8 * timeline.back().mapping_ms, 1e-3);
+  EXPECT_NEAR(culling_ms, 0.5, 1e-3);
+  EXPECT_NEAR(imu_ms, 1.25, 1e-3);
   EXPECT_EQ(ba_optimised, 10);
   EXPECT_EQ(ba_fixed, 50);
   EXPECT_EQ(ba_points, 500);

@@ -69,18 +69,19 @@ void Graph::addVertexImpl(std::unique_ptr<VertexBase> vertex) {
 
 void Graph::addEdgeImpl(std::unique_ptr<EdgeBase> edge) {
   if (!edge) throw Error("sparse_opt: Graph::addEdge: null edge");
-  const std::string what = "sparse_opt: Graph::addEdge: edge of type " + edge->typeName();
+  // Built on the error path only: demangling the type name per edge costs more than adding it.
+  const auto what = [&edge] { return "sparse_opt: Graph::addEdge: edge of type " + edge->typeName(); };
   for (int s = 0; s < edge->numVertices(); ++s) {
     const VertexBase* v = edge->vertex(s);
-    if (v == nullptr) throw Error(what + ": vertex slot " + std::to_string(s) + " is not set");
+    if (v == nullptr) throw Error(what() + ": vertex slot " + std::to_string(s) + " is not set");
     const auto it = vertices_.find(v->id());
     if (it == vertices_.end() || it->second.get() != v) {
-      throw Error(what + ": vertex " + std::to_string(v->id()) + " (slot " + std::to_string(s) +
+      throw Error(what() + ": vertex " + std::to_string(v->id()) + " (slot " + std::to_string(s) +
                   ") is not in the graph");
     }
     for (int t = 0; t < s; ++t) {
       if (edge->vertex(t) == v) {
-        throw Error(what + ": vertex " + std::to_string(v->id()) + " appears in slots " + std::to_string(t) +
+        throw Error(what() + ": vertex " + std::to_string(v->id()) + " appears in slots " + std::to_string(t) +
                     " and " + std::to_string(s));
       }
     }

@@ -1,9 +1,9 @@
 #pragma once
 /// MapPoint: a 3-D landmark observed by keyframes. Shared by tracking (reads, found/visible
 /// counters), local mapping (creation, fusion, culling, BA) and loop closing (fusion, correction).
-#include <map>
 #include <mutex>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "ltlo/core/eigen_types.h"
@@ -24,6 +24,11 @@ inline constexpr double kMinDistanceFactor = 0.8;
 inline constexpr double kMaxDistanceFactor = 1.2;
 inline constexpr double kMinViewingCos = 0.5;
 
+/// A point's observations: (observing keyframe, keypoint index) pairs sorted by keyframe id, one
+/// per keyframe. A flat list: copied with one allocation (or none into a reused buffer), where a
+/// tree would allocate a node per observer, on every lap of a long run (issue 32).
+using Observations = std::vector<std::pair<KeyFrameId, int>>;
+
 /// Thread-safe: every member is guarded by the point's own mutex_ and returned as a copy; the
 /// innermost lock of the order in atlas.h (MapPoint methods take no other lock).
 class MapPoint {
@@ -38,7 +43,9 @@ class MapPoint {
   void setPosition(const Vec3& p_w);
 
   /// Observing keyframes -> keypoint index, ordered by keyframe id (written through Map).
-  std::map<KeyFrameId, int> observations() const;
+  Observations observations() const;
+  /// The same into *out (its capacity reused: the hot paths of local mapping call it per point).
+  void observationsInto(Observations* out) const;
   int numObservations() const;
   /// Keypoint index of this point in `kf`, if observed there.
   std::optional<int> indexIn(KeyFrameId kf) const;
@@ -84,12 +91,15 @@ class MapPoint {
   /// Returns the number of remaining observations; moves the reference keyframe if it was `kf`.
   int eraseObservation(KeyFrameId kf);
   /// Marks bad and hands back the observations it had (cleared here).
-  std::optional<std::map<KeyFrameId, int>> setBad(MapPointId replaced_by);
+  std::optional<Observations> setBad(MapPointId replaced_by);
+  /// The keypoint index in `kf` (-1: none), and adding or replacing it; the caller holds mutex_.
+  int indexInLocked(KeyFrameId kf) const;
+  void setObservationLocked(KeyFrameId kf, int keypoint_index);
 
   const MapPointId id_;
   mutable std::mutex mutex_;  ///< guards every member below
   Vec3 p_w_;
-  std::map<KeyFrameId, int> observations_;
+  Observations observations_;
   KeyFrameId reference_;
   features::Descriptor descriptor_{};
   Vec3 normal_w_ = Vec3::Zero();

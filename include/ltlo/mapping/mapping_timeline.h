@@ -22,6 +22,14 @@ struct MappingTimelineEntry {
   int ba_observations = 0;
   int ba_fixed_observations = 0;       ///< of ba_observations, those by fixed keyframes
   int ba_fixed_observation_limit = 0;  ///< the per-point limit on them applied (0: none)
+  int ba_probe_points = 0;             ///< points of the fixed keyframes projected for Eq. 56
+  int ba_iterations = 0;               ///< the optimiser's, over all rounds
+  /// Where mapping_ms went (ms): point culling and fusion, local BA, keyframe culling, and the IMU
+  /// steps (initialisation, refinement, time offset). The rest is bookkeeping.
+  double points_ms = 0.0;
+  double ba_ms = 0.0;
+  double keyframe_culling_ms = 0.0;
+  double imu_ms = 0.0;
 };
 
 }  // namespace ltlo::mapping
