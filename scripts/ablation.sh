@@ -36,6 +36,8 @@
 #   loop_wait_off    Loop.WaitForImu = 0: BoW loops within a map also before its IMU is initialised
 #   acc_bias_gate_off  ImuInit.MaxAccBias = 0: a first IMU initialisation is accepted whatever its
 #                    accelerometer bias
+#   full_ba_budget_off  Loop.FullBaBudget = 0: a full BA after every loop correction (their cost per
+#                    keyframe grows with the map on a long run)
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -98,6 +100,7 @@ variant_args() {
     new_map_velocity_off) echo "${full[@]}" --set Tracking.NewMapVelocityPrior=0 ;;
     loop_wait_off) echo "${full[@]}" --set Loop.WaitForImu=0 ;;
     acc_bias_gate_off) echo "${full[@]}" --set ImuInit.MaxAccBias=0 ;;
+    full_ba_budget_off) echo "${full[@]}" --set Loop.FullBaBudget=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

@@ -158,6 +158,7 @@ void visitLoop(O& o, V& v) {
   v.boolean("Loop.BridgeLosses", o.bridge_losses);
   v.boolean("Loop.Proximity", o.proximity);
   v.integer("Loop.RefineKeyFrames", o.refine_keyframes, 0, 1000);
+  v.real("Loop.FullBaBudget", o.full_ba_budget, 0.0, 1000.0);
   v.boolean("Loop.FinalFullBa", o.final_full_ba);
   v.real("Loop.ProximitySigma", o.proximity_sigma_m, 0.005, 5.0);
   v.real("Loop.ProximityMinAge", o.proximity_min_age_s, 0.0, 3600.0);

@@ -171,15 +171,30 @@ void LoopCloser::Impl::scheduleRefinement(const map::Map& map) {
   refine_map = map.id();
 }
 
+bool LoopCloser::Impl::fullBaFits(const map::Map& map) const {
+  const double budget = options.loop.full_ba_budget;
+  return budget <= 0.0 || static_cast<double>(full_ba_keyframes + map.numKeyFrames()) <=
+                              budget * static_cast<double>(keyframes_received);
+}
+
+void LoopCloser::Impl::startBudgetedGlobalBa(map::Map& map, const std::optional<Vec3>& g_w) {
+  full_ba_keyframes += map.numKeyFrames();
+  startGlobalBa(map, g_w);
+}
+
 void LoopCloser::Impl::refineAfterCorrection(const std::shared_ptr<map::KeyFrame>& kf) {
   if (!refine_pending || keyframes_since_correction < options.loop.refine_keyframes || kf->isBad()) return;
-  refine_pending = false;
   map::Map* map = atlas.map(kf->mapId());
   // A map merged away since: its successor holds the correction's keyframes.
-  if (map == nullptr || atlas.resolve(refine_map) != map->id()) return;
+  if (map == nullptr || atlas.resolve(refine_map) != map->id()) {
+    refine_pending = false;
+    return;
+  }
+  if (!fullBaFits(*map)) return;  // waits for the budget
+  refine_pending = false;
   log::info("full BA of ", map->id(), " again at ", kf->id(), ", ", keyframes_since_correction,
             " keyframes after the last correction");
-  startGlobalBa(*map, gravity());
+  startBudgetedGlobalBa(*map, gravity());
 }
 
 void LoopCloser::Impl::process(const std::shared_ptr<map::KeyFrame>& kf) {
@@ -193,6 +208,7 @@ void LoopCloser::Impl::process(const std::shared_ptr<map::KeyFrame>& kf) {
     detection_map = map->id();
   }
   ++keyframes_since_correction;
+  ++keyframes_received;
   if (options.loop.enabled) {
     bool closed = kf->hasBow() && tryLoop(kf, *map);
     if (!closed && options.loop.proximity) closed = tryProximityLoop(kf, *map);
@@ -311,8 +327,17 @@ bool LoopCloser::Impl::correct(const std::shared_ptr<map::KeyFrame>& kf, const s
   recordEvent(event);
   keyframes_since_correction = 0;
   resetDetection();
-  if (options.run_global_ba) startGlobalBa(map, correction_options.g_w);
-  scheduleRefinement(map);
+  if (!options.run_global_ba) return true;
+  if (fullBaFits(map)) {
+    startBudgetedGlobalBa(map, correction_options.g_w);
+    scheduleRefinement(map);
+  } else {
+    // The correction alone for now; the full BA follows as the refining one would, once it fits.
+    log::info("full BA of ", map.id(), " after this loop waits for Loop.FullBaBudget (", full_ba_keyframes,
+              " keyframes of full BAs for ", keyframes_received, " keyframes)");
+    refine_pending = true;
+    refine_map = map.id();
+  }
   return true;
 }
 
@@ -525,7 +550,7 @@ bool LoopCloser::Impl::merge(const std::shared_ptr<map::KeyFrame>& kf, const std
   detection_map = merged->target;
   map::Map* target = atlas.map(merged->target);
   if (options.run_global_ba && target != nullptr) {
-    startGlobalBa(*target, merge_options.g_w);
+    startBudgetedGlobalBa(*target, merge_options.g_w);
     scheduleRefinement(*target);
   }
   return true;

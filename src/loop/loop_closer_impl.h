@@ -3,6 +3,7 @@
 // its run state in the atlas file (loop_closer_state.cc).
 #include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -67,8 +68,13 @@ struct LoopCloser::Impl {
   void recordEvent(const LoopEvent& event);
   /// Arms the refining full BA of `map` after a correction (Loop.RefineKeyFrames).
   void scheduleRefinement(const map::Map& map);
-  /// Runs the armed refining full BA once Loop.RefineKeyFrames keyframes of its map followed.
+  /// Runs the armed refining (or waiting) full BA once Loop.RefineKeyFrames keyframes of its map
+  /// followed the correction and Loop.FullBaBudget allows it.
   void refineAfterCorrection(const std::shared_ptr<map::KeyFrame>& kf);
+  /// Whether Loop.FullBaBudget has room for a full BA of `map` now.
+  bool fullBaFits(const map::Map& map) const;
+  /// Starts the full BA of `map` and counts it against the budget.
+  void startBudgetedGlobalBa(map::Map& map, const std::optional<Vec3>& g_w);
 
   // ---- full BA ----
   /// The IMU's gravity once initialised (nullopt before).
@@ -98,6 +104,9 @@ struct LoopCloser::Impl {
   /// The map whose last correction still waits for its refining full BA (Loop.RefineKeyFrames).
   map::MapId refine_map;
   bool refine_pending = false;
+  /// Loop.FullBaBudget: keyframes received, and the full BAs' keyframes counted against them.
+  std::uint64_t keyframes_received = 0;
+  std::uint64_t full_ba_keyframes = 0;
 
   // Full BA: the thread object is touched by the loop thread (start/abort) and run()/destructor.
   std::thread ba_thread;

@@ -518,6 +518,54 @@ TEST(LoopCloser, RefinesTheLoopWithTheKeyFramesThatFollowIt) {
   EXPECT_LT(refined.seam_m, 0.25 * once.seam_m);
 }
 
+// Loop.FullBaBudget: the full BAs, each counted as the keyframes of its map, at most `budget` per
+// keyframe received. Two laps close three loops; with no limit each runs its full BA. With a budget
+// of 1 only the first fits: the later corrections stand alone, and the seam they leave is larger
+// than with a full BA on every loop (this scene drifts 1.1 deg of yaw a lap, far beyond a real run)
+// but a small part of the seam without loop closing. With 1.5 the second loop's full BA waits for
+// the budget and runs 5 keyframes later, with their observations, and the seam closes as well.
+TEST(LoopCloser, FullBasStayWithinTheirBudget) {
+  constexpr int kSteps = 2 * kStepsPerLap + 4;
+  struct Outcome {
+    double seam_m = 0.0;
+    std::size_t full_bas = 0;
+    int loops = 0;
+  };
+  auto runWith = [](double budget, bool loops = true) {
+    map::Atlas atlas(world().vocabulary->numWords());
+    LoopCloserOptions options = closerOptions();
+    options.loop.full_ba_budget = budget;
+    options.loop.enabled = loops;
+    Outcome outcome;
+    TimingStats timing;
+    LoopCloser closer(atlas, options, MappingControl{}, &timing);
+    SceneBuilder scene(atlas, driftStep());
+    for (int step = 0; step < kSteps; ++step) closer.processKeyFrame(scene.add(step));
+    outcome.seam_m = seamError_m(scene);
+    outcome.full_bas = timing.stage("loop.global_ba").count;
+    outcome.loops = closer.numLoops();
+    return outcome;
+  };
+  const Outcome unlimited = runWith(0.0);
+  const Outcome tight = runWith(1.0);
+  const Outcome waiting = runWith(1.5);
+  const Outcome without = runWith(0.0, false);
+  std::printf("[ BUDGET   ] no limit: %d loops, %zu full BAs, seam %.4f m; budget 1: %d loops, %zu full BA, seam %.4f m; "
+              "budget 1.5: %zu full BAs, seam %.4f m; without loop closing: seam %.4f m\n",
+              unlimited.loops, unlimited.full_bas, unlimited.seam_m, tight.loops, tight.full_bas, tight.seam_m,
+              waiting.full_bas, waiting.seam_m, without.seam_m);
+  ASSERT_GE(unlimited.loops, 2);
+  EXPECT_EQ(unlimited.full_bas, static_cast<std::size_t>(unlimited.loops));
+  EXPECT_EQ(tight.loops, unlimited.loops);
+  EXPECT_EQ(tight.full_bas, 1u);
+  EXPECT_EQ(without.loops, 0);
+  EXPECT_LT(unlimited.seam_m, 0.005);
+  EXPECT_LT(tight.seam_m, 0.25 * without.seam_m);
+  EXPECT_EQ(waiting.loops, unlimited.loops);
+  EXPECT_EQ(waiting.full_bas, 2u);
+  EXPECT_LT(waiting.seam_m, 0.005);
+}
+
 TEST(LoopCloser, ALaterLoopAbortsOrFollowsTheRunningFullBa) {
   // Two laps: the second revisit closes another loop while the first full BA may still run (then it
   // is aborted and joined before the correction; either way pauses and resumes stay balanced).

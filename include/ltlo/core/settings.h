@@ -309,6 +309,13 @@ struct LoopOptions {
   /// that follow keep observing the old side. This many keyframes after a correction the full BA
   /// runs once more, with that evidence (Loop.RefineKeyFrames; 0: off)
   int refine_keyframes = 10;
+  /// The loop closer's full BAs, each counted as the keyframes of its map (its cost grows with
+  /// them), at most this many per keyframe of the run so far. A correction whose full BA does not
+  /// fit keeps the correction alone for now, and the full BA runs once the budget allows (with
+  /// what the keyframes since observed, as the refining one). On a long run that closes a loop on
+  /// every lap a full BA per loop grows with the map; this bounds the cost per keyframe
+  /// (issue 32). Merges always run theirs (Loop.FullBaBudget, [0, 1000]; 0: no limit)
+  double full_ba_budget = 0.0;
   /// Once the run has ended (System::shutdown after the last frame, not on an interrupt), one more
   /// full BA of every map with at least 3 keyframes, with everything observed up to the end: the
   /// final trajectory then no longer depends on whether a late loop happened to close and start a
