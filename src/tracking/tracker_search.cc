@@ -115,11 +115,13 @@ void Tracker::updateLocalMap(const map::Frame& frame) {
   map::Map& active = activeMap();
   // Keyframes observing the frame's matched points, weighted by how many they share.
   std::unordered_map<map::KeyFrameId, int> counter;
+  map::Observations observations;  // reused across the points: no allocation per point
   for (int i = 0; i < frame.numKeypoints(); ++i) {
     if (!isMatched(frame, i)) continue;
     const auto point = active.mapPoint(frame.map_points[static_cast<std::size_t>(i)]);
     if (!point || point->isBad()) continue;
-    for (const auto& [kf, index] : point->observations()) ++counter[kf];
+    point->observationsInto(&observations);
+    for (const auto& [kf, index] : observations) ++counter[kf];
   }
   local_keyframes_.clear();
   std::unordered_set<map::KeyFrameId> in_local;
