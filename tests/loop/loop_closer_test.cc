@@ -55,6 +55,29 @@ double seamError_m(const SceneBuilder& scene) {
 
 constexpr int kLoopSteps = kStepsPerLap + 8;
 
+/// What a synchronous run of `steps` keyframes of the drifting lap scene left: the seam, the full BAs
+/// run, the loops closed and mapping's pauses and resumes.
+struct LapsOutcome {
+  double seam_m = 0.0;
+  std::size_t full_bas = 0;
+  int loops = 0;
+  int pauses = 0, resumes = 0;
+};
+
+LapsOutcome runLaps(const LoopCloserOptions& options, int steps) {
+  map::Atlas atlas(world().vocabulary->numWords());
+  LapsOutcome outcome;
+  TimingStats timing;
+  LoopCloser closer(atlas, options, MappingControl{[&] { ++outcome.pauses; }, [&] { ++outcome.resumes; }}, &timing);
+  SceneBuilder scene(atlas, driftStep());
+  for (int step = 0; step < steps; ++step) closer.processKeyFrame(scene.add(step));
+  outcome.seam_m = seamError_m(scene);
+  outcome.full_bas = timing.stage("loop.global_ba").count;
+  outcome.loops = closer.numLoops();
+  return outcome;
+}
+
+
 TEST(LoopCloser, ClosesTheLoopOnceWhenTheStartIsRevisited) {
   double seam_without = 0.0;
   {
@@ -484,28 +507,13 @@ TEST(LoopCloser, ThreadedRunMatchesTheSynchronousOne) {
 // is left in the map unless the full BA runs again with what they saw.
 TEST(LoopCloser, RefinesTheLoopWithTheKeyFramesThatFollowIt) {
   constexpr int kSteps = kStepsPerLap + 14;
-  struct Outcome {
-    double seam_m = 0.0;
-    std::size_t full_bas = 0;
-    int loops = 0;
-    int pauses = 0, resumes = 0;
-  };
   auto runWith = [](int refine_keyframes) {
-    map::Atlas atlas(world().vocabulary->numWords());
     LoopCloserOptions options = closerOptions();
     options.loop.refine_keyframes = refine_keyframes;
-    Outcome outcome;
-    TimingStats timing;
-    LoopCloser closer(atlas, options, MappingControl{[&] { ++outcome.pauses; }, [&] { ++outcome.resumes; }}, &timing);
-    SceneBuilder scene(atlas, driftStep());
-    for (int step = 0; step < kSteps; ++step) closer.processKeyFrame(scene.add(step));
-    outcome.seam_m = seamError_m(scene);
-    outcome.full_bas = timing.stage("loop.global_ba").count;
-    outcome.loops = closer.numLoops();
-    return outcome;
+    return runLaps(options, kSteps);
   };
-  const Outcome once = runWith(0);
-  const Outcome refined = runWith(10);
+  const LapsOutcome once = runWith(0);
+  const LapsOutcome refined = runWith(10);
   std::printf("[ REFINE   ] seam error %.4f m with one full BA per loop -> %.4f m with the refining one "
               "10 keyframes later (%zu -> %zu full BA runs, %d / %d loops)\n",
               once.seam_m, refined.seam_m, once.full_bas, refined.full_bas, once.loops, refined.loops);
@@ -526,30 +534,16 @@ TEST(LoopCloser, RefinesTheLoopWithTheKeyFramesThatFollowIt) {
 // the budget and runs 5 keyframes later, with their observations, and the seam closes as well.
 TEST(LoopCloser, FullBasStayWithinTheirBudget) {
   constexpr int kSteps = 2 * kStepsPerLap + 4;
-  struct Outcome {
-    double seam_m = 0.0;
-    std::size_t full_bas = 0;
-    int loops = 0;
-  };
   auto runWith = [](double budget, bool loops = true) {
-    map::Atlas atlas(world().vocabulary->numWords());
     LoopCloserOptions options = closerOptions();
     options.loop.full_ba_budget = budget;
     options.loop.enabled = loops;
-    Outcome outcome;
-    TimingStats timing;
-    LoopCloser closer(atlas, options, MappingControl{}, &timing);
-    SceneBuilder scene(atlas, driftStep());
-    for (int step = 0; step < kSteps; ++step) closer.processKeyFrame(scene.add(step));
-    outcome.seam_m = seamError_m(scene);
-    outcome.full_bas = timing.stage("loop.global_ba").count;
-    outcome.loops = closer.numLoops();
-    return outcome;
+    return runLaps(options, kSteps);
   };
-  const Outcome unlimited = runWith(0.0);
-  const Outcome tight = runWith(1.0);
-  const Outcome waiting = runWith(1.5);
-  const Outcome without = runWith(0.0, false);
+  const LapsOutcome unlimited = runWith(0.0);
+  const LapsOutcome tight = runWith(1.0);
+  const LapsOutcome waiting = runWith(1.5);
+  const LapsOutcome without = runWith(0.0, false);
   std::printf("[ BUDGET   ] no limit: %d loops, %zu full BAs, seam %.4f m; budget 1: %d loops, %zu full BA, seam %.4f m; "
               "budget 1.5: %zu full BAs, seam %.4f m; without loop closing: seam %.4f m\n",
               unlimited.loops, unlimited.full_bas, unlimited.seam_m, tight.loops, tight.full_bas, tight.seam_m,
