@@ -38,6 +38,8 @@
 #                    accelerometer bias
 #   full_ba_budget_off  Loop.FullBaBudget = 0: a full BA after every loop correction (their cost per
 #                    keyframe grows with the map on a long run)
+#   hindsight_off    Seg.HindsightMasks = 0: no segmentation_final/ (the table's final IoU is then n/a;
+#                    its online IoU is the same run's)
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -101,6 +103,7 @@ variant_args() {
     loop_wait_off) echo "${full[@]}" --set Loop.WaitForImu=0 ;;
     acc_bias_gate_off) echo "${full[@]}" --set ImuInit.MaxAccBias=0 ;;
     full_ba_budget_off) echo "${full[@]}" --set Loop.FullBaBudget=0 ;;
+    hindsight_off) echo "${full[@]}" --set Seg.HindsightMasks=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }
@@ -126,8 +129,8 @@ import json, os, sys
 out, variants = sys.argv[1], sys.argv[2:]
 def number(d, key, fmt):
     return fmt.format(d[key]) if key in d and d[key] is not None else "n/a"
-rows = ["| variant | ATE (m) | RPE (m/s) | RPE (deg/s) | static IoU | maps | loops | merges | false | moving pts | FPS | keyframes | peak MB | mapping last/first min | exit |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+rows = ["| variant | ATE (m) | RPE (m/s) | RPE (deg/s) | static IoU | final IoU | maps | loops | merges | false | moving pts | FPS | keyframes | peak MB | mapping last/first min | exit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for v in variants:
     metrics = {}
     path = os.path.join(out, v, "metrics.json")
@@ -144,10 +147,11 @@ for v in variants:
             if line.startswith("moving_share"):
                 moving = "{:.2%}".format(float(line.split()[1]))
     status = open(os.path.join(out, v + ".status")).read().strip() if os.path.exists(os.path.join(out, v + ".status")) else "?"
-    rows.append("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |".format(
+    rows.append("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |".format(
         v, number(metrics, "ate_rmse_m", "{:.4f}"), number(metrics, "rpe_trans_rmse_m_s", "{:.4f}"),
         number(metrics, "rpe_rot_rmse_deg_s", "{:.3f}"), number(metrics, "static_iou", "{:.3f}"),
-        number(metrics, "maps", "{}"), number(metrics, "loops", "{}"), number(metrics, "merges", "{}"), false,
+        number(metrics, "static_iou_final", "{:.3f}"), number(metrics, "maps", "{}"), number(metrics, "loops", "{}"),
+        number(metrics, "merges", "{}"), false,
         moving, number(metrics, "fps", "{:.1f}"), number(metrics, "keyframes", "{}"),
         number(metrics, "peak_memory_mb", "{:.0f}"), number(metrics, "mapping_keyframe_last_to_first_minute", "{:.2f}"),
         status))

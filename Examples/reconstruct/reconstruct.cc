@@ -6,7 +6,8 @@
 //               [--fov DEG] [--no-snapshots | --snapshots-only] [--threads N] [--progress-every N]
 //
 // Poses: RUN/trajectory.txt (TUM, T_w_c); --trajectory FILE replaces it for diagnostics (e.g. the
-// sequence's groundtruth.txt; the output then says so). Static pixels: RUN/segmentation/ masks
+// sequence's groundtruth.txt; the output then says so). Static pixels: RUN/segmentation_final/ masks
+// (the hindsight ones; RUN/segmentation/ when the run has none)
 // (255 = dynamic); with --all-pixels, or when the run has no segmentation/, every pixel with depth.
 // The sequence's masks/ (ground truth) are never read; its groundtruth.txt only draws the ground-
 // truth path in the snapshots. Settings: the Recon.* keys of --settings (defaults without).
@@ -151,7 +152,11 @@ int run(const Arguments& args) {
     log::warn("DIAGNOSTIC: fusing with ", args.trajectory_path,
               " instead of the run's own trajectory");
   }
-  const fs::path segmentation = fs::path(args.run_dir) / "segmentation";
+  // The hindsight masks when the run wrote them (a box at rest before it moved is not fused), else the
+  // online ones.
+  const fs::path final_masks = fs::path(args.run_dir) / "segmentation_final";
+  const fs::path segmentation =
+      fs::is_directory(final_masks) ? final_masks : fs::path(args.run_dir) / "segmentation";
   std::string pixels = "static (" + segmentation.string() + ")";
   if (args.all_pixels) {
     pixels = "all pixels with depth (--all-pixels)";

@@ -67,6 +67,7 @@
 #include "ltlo/core/thread_names.h"
 #include "ltlo/io/frame_prefetcher.h"
 #include "ltlo/io/sequence_reader.h"
+#include "ltlo/system/hindsight_masks.h"
 #include "ltlo/system/run_outputs.h"
 #include "ltlo/system/system.h"
 
@@ -260,6 +261,35 @@ long resumeAt(const Arguments& args, io::SequenceReader& reader, const system::R
   return next;
 }
 
+/// segmentation_final/ (Seg.HindsightMasks): the online masks relabelled against the final map. A failure
+/// is logged and leaves no folder; it never costs the run's other outputs.
+void writeFinalMasks(const Arguments& args, const RunSetup& setup, const system::RunReport& report) {
+  const fs::path online = fs::path(args.out_dir) / "segmentation";
+  const fs::path final_dir = fs::path(args.out_dir) / "segmentation_final";
+  std::error_code error;
+  fs::remove_all(final_dir, error);  // never a stale folder from an earlier run into this one
+  if (!setup.settings.segmentation.hindsight_masks || !setup.settings.segmentation.enable || args.oracle_masks ||
+      !args.bag_path.empty() || !fs::is_directory(online, error) || fs::is_empty(online, error)) {
+    return;
+  }
+  try {
+    io::SequenceReaderOptions reader_options = setup.reader_options;
+    reader_options.masks_dir = online.string();
+    reader_options.read_ground_truth = false;
+    const io::SequenceReader reader = io::SequenceReader::open(args.sequence_dir, reader_options);
+    const system::HindsightMaskResult result = system::writeHindsightMasks(
+        reader, report.trajectory, report.map_points_map, report.map_points, setup.settings.calib.camera.model(),
+        system::HindsightMaskOptions::from(setup.settings), final_dir.string());
+    log::info(kProgram, ": hindsight masks: ", result.frames_written, " written to ", final_dir.string(), ", ",
+              result.frames_relabelled, " relabelled against the final map, ", result.frames_changed, " changed (",
+              result.regions_flipped, " regions static -> dynamic, ", result.voting_points, " static points) in ",
+              result.seconds, " s");
+  } catch (const std::exception& e) {
+    log::error(kProgram, ": hindsight masks not written: ", e.what());
+    fs::remove_all(final_dir, error);
+  }
+}
+
 int run(const Arguments& args) {
   const auto start = std::chrono::steady_clock::now();
   RunSetup setup = loadSetup(args);
@@ -345,6 +375,7 @@ int run(const Arguments& args) {
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system::RunReport report = slam.report(wall_s);
   report.interrupted = interrupted;
+  writeFinalMasks(args, setup, report);
   const fs::path masks_dir = fs::path(args.sequence_dir) / "masks";
   system::EvaluationInputs evaluation;
   evaluation.ground_truth_path = reader.isBag() ? args.groundtruth_path : reader.groundTruthPath();
@@ -380,6 +411,10 @@ int run(const Arguments& args) {
     std::printf("static_iou %.4f\nstatic_iou_occluded %.4f\ndynamic_recall %.4f\nstatic_share %.4f\n",
                 written.metrics.number("static_iou"), written.metrics.number("static_iou_occluded"),
                 written.metrics.number("dynamic_recall"), written.metrics.number("static_share"));
+  }
+  if (written.has_metrics && written.metrics.has("static_iou_final")) {
+    std::printf("static_iou_final %.4f\ndynamic_recall_final %.4f\n", written.metrics.number("static_iou_final"),
+                written.metrics.number("dynamic_recall_final"));
   }
   if (counts.frames > counts.frames_with_pose) {
     log::warn(kProgram, ": ", counts.frames - counts.frames_with_pose,

@@ -55,6 +55,10 @@ void visitSegmentation(O& o, V& v) {
   v.real("Seg.StaticThreshold", o.static_threshold, 0.0, 1.0);
   v.boolean("Seg.AffineBrightness", o.affine_brightness);
   v.real("Seg.AffineBrightnessPrior", o.affine_brightness_prior, 0.0, 100.0);
+  v.boolean("Seg.HindsightMasks", o.hindsight_masks);
+  v.integer("Seg.HindsightMinPoints", o.hindsight_min_points, 1, 1000);
+  v.real("Seg.HindsightRayTolerance", o.hindsight_ray_tolerance_m, 0.001, 1.0);
+  v.real("Seg.HindsightVoteRadius", o.hindsight_vote_radius_m, 0.01, 10.0);
 }
 
 template <typename O, typename V>

@@ -449,6 +449,19 @@ void writeMetrics(const std::string& out_dir, const RunReport& report, const io:
       addEvaluationError(written, e.what());
     }
   }
+  // The hindsight masks (Seg.HindsightMasks), when the run wrote them: the same figures, "_final".
+  const fs::path final_dir = fs::path(out_dir) / "segmentation_final";
+  if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(final_dir, error) &&
+      !fs::is_empty(final_dir, error)) {
+    try {
+      const eval::MaskIouResult iou = eval::evaluateMaskFolders(gt_masks_dir, final_dir.string());
+      figures.set("static_iou_final", iou.mean_static_iou);
+      figures.set("static_iou_occluded_final", iou.mean_static_iou_occluded);
+      figures.set("dynamic_recall_final", iou.dynamic_recall);
+    } catch (const InputError& e) {
+      addEvaluationError(written, e.what());
+    }
+  }
   if (!written->evaluation_error.empty()) figures.set("evaluation_error", written->evaluation_error);
   written->metrics = std::move(figures);
   written->has_metrics = true;

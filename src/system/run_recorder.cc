@@ -355,6 +355,11 @@ std::vector<MapPointRecord> RunRecorder::mapPoints() const {
     PointSource source;
     source.record.p_w = point->p_w();
     source.record.beta = point->beta();
+    for (const auto& [kf_id, index] : point->observations()) {
+      if (const std::shared_ptr<map::KeyFrame> kf = atlas_.activeMap().keyFrame(kf_id)) {
+        source.record.observer_centres_w.push_back(kf->cameraCentre_w());
+      }
+    }
     const map::KeyFrameId reference = point->referenceKeyFrame();
     if (const std::optional<int> index = point->indexIn(reference)) {
       source.observations.emplace_back(reference.value, *index);

@@ -433,6 +433,7 @@ RunReport System::report(double wall_s) const {
   report.trajectory_online = onlineTrajectory();
   report.keyframes = keyFrames();
   report.map_points = mapPoints();
+  report.map_points_map = atlas_->activeMapId();
   report.counts = counts();
   report.timing = timing_.stages();
   report.mapping_timeline = mapper_->timeline();

@@ -18,12 +18,16 @@
 #include <optional>
 #include <vector>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
 #include "end_to_end_suite.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/settings.h"
 #include "ltlo/eval/trajectory_metrics.h"
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/sim/simulator.h"
+#include "ltlo/system/hindsight_masks.h"
 #include "ltlo/system/run_outputs.h"
 #include "ltlo/system/system.h"
 
@@ -38,6 +42,8 @@ using test_support::truthNearest;
 
 /// Seconds simulated: the box has left the view by 5 s; the IMU initialises at about 4 s.
 constexpr double kSeconds = 8.0;
+/// With a still start, the box stands until it is pushed (seed 2).
+constexpr double kBoxAtRestUntil_s = 1.5;
 
 struct OccludedRun {
   int frames = 0;
@@ -257,6 +263,81 @@ TEST_F(OccludedStartEndToEnd, AStartThatChangesWorldsWithoutALossLeavesNoKeyFram
   }
   EXPECT_GT(worst_m[0], 0.08) << "without the check the start no longer leaves kf0 in another world: the test lost its case";
   EXPECT_LT(worst_m[1], 0.02);
+}
+
+/// Static-background IoU of a mask against the ground truth's (255 = dynamic in both).
+double staticIou(const cv::Mat& estimate, const cv::Mat& truth) {
+  const cv::Mat both = (estimate == 0) & (truth == 0), either = (estimate == 0) | (truth == 0);
+  const int union_px = cv::countNonZero(either);
+  return union_px == 0 ? 1.0 : cv::countNonZero(both) / static_cast<double>(union_px);
+}
+
+TEST_F(OccludedStartEndToEnd, ABoxAtRestFromTheFirstFrameIsDynamicInHindsight) {
+  // Robot and box at rest for the first 3 s (simulate --occluded-start away --still 0,3, seed 2):
+  // nothing moves, and online the box is the world. Once pushed away, the wall behind it enters the
+  // map, and the hindsight masks (segmentation_final/) call the box dynamic in the frames before.
+  const fs::path dir = root() / "still_away_s2";
+  if (!fs::exists(dir / "groundtruth.txt")) {
+    sim::SimOptions sim_options = shortRunSimOptions(sim::Scenario::kLtlo, 2, kSeconds);
+    sim_options.occluded_start = sim::StartMove::kAway;
+    sim_options.stills = {{0.0, 3.0}};
+    sim::writeSequence(sim_options, dir.string(), 0);
+  }
+  const Settings settings = shortRunSettings(dir.string());
+  io::SequenceReaderOptions reader_options;
+  reader_options.calib_override = settings.calib;
+  io::SequenceReader reader = io::SequenceReader::open(dir.string(), reader_options);
+  const fs::path run_dir = root() / "still_away_s2_run";
+  SystemOptions options;
+  options.threaded = false;
+  options.segmentation_dir = (run_dir / "segmentation").string();
+  System system(settings, vocabulary(), options);
+  int frames = 0;
+  while (std::optional<io::RgbdImuFrame> input = reader.next()) {
+    system.trackFrame(*input);
+    ++frames;
+  }
+  system.shutdown();
+  const RunReport report = system.report(0.0);
+
+  io::SequenceReaderOptions masks_options = reader_options;
+  masks_options.masks_dir = options.segmentation_dir;
+  const io::SequenceReader masks = io::SequenceReader::open(dir.string(), masks_options);
+  const HindsightMaskResult result =
+      writeHindsightMasks(masks, report.trajectory, report.map_points_map, report.map_points,
+                          settings.calib.camera.model(), HindsightMaskOptions::from(settings),
+                          (run_dir / "segmentation_final").string());
+  EXPECT_EQ(result.frames_written, frames);
+  EXPECT_EQ(result.frames_relabelled, report.counts.frames_with_pose);
+
+  double online_rest = 0.0, final_rest = 0.0, online_all = 0.0, final_all = 0.0;
+  int rest_frames = 0;
+  for (int i = 0; i < frames; ++i) {
+    const io::FrameFiles& files = reader.frameFiles(i);
+    const std::string name = fs::path(masks.frameFiles(i).mask_path).filename().string();
+    const cv::Mat truth = cv::imread((dir / "masks" / name).string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat online = cv::imread((run_dir / "segmentation" / name).string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat hindsight = cv::imread((run_dir / "segmentation_final" / name).string(), cv::IMREAD_GRAYSCALE);
+    ASSERT_FALSE(truth.empty() || online.empty() || hindsight.empty()) << name;
+    const double online_iou = staticIou(online, truth), final_iou = staticIou(hindsight, truth);
+    online_all += online_iou;
+    final_all += final_iou;
+    if (files.t_s < kBoxAtRestUntil_s) {
+      online_rest += online_iou;
+      final_rest += final_iou;
+      ++rest_frames;
+    }
+  }
+  ASSERT_GT(rest_frames, 0);
+  online_rest /= rest_frames;
+  final_rest /= rest_frames;
+  online_all /= frames;
+  final_all /= frames;
+  log::info("box at rest from frame 0: static IoU before ", kBoxAtRestUntil_s, " s online ", online_rest, ", final ",
+            final_rest, "; over the run online ", online_all, ", final ", final_all, " (", result.frames_changed,
+            " frames changed)");
+  EXPECT_GT(final_rest, online_rest + 0.1);
+  EXPECT_GE(final_all, online_all);
 }
 
 }  // namespace

@@ -92,6 +92,18 @@ struct SegmentationOptions {
   /// matters only below a spread (std) of about one 8-bit level (a texture-poor frame, whose gain
   /// then stays near 1 and its change goes to the offset) (Seg.AffineBrightnessPrior, [0, 100])
   double affine_brightness_prior = 1e-5;
+  /// Write segmentation_final/ after the run: every frame's mask relabelled against the final static
+  /// map and poses (system/hindsight_masks.h; Seg.HindsightMasks, 0/1). 0: segmentation/ only.
+  bool hindsight_masks = true;
+  /// Static map points that must vote in a cluster before it may turn dynamic in hindsight
+  /// (Seg.HindsightMinPoints, [1, 1000])
+  int hindsight_min_points = 3;
+  /// A point behind a frame's surface votes only when the ray of a keyframe that saw it passes within
+  /// this distance of that surface point, m (Seg.HindsightRayTolerance, [0.001, 1])
+  double hindsight_ray_tolerance_m = 0.05;
+  /// A region judged dynamic in hindsight turns dynamic where its nearest voter votes dynamic and lies
+  /// within this distance, m (Seg.HindsightVoteRadius, [0.01, 10])
+  double hindsight_vote_radius_m = 0.3;
 
   static SegmentationOptions load(const SettingsFile& file);
 };

@@ -15,6 +15,9 @@
 ///                    when an evaluation input is malformed, the figures that could be computed and
 ///                    "evaluation_error" (the reader's message: file, line, value)
 ///   segmentation/    every frame's mask (written during the run by SegmentationWriter)
+///   segmentation_final/  the same masks relabelled after the run against the final map and poses
+///                    (hindsight_masks.h, written by the program before these outputs; metrics.json's
+///                    static_iou_final, static_iou_occluded_final, dynamic_recall_final)
 /// Readers for keyframes.txt and static_map.ply round-trip the writers (tests, tools). Writers
 /// and readers throw InputError naming the file (and line) on failure.
 #include <string>

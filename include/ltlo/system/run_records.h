@@ -35,6 +35,9 @@ struct MapPointRecord {
   Vec3 p_w = Vec3::Zero();
   std::uint8_t red = 128, green = 128, blue = 128;  ///< sampled in the reference keyframe's image
   double beta = 1.0;                                ///< static score
+  /// centres of the keyframes that observe the point (world; empty when unknown, e.g. read back from
+  /// a PLY): each saw free space from its centre to the point
+  std::vector<Vec3> observer_centres_w;
 };
 
 struct SystemCounts {
@@ -77,6 +80,7 @@ struct RunReport {
   std::vector<FramePose> trajectory_online;
   std::vector<KeyFrameRecord> keyframes;
   std::vector<MapPointRecord> map_points;
+  map::MapId map_points_map;  ///< the map of map_points (the active one at the end)
   SystemCounts counts;
   std::vector<StageTiming> timing;
   std::vector<mapping::MappingTimelineEntry> mapping_timeline;  ///< mapping_timeline.csv

@@ -1,0 +1,133 @@
+#pragma once
+/// Hindsight masks (RUN/segmentation_final/): every frame's mask relabelled once the run is over, against
+/// the final static map and the final poses (issue 32). trajectory.txt is to trajectory_online.txt what
+/// segmentation_final/ is to segmentation/.
+///
+/// Online, a box that stands still in front of a part of the room the map has not seen yet looks like
+/// the room: a robot and a box both at rest, or a box in view from the first frame. Nothing that moves
+/// can be seen until it moves. Once it has moved, the room behind it enters the map, and the frames
+/// before can be judged with what the map knows now. The test is Eq. 56's, with the final map: a
+/// static point behind a frame's surface says that surface stood in front of the static world,
+///
+///   gamma~_c = 1 - sum_j beta_j v_j / sum_j beta_j
+///
+/// over the static map points j (beta >= min_beta) projecting into region c of the frame, with v_j = 1
+/// when the point lies behind the frame's surface by more than depth noise (the depth-gap tolerance of
+/// the clusters' V_i) and 0 when at the surface. Online, Eq. 56 grades the vote with the distance
+/// (min(1, lambda_p d_j)) because the map is still a guess; here the free-space test below decides.
+/// Regions are the depth-continuous pieces of the frame's depth clusters (the same depth K-means as
+/// online, at the label resolution, each cluster split where neighbouring depths jump by more than the
+/// V_i threshold, so a cluster holding a box's edge and the wall beside it is judged piece by piece).
+/// Only static -> dynamic: a region the online mask calls static (most of its pixels) turns dynamic
+/// when at least min_points points vote there and gamma~_c < static_threshold (Seg.StaticThreshold);
+/// of its pixels, those whose nearest voter (3-D) votes dynamic and lies within vote_radius_m turn
+/// dynamic (a box's side face and the floor it stands on meet without a depth step: the votes on the
+/// face do not speak for the far end of the floor). Two rules keep static structure static:
+///   - a point behind the frame's surface votes only when that surface point lies in space a keyframe
+///     saw through: within ray_tolerance_m of the segment from the centre of a keyframe that observed
+///     the point to the point. A wall point hidden by parallax behind a static cupboard, seen past the
+///     cupboard's edge from elsewhere, says nothing about the cupboard;
+///   - a point in front of the frame's surface does not vote: the frame sees past it, which speaks
+///     against the point, not for or against the surface.
+/// Frames without a final pose in the map the points belong to keep their online mask.
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ltlo/core/camera_model.h"
+#include "ltlo/core/lie.h"
+#include "ltlo/core/settings.h"
+#include "ltlo/io/sequence_reader.h"
+#include "ltlo/map/ids.h"
+#include "ltlo/segmentation/depth_kmeans.h"
+#include "ltlo/system/run_records.h"
+
+namespace ltlo::system {
+
+struct HindsightMaskOptions {
+  /// K, Lloyd iterations and neighbour gap of the depth clusters (Seg.*)
+  segmentation::DepthKMeansOptions clusters;
+  /// label resolution (Dense.Resolution), the camera's divided by an integer
+  int label_width = 320;
+  int label_height = 240;
+  double static_threshold = 0.5;   ///< gamma~ below this is dynamic (Seg.StaticThreshold)
+  double min_beta = 0.5;           ///< static map points (LocalMapping.MinPointBeta)
+  int min_points = 3;              ///< votes a cluster needs (Seg.HindsightMinPoints)
+  double ray_tolerance_m = 0.05;   ///< Seg.HindsightRayTolerance
+  double vote_radius_m = 0.3;      ///< Seg.HindsightVoteRadius
+  int num_threads = 2;             ///< frames relabelled in parallel (folder pass)
+
+  static HindsightMaskOptions from(const Settings& settings);
+};
+
+/// What one frame's relabelling found.
+struct HindsightFrameResult {
+  int clusters = 0;         ///< depth clusters of the frame
+  int regions = 0;          ///< their depth-continuous pieces
+  int regions_voted = 0;    ///< regions with at least min_points votes
+  int regions_flipped = 0;  ///< static online, dynamic in hindsight
+};
+
+/// The per-frame step; one per thread (it keeps its buffers between frames).
+class HindsightRelabeller {
+ public:
+  /// `camera`: the raw camera (lens included) whose images the masks and depths are.
+  HindsightRelabeller(const CameraModel& camera, const HindsightMaskOptions& options);
+
+  /// Relabels `mask` (CV_8UC1 at the camera's size, 255 = dynamic; changed in place) of the frame with
+  /// raw depth `depth_m` (CV_32F m, 0 = none) seen from T_w_c, with `points` (those with beta >=
+  /// min_beta vote; a point behind the surface needs its observer centres).
+  HindsightFrameResult relabel(const cv::Mat& depth_m, const SE3& T_w_c, const std::vector<MapPointRecord>& points,
+                               cv::Mat* mask);
+
+ private:
+  /// The 3-D point (camera frame) of label pixel (c, r) at its label depth (the pinhole's rays).
+  Vec3 backProject(int c, int r) const;
+  /// x_w lies within ray_tolerance_m of a segment from an observer's centre to the point.
+  bool seenThrough(const Vec3& x_w, const MapPointRecord& point) const;
+  /// regions_ = the 4-connected pieces of each cluster whose neighbouring depths differ by less than
+  /// the clusters' gap threshold; -1 without depth. Returns their number.
+  int splitClusters();
+
+  CameraModel camera_;
+  PinholeCamera label_camera_;
+  HindsightMaskOptions options_;
+  int scale_ = 1;
+  segmentation::DepthKMeans kmeans_;
+  cv::Mat label_depth_m_;
+  segmentation::DepthClusters clusters_;
+  std::vector<double> vote_sum_, beta_sum_;
+  std::vector<int> votes_, pixels_, dynamic_pixels_;
+  std::vector<char> flip_;
+  cv::Mat regions_;          // CV_32S at the label resolution
+  struct Voter {
+    int region = 0;
+    Vec3 x_c;                // the frame's surface point where the point projects
+    bool dynamic = false;    // behind the surface (v_j = 1)
+  };
+  std::vector<Voter> voters_;
+  std::vector<int> stack_;   // flood fill
+};
+
+struct HindsightMaskResult {
+  int frames_written = 0;
+  int frames_relabelled = 0;   ///< frames with a final pose in the points' map
+  int frames_changed = 0;      ///< of those, frames with at least one cluster flipped
+  long regions_flipped = 0;
+  long regions_voted = 0;
+  long voting_points = 0;     ///< static points (beta >= min_beta)
+  double seconds = 0.0;
+};
+
+/// The folder pass: for every frame of `reader` (opened with masks_dir = the run's segmentation/) that
+/// has an online mask, writes <its name> to `out_dir` (created): the online mask relabelled when
+/// `trajectory` has the frame's time in `points_map`, else as it is. Frames are shared among
+/// options.num_threads threads (each frame's reading, relabelling and PNG writing on one). Throws
+/// InputError naming the file when a frame cannot be read or a mask written (after joining).
+HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const std::vector<FramePose>& trajectory,
+                                        map::MapId points_map, const std::vector<MapPointRecord>& points,
+                                        const CameraModel& camera, const HindsightMaskOptions& options,
+                                        const std::string& out_dir);
+
+}  // namespace ltlo::system
