@@ -59,6 +59,8 @@ void visitSegmentation(O& o, V& v) {
   v.integer("Seg.HindsightMinPoints", o.hindsight_min_points, 1, 1000);
   v.real("Seg.HindsightRayTolerance", o.hindsight_ray_tolerance_m, 0.001, 1.0);
   v.real("Seg.HindsightVoteRadius", o.hindsight_vote_radius_m, 0.01, 10.0);
+  v.boolean("Seg.HindsightToStatic", o.hindsight_to_static);
+  v.real("Seg.HindsightStaticShare", o.hindsight_static_share, 0.5, 1.0);
 }
 
 template <typename O, typename V>

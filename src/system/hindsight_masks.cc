@@ -21,6 +21,8 @@ namespace ltlo::system {
 
 namespace {
 
+constexpr char kToDynamic = 1, kToStatic = 2;  // flip_ values
+
 inline bool validDepth(float z) { return z > 0.0f && z < std::numeric_limits<float>::infinity(); }
 
 /// Each scale x scale block of `raw` into `coarse` (pre-sized): the nearest depth of the block, so a
@@ -77,6 +79,8 @@ HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   options.min_points = settings.segmentation.hindsight_min_points;
   options.ray_tolerance_m = settings.segmentation.hindsight_ray_tolerance_m;
   options.vote_radius_m = settings.segmentation.hindsight_vote_radius_m;
+  options.to_static = settings.segmentation.hindsight_to_static;
+  options.static_share = settings.segmentation.hindsight_static_share;
   return options;
 }
 
@@ -210,19 +214,24 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
     const bool online_static = 2 * dynamic_pixels_[k] < pixels_[k];
     const double gamma_prior = 1.0 - vote_sum_[k] / beta_sum_[k];  // Eq. 56
     if (online_static && gamma_prior < options_.static_threshold) {
-      flip_[k] = 1;
+      flip_[k] = kToDynamic;
       ++result.regions_flipped;
     }
+    if (options_.to_static && !online_static && gamma_prior >= options_.static_share) {
+      flip_[k] = kToStatic;
+      ++result.regions_to_static;
+    }
   }
-  if (result.regions_flipped == 0) return result;
-  // In a flipped region, the pixels whose nearest voter (3-D) votes dynamic and lies within
-  // vote_radius_m: the votes speak for the surface around them, not for a far end of the region (a box's
-  // side face and the floor it stands on are one depth-continuous region).
+  if (result.regions_flipped == 0 && result.regions_to_static == 0) return result;
+  // In a flipped region, the pixels whose nearest voter (3-D) lies within vote_radius_m and votes the
+  // region's new label: the votes speak for the surface around them, not for a far end of the region (a
+  // box's side face and the floor it stands on are one depth-continuous region).
   const double radius_sq = options_.vote_radius_m * options_.vote_radius_m;
   for (int r = 0; r < regions_.rows; ++r) {
     const int* regions = regions_.ptr<int>(r);
     for (int c = 0; c < regions_.cols; ++c) {
       if (regions[c] < 0 || !flip_[regions[c]]) continue;
+      const bool to_static = flip_[regions[c]] == kToStatic;
       const Vec3 x_c = backProject(c, r);
       double nearest_sq = radius_sq;
       bool dynamic = false;
@@ -234,10 +243,10 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
           dynamic = voter.dynamic;
         }
       }
-      if (!dynamic) continue;
+      if (nearest_sq >= radius_sq || dynamic == to_static) continue;
       for (int dv = 0; dv < scale_; ++dv) {
         std::uint8_t* out = mask->ptr<std::uint8_t>(r * scale_ + dv) + c * scale_;
-        std::fill(out, out + scale_, std::uint8_t{255});
+        std::fill(out, out + scale_, std::uint8_t{to_static ? 0 : 255});
       }
     }
   }
@@ -317,8 +326,9 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
       const HindsightFrameResult result =
           relabellers[static_cast<std::size_t>(worker)]->relabel(frame.depth_m, *frame_poses[n], voters, &mask);
       ++mine.frames_relabelled;
-      mine.frames_changed += result.regions_flipped > 0;
+      mine.frames_changed += result.regions_flipped + result.regions_to_static > 0;
       mine.regions_flipped += result.regions_flipped;
+      mine.regions_to_static += result.regions_to_static;
       mine.regions_voted += result.regions_voted;
     } else {
       mask = cv::imread(files.mask_path, cv::IMREAD_UNCHANGED);
@@ -333,6 +343,7 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
     total.frames_relabelled += mine.frames_relabelled;
     total.frames_changed += mine.frames_changed;
     total.regions_flipped += mine.regions_flipped;
+    total.regions_to_static += mine.regions_to_static;
     total.regions_voted += mine.regions_voted;
   }
   total.voting_points = static_cast<long>(voters.size());

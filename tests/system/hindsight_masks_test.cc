@@ -2,7 +2,8 @@
 // online mask calls static, with static map points seen behind it from where the frame stands, turns
 // dynamic and the wall around it stays static; the same points seen only from far to the side (the
 // parallax of a static object in front of a wall) change nothing; points the frame sees past do not
-// outvote the points behind the surface.
+// outvote the points behind the surface; a region the online mask calls dynamic turns static where the
+// static points lie on its surface.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -109,18 +110,34 @@ TEST_F(HindsightRelabel, PointsTheFrameSeesPastDoNotOutvoteThePointsBehindIt) {
   EXPECT_LT(outside, 0.01);
 }
 
-TEST_F(HindsightRelabel, AFewPointsAreNotEnoughAndAMaskAlreadyDynamicStaysSo) {
+TEST_F(HindsightRelabel, AFewPointsAreNotEnough) {
   addWallPoints(/*behind_box=*/true, Vec3::Zero());
   points_.resize(static_cast<std::size_t>(options_.min_points) - 1);
   EXPECT_EQ(relabelledShares().first, 0.0);
+}
 
-  // Never dynamic -> static: an all-dynamic mask with the wall mapped around stays all dynamic.
-  points_.clear();
+TEST_F(HindsightRelabel, ADynamicMaskTurnsStaticOnlyWhereTheStaticMapLiesOnItsSurface) {
+  // An all-dynamic mask: the wall, whose static points lie on its surface, turns static; the box, with
+  // static points behind it seen through it, stays dynamic. Without Seg.HindsightToStatic nothing changes.
   addWallPoints(/*behind_box=*/false, Vec3::Zero());
-  cv::Mat mask(kHeight, kWidth, CV_8UC1, cv::Scalar(255));
-  HindsightRelabeller relabeller(camera_, options_);
-  relabeller.relabel(depth_, T_w_c_, points_, &mask);
-  EXPECT_EQ(cv::countNonZero(mask), kWidth * kHeight);
+  addWallPoints(/*behind_box=*/true, Vec3::Zero());
+  for (const bool to_static : {true, false}) {
+    options_.to_static = to_static;
+    cv::Mat mask(kHeight, kWidth, CV_8UC1, cv::Scalar(255));
+    HindsightRelabeller relabeller(camera_, options_);
+    const HindsightFrameResult result = relabeller.relabel(depth_, T_w_c_, points_, &mask);
+    cv::Mat outside = mask.clone();
+    outside(kBox).setTo(0);
+    const double outside_share = cv::countNonZero(outside) / static_cast<double>(kWidth * kHeight - kBox.area());
+    EXPECT_EQ(cv::countNonZero(mask(kBox)), kBox.area()) << "to_static " << to_static;
+    if (to_static) {
+      EXPECT_LT(outside_share, 0.01);
+      EXPECT_GT(result.regions_to_static, 0);
+    } else {
+      EXPECT_EQ(outside_share, 1.0);
+      EXPECT_EQ(result.regions_to_static, 0);
+    }
+  }
 }
 
 }  // namespace

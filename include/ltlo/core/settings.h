@@ -104,6 +104,11 @@ struct SegmentationOptions {
   /// A region judged dynamic in hindsight turns dynamic where its nearest voter votes dynamic and lies
   /// within this distance, m (Seg.HindsightVoteRadius, [0.01, 10])
   double hindsight_vote_radius_m = 0.3;
+  /// Hindsight also turns dynamic regions static where the static points vote so (Seg.HindsightToStatic, 0/1)
+  bool hindsight_to_static = true;
+  /// ... when at least this share of their votes (beta-weighted) lie on the surface, none behind
+  /// (Seg.HindsightStaticShare, [0.5, 1])
+  double hindsight_static_share = 0.9;
 
   static SegmentationOptions load(const SettingsFile& file);
 };

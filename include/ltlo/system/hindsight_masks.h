@@ -18,11 +18,14 @@
 /// Regions are the depth-continuous pieces of the frame's depth clusters (the same depth K-means as
 /// online, at the label resolution, each cluster split where neighbouring depths jump by more than the
 /// V_i threshold, so a cluster holding a box's edge and the wall beside it is judged piece by piece).
-/// Only static -> dynamic: a region the online mask calls static (most of its pixels) turns dynamic
-/// when at least min_points points vote there and gamma~_c < static_threshold (Seg.StaticThreshold);
-/// of its pixels, those whose nearest voter (3-D) votes dynamic and lies within vote_radius_m turn
-/// dynamic (a box's side face and the floor it stands on meet without a depth step: the votes on the
-/// face do not speak for the far end of the floor). Two rules keep static structure static:
+/// A region the online mask calls static (most of its pixels) turns dynamic when at least min_points
+/// points vote there and gamma~_c < static_threshold (Seg.StaticThreshold). With to_static, a region
+/// it calls dynamic turns static when at least min_points vote and gamma~_c >= static_share: nearly all
+/// the static points there lie on its surface, none behind (a strip of wall that shared a depth cluster
+/// with a box online, and is a region of its own here). Of a flipped region's pixels, those whose
+/// nearest voter (3-D) lies within vote_radius_m and votes the new label change (a box's side face and
+/// the floor it stands on meet without a depth step: the votes on the face do not speak for the far end
+/// of the floor). Two rules keep static structure static:
 ///   - a point behind the frame's surface votes only when that surface point lies in space a keyframe
 ///     saw through: within ray_tolerance_m of the segment from the centre of a keyframe that observed
 ///     the point to the point. A wall point hidden by parallax behind a static cupboard, seen past the
@@ -56,6 +59,8 @@ struct HindsightMaskOptions {
   int min_points = 3;              ///< votes a cluster needs (Seg.HindsightMinPoints)
   double ray_tolerance_m = 0.05;   ///< Seg.HindsightRayTolerance
   double vote_radius_m = 0.3;      ///< Seg.HindsightVoteRadius
+  bool to_static = true;           ///< dynamic -> static too (Seg.HindsightToStatic)
+  double static_share = 0.9;       ///< gamma~ at least this turns dynamic -> static (Seg.HindsightStaticShare)
   int num_threads = 2;             ///< frames relabelled in parallel (folder pass)
 
   static HindsightMaskOptions from(const Settings& settings);
@@ -67,6 +72,7 @@ struct HindsightFrameResult {
   int regions = 0;          ///< their depth-continuous pieces
   int regions_voted = 0;    ///< regions with at least min_points votes
   int regions_flipped = 0;  ///< static online, dynamic in hindsight
+  int regions_to_static = 0;  ///< dynamic online, static in hindsight
 };
 
 /// The per-frame step; one per thread (it keeps its buffers between frames).
@@ -115,6 +121,7 @@ struct HindsightMaskResult {
   int frames_relabelled = 0;   ///< frames with a final pose in the points' map
   int frames_changed = 0;      ///< of those, frames with at least one cluster flipped
   long regions_flipped = 0;
+  long regions_to_static = 0;
   long regions_voted = 0;
   long voting_points = 0;     ///< static points (beta >= min_beta)
   double seconds = 0.0;
