@@ -597,7 +597,9 @@ TEST_F(TrackingLossRuns, AMapTrackedBrieflyHandsOnNoMoreCertainAVelocityThanItSt
         EXPECT_TRUE(origin.has_value()) << "frame " << k;
         if (origin) out.origins.push_back(*origin);
       }
-      if (k > kFirstBlackEnd && k < kSecondBlackBegin) EXPECT_TRUE(r.tracked) << "frame " << k;
+      if (k > kFirstBlackEnd && k < kSecondBlackBegin) {
+        EXPECT_TRUE(r.tracked) << "frame " << k;
+      }
     }
     out.maps_created = run->tracker->numMapsCreated();
     return out;
