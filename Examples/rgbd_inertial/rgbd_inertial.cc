@@ -282,7 +282,7 @@ void writeFinalMasks(const Arguments& args, const RunSetup& setup, const system:
         system::HindsightMaskOptions::from(setup.settings), final_dir.string());
     log::info(kProgram, ": hindsight masks: ", result.frames_written, " written to ", final_dir.string(), ", ",
               result.frames_relabelled, " relabelled against the final map, ", result.frames_changed, " changed (",
-              result.regions_flipped, " regions static -> dynamic, ", result.voting_points, " static points) in ",
+              result.regions_flipped, " regions static -> dynamic, ", result.regions_to_static, " dynamic -> static, ", result.voting_points, " static points) in ",
               result.seconds, " s");
   } catch (const std::exception& e) {
     log::error(kProgram, ": hindsight masks not written: ", e.what());

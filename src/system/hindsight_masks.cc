@@ -246,7 +246,7 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
       if (nearest_sq >= radius_sq || dynamic == to_static) continue;
       for (int dv = 0; dv < scale_; ++dv) {
         std::uint8_t* out = mask->ptr<std::uint8_t>(r * scale_ + dv) + c * scale_;
-        std::fill(out, out + scale_, std::uint8_t{to_static ? 0 : 255});
+        std::fill(out, out + scale_, static_cast<std::uint8_t>(to_static ? 0 : 255));
       }
     }
   }
@@ -294,10 +294,6 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
   fs::create_directories(out_dir, error);
   if (error) throw InputError(out_dir, 0, "cannot create the hindsight mask folder: " + error.message());
 
-  std::vector<MapPointRecord> voters;
-  for (const MapPointRecord& point : points) {
-    if (point.beta >= options.min_beta) voters.push_back(point);
-  }
   const PoseLookup poses(trajectory, points_map);
   std::vector<int> frames;           // with an online mask
   std::vector<const SE3*> frame_poses;  // their final poses (null: none in points_map)
@@ -324,7 +320,7 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
       mask = frame.mask;
       if (mask.empty()) throw InputError(files.mask_path, 0, "cannot read the online mask");
       const HindsightFrameResult result =
-          relabellers[static_cast<std::size_t>(worker)]->relabel(frame.depth_m, *frame_poses[n], voters, &mask);
+          relabellers[static_cast<std::size_t>(worker)]->relabel(frame.depth_m, *frame_poses[n], points, &mask);
       ++mine.frames_relabelled;
       mine.frames_changed += result.regions_flipped + result.regions_to_static > 0;
       mine.regions_flipped += result.regions_flipped;
@@ -346,7 +342,8 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
     total.regions_to_static += mine.regions_to_static;
     total.regions_voted += mine.regions_voted;
   }
-  total.voting_points = static_cast<long>(voters.size());
+  total.voting_points = std::count_if(points.begin(), points.end(),
+                                      [&](const MapPointRecord& point) { return point.beta >= options.min_beta; });
   total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return total;
 }

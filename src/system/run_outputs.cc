@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -431,36 +432,35 @@ void writeMetrics(const std::string& out_dir, const RunReport& report, const io:
   if (ground_truth.empty() && ground_truth_error.empty()) return;
   if (!ground_truth_error.empty()) addEvaluationError(written, ground_truth_error);
   io::Metrics figures = computeRunMetrics(report, ground_truth);
-  std::error_code error;
-  const fs::path segmentation_dir = fs::path(out_dir) / "segmentation";
-  // No masks (Ctrl-C before the first frame): nothing to compare, not an error.
-  if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(segmentation_dir, error) &&
-      !fs::is_empty(segmentation_dir, error)) {
+  // The same figures as `evaluate --gt-masks SEQ/masks --est-masks RUN/<folder>`; none when the run wrote
+  // no masks there (Ctrl-C before the first frame, Seg.HindsightMasks 0): nothing to compare, not an error.
+  const auto maskFigures = [&](const char* folder) -> std::optional<eval::MaskIouResult> {
+    std::error_code error;
+    const fs::path masks_dir = fs::path(out_dir) / folder;
+    if (gt_masks_dir.empty() || !fs::is_directory(gt_masks_dir, error) || !fs::is_directory(masks_dir, error) ||
+        fs::is_empty(masks_dir, error)) {
+      return std::nullopt;
+    }
     try {
-      // The same figures as `evaluate --gt-masks SEQ/masks --est-masks RUN/segmentation`.
-      const eval::MaskIouResult iou = eval::evaluateMaskFolders(gt_masks_dir, segmentation_dir.string());
-      figures.set("static_iou", iou.mean_static_iou);
-      figures.set("static_iou_occluded", iou.mean_static_iou_occluded);
-      figures.set("num_mask_frames", iou.num_frames);
-      figures.set("num_occluded_frames", iou.num_occluded_frames);
-      figures.set("dynamic_recall", iou.dynamic_recall);
-      figures.set("static_share", iou.mean_static_share);
+      return eval::evaluateMaskFolders(gt_masks_dir, masks_dir.string());
     } catch (const InputError& e) {
       addEvaluationError(written, e.what());
+      return std::nullopt;
     }
+  };
+  if (const std::optional<eval::MaskIouResult> iou = maskFigures("segmentation")) {
+    figures.set("static_iou", iou->mean_static_iou);
+    figures.set("static_iou_occluded", iou->mean_static_iou_occluded);
+    figures.set("num_mask_frames", iou->num_frames);
+    figures.set("num_occluded_frames", iou->num_occluded_frames);
+    figures.set("dynamic_recall", iou->dynamic_recall);
+    figures.set("static_share", iou->mean_static_share);
   }
-  // The hindsight masks (Seg.HindsightMasks), when the run wrote them: the same figures, "_final".
-  const fs::path final_dir = fs::path(out_dir) / "segmentation_final";
-  if (!gt_masks_dir.empty() && fs::is_directory(gt_masks_dir, error) && fs::is_directory(final_dir, error) &&
-      !fs::is_empty(final_dir, error)) {
-    try {
-      const eval::MaskIouResult iou = eval::evaluateMaskFolders(gt_masks_dir, final_dir.string());
-      figures.set("static_iou_final", iou.mean_static_iou);
-      figures.set("static_iou_occluded_final", iou.mean_static_iou_occluded);
-      figures.set("dynamic_recall_final", iou.dynamic_recall);
-    } catch (const InputError& e) {
-      addEvaluationError(written, e.what());
-    }
+  // The hindsight masks, when the run wrote them.
+  if (const std::optional<eval::MaskIouResult> iou = maskFigures("segmentation_final")) {
+    figures.set("static_iou_final", iou->mean_static_iou);
+    figures.set("static_iou_occluded_final", iou->mean_static_iou_occluded);
+    figures.set("dynamic_recall_final", iou->dynamic_recall);
   }
   if (!written->evaluation_error.empty()) figures.set("evaluation_error", written->evaluation_error);
   written->metrics = std::move(figures);
