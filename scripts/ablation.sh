@@ -41,6 +41,8 @@
 #   hindsight_off    Seg.HindsightMasks = 0: no segmentation_final/ (the table's final IoU is then n/a;
 #                    its online IoU is the same run's)
 #   hindsight_to_static_off  Seg.HindsightToStatic = 0: the hindsight masks only turn static regions dynamic
+#   hindsight_free_space_off  Seg.HindsightFreeSpace = 0: the hindsight masks ask the map points only, not
+#                    the keyframes' depth images
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -106,6 +108,7 @@ variant_args() {
     full_ba_budget_off) echo "${full[@]}" --set Loop.FullBaBudget=0 ;;
     hindsight_off) echo "${full[@]}" --set Seg.HindsightMasks=0 ;;
     hindsight_to_static_off) echo "${full[@]}" --set Seg.HindsightToStatic=0 ;;
+    hindsight_free_space_off) echo "${full[@]}" --set Seg.HindsightFreeSpace=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

@@ -278,11 +278,13 @@ void writeFinalMasks(const Arguments& args, const RunSetup& setup, const system:
     reader_options.read_ground_truth = false;
     const io::SequenceReader reader = io::SequenceReader::open(args.sequence_dir, reader_options);
     const system::HindsightMaskResult result = system::writeHindsightMasks(
-        reader, report.trajectory, report.map_points_map, report.map_points, setup.settings.calib.camera.model(),
+        reader, report.trajectory, report.keyframes, report.map_points_map, report.map_points, setup.settings.calib.camera.model(),
         system::HindsightMaskOptions::from(setup.settings), final_dir.string());
     log::info(kProgram, ": hindsight masks: ", result.frames_written, " written to ", final_dir.string(), ", ",
               result.frames_relabelled, " relabelled against the final map, ", result.frames_changed, " changed (",
-              result.regions_flipped, " regions static -> dynamic, ", result.regions_to_static, " dynamic -> static, ", result.voting_points, " static points) in ",
+              result.regions_flipped, " regions static -> dynamic (", result.regions_free_space, " by free space), ",
+              result.regions_to_static, " dynamic -> static, ", result.voting_points, " static points, ",
+              result.free_space_views, " keyframe depths) in ",
               result.seconds, " s");
   } catch (const std::exception& e) {
     log::error(kProgram, ": hindsight masks not written: ", e.what());

@@ -61,6 +61,8 @@ void visitSegmentation(O& o, V& v) {
   v.real("Seg.HindsightVoteRadius", o.hindsight_vote_radius_m, 0.01, 10.0);
   v.boolean("Seg.HindsightToStatic", o.hindsight_to_static);
   v.real("Seg.HindsightStaticShare", o.hindsight_static_share, 0.5, 1.0);
+  v.boolean("Seg.HindsightFreeSpace", o.hindsight_free_space);
+  v.integer("Seg.HindsightFreeSpaceViews", o.hindsight_free_space_views, 1, 20);
 }
 
 template <typename O, typename V>

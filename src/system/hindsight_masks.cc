@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <opencv2/imgcodecs.hpp>
@@ -22,6 +23,11 @@ namespace ltlo::system {
 namespace {
 
 constexpr char kToDynamic = 1, kToStatic = 2;  // flip_ values
+/// A free-space view must face within this of the frame's optical axis (cos 100 deg): a view facing
+/// away sees none of the frame's surface, and skipping it saves its projections.
+constexpr double kMinViewAxisCos = -0.17;
+/// Closer than this in front of a view, a point says nothing of what the view saw (m).
+constexpr double kMinViewDepth_m = 0.1;
 
 inline bool validDepth(float z) { return z > 0.0f && z < std::numeric_limits<float>::infinity(); }
 
@@ -69,6 +75,40 @@ struct PoseLookup {
 
 }  // namespace
 
+FreeSpaceView FreeSpaceView::fromDepth(const cv::Mat& depth_m, const SE3& T_w_c, double t_s, int view_scale) {
+  LTLO_ASSERT(depth_m.type() == CV_32F && view_scale > 0 && depth_m.cols % view_scale == 0 &&
+                  depth_m.rows % view_scale == 0,
+              "depth " << depth_m.cols << "x" << depth_m.rows << " type " << depth_m.type() << ", scale " << view_scale);
+  FreeSpaceView view;
+  view.t_s = t_s;
+  const SE3 T_c_w = T_w_c.inverse();
+  view.R_c_w = T_c_w.rotationMatrix();
+  view.t_c_w = T_c_w.translation();
+  view.axis_w = T_w_c.rotationMatrix().col(2);
+  view.view_scale = view_scale;
+  cv::Mat blocks(depth_m.rows / view_scale, depth_m.cols / view_scale, CV_32F);
+  nearestDepthPerBlock(depth_m, view_scale, &blocks);
+  // The nearest of the 3 x 3 blocks around, unknown where any is unknown: a depth edge is the surface in
+  // front for a block either side, so neither a pose error of a pixel nor a hole sees past it.
+  view.depth_m.create(blocks.rows, blocks.cols, CV_32F);
+  for (int r = 0; r < blocks.rows; ++r) {
+    float* out = view.depth_m.ptr<float>(r);
+    for (int c = 0; c < blocks.cols; ++c) {
+      float nearest = std::numeric_limits<float>::max();
+      for (int nr = std::max(0, r - 1); nr <= std::min(blocks.rows - 1, r + 1); ++nr) {
+        const float* row = blocks.ptr<float>(nr);
+        for (int nc = std::max(0, c - 1); nc <= std::min(blocks.cols - 1, c + 1); ++nc) {
+          nearest = row[nc] > 0.0f ? std::min(nearest, row[nc]) : 0.0f;
+          if (nearest == 0.0f) break;
+        }
+        if (nearest == 0.0f) break;
+      }
+      out[c] = nearest;
+    }
+  }
+  return view;
+}
+
 HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   HindsightMaskOptions options;
   options.clusters = segmentation::DepthKMeansOptions::from(settings.segmentation);
@@ -81,6 +121,8 @@ HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   options.vote_radius_m = settings.segmentation.hindsight_vote_radius_m;
   options.to_static = settings.segmentation.hindsight_to_static;
   options.static_share = settings.segmentation.hindsight_static_share;
+  options.free_space = settings.segmentation.hindsight_free_space;
+  options.free_space_views = settings.segmentation.hindsight_free_space_views;
   return options;
 }
 
@@ -94,6 +136,36 @@ HindsightRelabeller::HindsightRelabeller(const CameraModel& camera, const Hindsi
   scale_ = width / options.label_width;
   label_camera_ = camera.pinhole().scaled(1.0 / scale_);
   label_depth_m_.create(options.label_height, options.label_width, CV_32F);
+  // Each label pixel's ray through the centre of its block (z = 1, the lens undone once).
+  bearings_.resize(static_cast<std::size_t>(options.label_width) * static_cast<std::size_t>(options.label_height));
+  for (int r = 0; r < options.label_height; ++r) {
+    for (int c = 0; c < options.label_width; ++c) {
+      const double half = 0.5 * (scale_ - 1);
+      const std::optional<Vec3> ray = camera.unproject(Vec2(c * scale_ + half, r * scale_ + half));
+      bearings_[static_cast<std::size_t>(r * options.label_width + c)] =
+          ray && ray->z() > 0.0 ? Vec2(ray->x() / ray->z(), ray->y() / ray->z())
+                                : Vec2(std::numeric_limits<double>::quiet_NaN(), 0.0);
+    }
+  }
+  // The raw image's field on the normalised plane: its border pixels' rays (for a pinhole, the image).
+  field_min_ = Vec2::Constant(std::numeric_limits<double>::max());
+  field_max_ = Vec2::Constant(std::numeric_limits<double>::lowest());
+  const auto extend = [&](double u, double v) {
+    const std::optional<Vec3> ray = camera.unproject(Vec2(u, v));
+    if (!ray) return;
+    field_min_ = field_min_.cwiseMin(ray->head<2>());
+    field_max_ = field_max_.cwiseMax(ray->head<2>());
+  };
+  for (int u = 0; u < width; ++u) {
+    extend(u, 0.0);
+    extend(u, height - 1.0);
+  }
+  for (int v = 0; v < height; ++v) {
+    extend(0.0, v);
+    extend(width - 1.0, v);
+  }
+  grid_cols_ = (options.label_width + kFreeSpaceStride - 1) / kFreeSpaceStride;
+  grid_rows_ = (options.label_height + kFreeSpaceStride - 1) / kFreeSpaceStride;
 }
 
 Vec3 HindsightRelabeller::backProject(int c, int r) const {
@@ -111,6 +183,88 @@ bool HindsightRelabeller::seenThrough(const Vec3& x_w, const MapPointRecord& poi
     if ((centre_w + s * ray - x_w).squaredNorm() < tolerance_sq) return true;
   }
   return false;
+}
+
+std::optional<Vec2> HindsightRelabeller::projectInField(const Vec3& p_c) const {
+  const Vec2 x_n(p_c.x() / p_c.z(), p_c.y() / p_c.z());
+  if (x_n.x() < field_min_.x() || x_n.y() < field_min_.y() || x_n.x() > field_max_.x() || x_n.y() > field_max_.y()) {
+    return std::nullopt;
+  }
+  return camera_.project(p_c);
+}
+
+void HindsightRelabeller::sampleFreeSpace(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s,
+                                          const cv::Mat& mask, int num_regions) {
+  const int width = label_depth_m_.cols, height = label_depth_m_.rows;
+  const std::size_t num_samples = static_cast<std::size_t>(grid_cols_) * static_cast<std::size_t>(grid_rows_);
+  sample_state_.assign(num_samples, -1);
+  sample_x_c_.resize(num_samples);
+  fs_violated_.assign(static_cast<std::size_t>(num_regions), 0);
+  const Vec3 axis_w = T_w_c.rotationMatrix().col(2);
+  active_views_.clear();
+  for (const FreeSpaceView& view : views) {
+    if (std::abs(view.t_s - t_s) < 1e-6 || view.axis_w.dot(axis_w) < kMinViewAxisCos) continue;
+    active_views_.push_back(&view);
+  }
+  if (active_views_.empty()) return;
+  const int needed = options_.free_space_views;
+  for (int gr = 0; gr < grid_rows_; ++gr) {
+    const int r = std::min(height - 1, gr * kFreeSpaceStride + kFreeSpaceStride / 2);
+    for (int gc = 0; gc < grid_cols_; ++gc) {
+      const int c = std::min(width - 1, gc * kFreeSpaceStride + kFreeSpaceStride / 2);
+      const int region = regions_.ptr<int>(r)[c];
+      // Only what the online mask calls static can turn dynamic.
+      if (region < 0 || mask.ptr<std::uint8_t>(r * scale_)[c * scale_] != 0) continue;
+      const Vec2& bearing = bearings_[static_cast<std::size_t>(r * width + c)];
+      if (std::isnan(bearing.x())) continue;
+      const double z = label_depth_m_.ptr<float>(r)[c];
+      const Vec3 x_c(bearing.x() * z, bearing.y() * z, z);
+      const Vec3 x_w = T_w_c * x_c;
+      int through = 0;
+      bool seen = false;
+      for (const FreeSpaceView* view : active_views_) {
+        const Vec3 x_v = view->R_c_w * x_w + view->t_c_w;
+        if (x_v.z() < kMinViewDepth_m) continue;
+        const std::optional<Vec2> u = projectInField(x_v);
+        if (!u) continue;
+        const int vc = static_cast<int>(std::floor(u->x() / view->view_scale));
+        const int vr = static_cast<int>(std::floor(u->y() / view->view_scale));
+        if (vc < 0 || vr < 0 || vc >= view->depth_m.cols || vr >= view->depth_m.rows) continue;
+        const float depth = view->depth_m.ptr<float>(vr)[vc];
+        if (depth <= 0.0f) continue;
+        const double gap = options_.clusters.gapThreshold(x_v.z());
+        if (depth < x_v.z() - gap) continue;  // the view's surface stands in front: it did not see here
+        seen = true;
+        if (depth > x_v.z() + gap && ++through >= needed) break;  // it saw past the point: free space
+      }
+      if (!seen) continue;
+      const std::size_t sample = static_cast<std::size_t>(gr * grid_cols_ + gc);
+      sample_state_[sample] = through >= needed ? 1 : 0;
+      sample_x_c_[sample] = x_c;
+      fs_violated_[static_cast<std::size_t>(region)] += through >= needed;
+    }
+  }
+}
+
+int HindsightRelabeller::nearestSampleState(int c, int r, int region, const Vec3& x_c) const {
+  const int gc0 = c / kFreeSpaceStride, gr0 = r / kFreeSpaceStride;
+  double nearest_sq = std::numeric_limits<double>::max();
+  int state = -1;
+  for (int gr = std::max(0, gr0 - 1); gr <= std::min(grid_rows_ - 1, gr0 + 1); ++gr) {
+    for (int gc = std::max(0, gc0 - 1); gc <= std::min(grid_cols_ - 1, gc0 + 1); ++gc) {
+      const std::size_t sample = static_cast<std::size_t>(gr * grid_cols_ + gc);
+      if (sample_state_[sample] < 0) continue;
+      const int sr = std::min(label_depth_m_.rows - 1, gr * kFreeSpaceStride + kFreeSpaceStride / 2);
+      const int sc = std::min(label_depth_m_.cols - 1, gc * kFreeSpaceStride + kFreeSpaceStride / 2);
+      if (regions_.ptr<int>(sr)[sc] != region) continue;
+      const double distance_sq = (sample_x_c_[sample] - x_c).squaredNorm();
+      if (distance_sq < nearest_sq) {
+        nearest_sq = distance_sq;
+        state = sample_state_[sample];
+      }
+    }
+  }
+  return state;
 }
 
 int HindsightRelabeller::splitClusters() {
@@ -146,7 +300,8 @@ int HindsightRelabeller::splitClusters() {
 }
 
 HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const SE3& T_w_c,
-                                                  const std::vector<MapPointRecord>& points, cv::Mat* mask) {
+                                                  const std::vector<MapPointRecord>& points, cv::Mat* mask,
+                                                  const std::vector<FreeSpaceView>& views, double t_s) {
   const int width = camera_.pinhole().width(), height = camera_.pinhole().height();
   LTLO_ASSERT(depth_m.type() == CV_32F && depth_m.cols == width && depth_m.rows == height,
               "depth " << depth_m.cols << "x" << depth_m.rows << " type " << depth_m.type());
@@ -185,8 +340,9 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
     if (point.beta < options_.min_beta) continue;
     const Vec3 p_c = T_c_w * point.p_w;
     if (p_c.z() <= 0.05) continue;
-    const Vec2 u = camera_.project(p_c);
-    const int ui = static_cast<int>(std::lround(u.x())), vi = static_cast<int>(std::lround(u.y()));
+    const std::optional<Vec2> u = projectInField(p_c);
+    if (!u) continue;
+    const int ui = static_cast<int>(std::lround(u->x())), vi = static_cast<int>(std::lround(u->y()));
     if (ui < 0 || vi < 0 || ui >= width || vi >= height) continue;
     const float z_image = depth_m.ptr<float>(vi)[ui];
     if (!validDepth(z_image)) continue;
@@ -208,6 +364,17 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
   }
 
   flip_.assign(static_cast<std::size_t>(R), 0);
+  fs_flip_.assign(static_cast<std::size_t>(R), 0);
+  const auto online_static = [&](int k) { return 2 * dynamic_pixels_[k] < pixels_[k]; };
+  // Free space: regions the online mask calls static where keyframes saw through min_points samples.
+  if (options_.free_space && !views.empty()) {
+    sampleFreeSpace(T_w_c, views, t_s, *mask, R);
+    for (int k = 0; k < R; ++k) {
+      if (!online_static(k) || fs_violated_[k] < options_.min_points) continue;
+      fs_flip_[k] = 1;
+      ++result.regions_free_space;
+    }
+  }
   for (int k = 0; k < R; ++k) {
     if (votes_[k] < options_.min_points || beta_sum_[k] <= 0.0) continue;
     ++result.regions_voted;
@@ -222,6 +389,7 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
       ++result.regions_to_static;
     }
   }
+  for (int k = 0; k < R; ++k) result.regions_flipped += fs_flip_[k] && flip_[k] != kToDynamic;
   if (result.regions_flipped == 0 && result.regions_to_static == 0) return result;
   // In a flipped region, the pixels whose nearest voter (3-D) lies within vote_radius_m and votes the
   // region's new label: the votes speak for the surface around them, not for a far end of the region (a
@@ -230,7 +398,21 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
   for (int r = 0; r < regions_.rows; ++r) {
     const int* regions = regions_.ptr<int>(r);
     for (int c = 0; c < regions_.cols; ++c) {
-      if (regions[c] < 0 || !flip_[regions[c]]) continue;
+      if (regions[c] < 0 || (!flip_[regions[c]] && !fs_flip_[regions[c]])) continue;
+      if (fs_flip_[regions[c]]) {
+        // The nearest free-space sample of the region says for the pixel.
+        const Vec2& bearing = bearings_[static_cast<std::size_t>(r * regions_.cols + c)];
+        const double z = label_depth_m_.ptr<float>(r)[c];
+        if (!std::isnan(bearing.x()) &&
+            nearestSampleState(c, r, regions[c], Vec3(bearing.x() * z, bearing.y() * z, z)) == 1) {
+          for (int dv = 0; dv < scale_; ++dv) {
+            std::uint8_t* out = mask->ptr<std::uint8_t>(r * scale_ + dv) + c * scale_;
+            std::fill(out, out + scale_, static_cast<std::uint8_t>(255));
+          }
+          continue;
+        }
+        if (!flip_[regions[c]]) continue;
+      }
       const bool to_static = flip_[regions[c]] == kToStatic;
       const Vec3 x_c = backProject(c, r);
       double nearest_sq = radius_sq;
@@ -285,7 +467,7 @@ void forEachFrame(std::size_t num_frames, int num_threads, Fn&& fn) {
 }  // namespace
 
 HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const std::vector<FramePose>& trajectory,
-                                        map::MapId points_map, const std::vector<MapPointRecord>& points,
+                                        const std::vector<KeyFrameRecord>& keyframes, map::MapId points_map, const std::vector<MapPointRecord>& points,
                                         const CameraModel& camera, const HindsightMaskOptions& options,
                                         const std::string& out_dir) {
   namespace fs = std::filesystem;
@@ -305,6 +487,31 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
   const int num_threads = std::max(1, std::min<int>(options.num_threads, static_cast<int>(frames.size())));
   HindsightMaskResult total;
 
+  // The free-space views: the depth of every keyframe of points_map at its final pose, at twice the label
+  // step.
+  std::vector<FreeSpaceView> views;
+  if (options.free_space) {
+    std::vector<std::pair<double, int>> frame_times;  // every frame of the reader, by time
+    for (int i = 0; i < reader.frameCount(); ++i) frame_times.emplace_back(reader.frameFiles(i).t_s, i);
+    std::sort(frame_times.begin(), frame_times.end());
+    std::vector<std::pair<int, const KeyFrameRecord*>> sources;
+    for (const KeyFrameRecord& keyframe : keyframes) {
+      if (keyframe.map != points_map.value) continue;
+      const auto it = std::lower_bound(frame_times.begin(), frame_times.end(),
+                                       std::make_pair(keyframe.t_s - 1e-6, std::numeric_limits<int>::min()));
+      if (it == frame_times.end() || it->first > keyframe.t_s + 1e-6) continue;
+      sources.emplace_back(it->second, &keyframe);
+    }
+    const int view_scale = 2 * (camera.pinhole().width() / options.label_width);
+    views.resize(sources.size());
+    forEachFrame(sources.size(), num_threads, [&](int, std::size_t n) {
+      const io::RgbdImuFrame frame = reader.load(sources[n].first, /*with_colour=*/false);
+      if (frame.depth_m.empty()) throw InputError(reader.frameFiles(sources[n].first).depth_path, 0, "cannot read the depth");
+      views[n] = FreeSpaceView::fromDepth(frame.depth_m, sources[n].second->T_w_c, sources[n].second->t_s, view_scale);
+    });
+    total.free_space_views = static_cast<int>(views.size());
+  }
+
   // Every frame's mask, relabelled when it has a final pose.
   std::vector<HindsightMaskResult> partial(static_cast<std::size_t>(num_threads));
   std::vector<std::unique_ptr<HindsightRelabeller>> relabellers;
@@ -320,11 +527,13 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
       mask = frame.mask;
       if (mask.empty()) throw InputError(files.mask_path, 0, "cannot read the online mask");
       const HindsightFrameResult result =
-          relabellers[static_cast<std::size_t>(worker)]->relabel(frame.depth_m, *frame_poses[n], points, &mask);
+          relabellers[static_cast<std::size_t>(worker)]->relabel(frame.depth_m, *frame_poses[n], points, &mask, views,
+                                                                 files.t_s);
       ++mine.frames_relabelled;
       mine.frames_changed += result.regions_flipped + result.regions_to_static > 0;
       mine.regions_flipped += result.regions_flipped;
       mine.regions_to_static += result.regions_to_static;
+      mine.regions_free_space += result.regions_free_space;
       mine.regions_voted += result.regions_voted;
     } else {
       mask = cv::imread(files.mask_path, cv::IMREAD_UNCHANGED);
@@ -340,6 +549,7 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
     total.frames_changed += mine.frames_changed;
     total.regions_flipped += mine.regions_flipped;
     total.regions_to_static += mine.regions_to_static;
+    total.regions_free_space += mine.regions_free_space;
     total.regions_voted += mine.regions_voted;
   }
   total.voting_points = std::count_if(points.begin(), points.end(),

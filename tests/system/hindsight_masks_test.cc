@@ -3,7 +3,8 @@
 // dynamic and the wall around it stays static; the same points seen only from far to the side (the
 // parallax of a static object in front of a wall) change nothing; points the frame sees past do not
 // outvote the points behind the surface; a region the online mask calls dynamic turns static where the
-// static points lie on its surface.
+// static points lie on its surface. Free space: without any map point, a box where two keyframes saw the
+// wall turns dynamic; keyframes that saw the box there, one keyframe alone, or the frame's own depth do not.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -138,6 +139,124 @@ TEST_F(HindsightRelabel, ADynamicMaskTurnsStaticOnlyWhereTheStaticMapLiesOnItsSu
       EXPECT_EQ(result.regions_to_static, 0);
     }
   }
+}
+
+/// Relabels an all-static mask without map points, against keyframe depths: `view_depths` seen from the
+/// frame's pose moved by `offsets_c` (camera frame), at times 1, 2, ... s. Returns the box's and the
+/// rest's dynamic shares.
+std::pair<double, double> freeSpaceShares(const CameraModel& camera, const HindsightMaskOptions& options,
+                                          const SE3& T_w_c, const cv::Mat& depth,
+                                          const std::vector<std::pair<cv::Mat, Vec3>>& views_c,
+                                          HindsightFrameResult* result = nullptr, double t_s = 0.0) {
+  std::vector<FreeSpaceView> views;
+  double t = 1.0;
+  for (const auto& [view_depth, offset_c] : views_c) {
+    views.push_back(FreeSpaceView::fromDepth(view_depth, T_w_c * SE3(Quat::Identity(), offset_c), t, 4));
+    t += 1.0;
+  }
+  cv::Mat mask(kHeight, kWidth, CV_8UC1, cv::Scalar(0));
+  HindsightRelabeller relabeller(camera, options);
+  const HindsightFrameResult r = relabeller.relabel(depth, T_w_c, {}, &mask, views, t_s);
+  if (result != nullptr) *result = r;
+  cv::Mat outside = mask.clone();
+  outside(kBox).setTo(0);
+  return {cv::countNonZero(mask(kBox)) / static_cast<double>(kBox.area()),
+          cv::countNonZero(outside) / static_cast<double>(kWidth * kHeight - kBox.area())};
+}
+
+TEST_F(HindsightRelabel, ABoxWhereKeyFramesSawTheWallTurnsDynamicWithoutAnyPoint) {
+  // Two keyframes 20 cm to either side saw the bare wall (a plane at 3 m in the frame's camera frame,
+  // so at 3 m in theirs too) where the box now stands: the box is dynamic, texture or not.
+  const cv::Mat wall(kHeight, kWidth, CV_32F, cv::Scalar(kWallDepth));
+  HindsightFrameResult result;
+  const auto [inside, outside] =
+      freeSpaceShares(camera_, options_, T_w_c_, depth_, {{wall, Vec3(0.2, 0.0, 0.0)}, {wall, Vec3(-0.2, 0.05, 0.0)}},
+                      &result);
+  EXPECT_GT(inside, 0.95);
+  EXPECT_LT(outside, 0.01);
+  EXPECT_GT(result.regions_free_space, 0);
+  EXPECT_EQ(result.regions_flipped, result.regions_free_space);
+  // Off (Seg.HindsightFreeSpace 0): nothing changes.
+  options_.free_space = false;
+  EXPECT_EQ(freeSpaceShares(camera_, options_, T_w_c_, depth_, {{wall, Vec3(0.2, 0.0, 0.0)}, {wall, Vec3(-0.2, 0.05, 0.0)}})
+                .first,
+            0.0);
+}
+
+TEST_F(HindsightRelabel, KeyFramesThatSawTheBoxThereOrOneKeyFrameAloneChangeNothing) {
+  const cv::Mat wall(kHeight, kWidth, CV_32F, cv::Scalar(kWallDepth));
+  // Keyframes from the frame's own viewpoint and 5 cm beside it that saw the box where it is now: no
+  // surface of the frame stood in free space (the box's edge, seen a pixel aside, is no exception).
+  cv::Mat beside = depth_.clone();
+  const auto [inside_same, outside_same] =
+      freeSpaceShares(camera_, options_, T_w_c_, depth_, {{depth_, Vec3::Zero()}, {beside, Vec3(0.05, 0.0, 0.0)}});
+  EXPECT_EQ(inside_same, 0.0);
+  EXPECT_EQ(outside_same, 0.0);
+  // One keyframe that saw the wall, with Seg.HindsightFreeSpaceViews 2: not enough.
+  EXPECT_EQ(freeSpaceShares(camera_, options_, T_w_c_, depth_, {{wall, Vec3(0.2, 0.0, 0.0)}, {depth_, Vec3::Zero()}})
+                .first,
+            0.0);
+  // The frame's own time among the views (its own depth is no other keyframe's): skipped, so again one.
+  EXPECT_EQ(freeSpaceShares(camera_, options_, T_w_c_, depth_, {{wall, Vec3(0.2, 0.0, 0.0)}, {wall, Vec3::Zero()}},
+                            nullptr, /*t_s=*/2.0)
+                .first,
+            0.0);
+  options_.free_space_views = 1;
+  EXPECT_GT(freeSpaceShares(camera_, options_, T_w_c_, depth_, {{wall, Vec3(0.2, 0.0, 0.0)}, {depth_, Vec3::Zero()}})
+                .first,
+            0.95);
+}
+
+TEST_F(HindsightRelabel, AKeyFrameFacingAwaySeesNothingThroughTheLensPolynomialsFold) {
+  // A D435-like radial-tangential lens (k1 0.015, k2 -0.005): its polynomial turns back beyond the field,
+  // and rays 75.5-76.5 deg off the axis distort into the image's middle. Keyframes turned 74-78 deg away
+  // (every 0.25 deg, to either side) that saw a wall at 3 m do not see the box, so nothing changes, even
+  // with one view enough.
+  LensDistortion lens;
+  lens.model = LensModel::kRadTan;
+  lens.k1 = 0.015;
+  lens.k2 = -0.005;
+  const CameraModel distorted(camera_.pinhole(), lens);
+  const cv::Mat wall(kHeight, kWidth, CV_32F, cv::Scalar(kWallDepth));
+  std::vector<FreeSpaceView> views;
+  for (double angle_deg = 74.0; angle_deg <= 78.0; angle_deg += 0.25) {
+    for (const double sign : {1.0, -1.0}) {
+      const SE3 T_w_v =
+          T_w_c_ * SE3(Quat(Eigen::AngleAxisd(sign * angle_deg * M_PI / 180.0, Vec3::UnitY())), Vec3::Zero());
+      views.push_back(FreeSpaceView::fromDepth(wall, T_w_v, 1.0 + static_cast<double>(views.size()), 4));
+    }
+  }
+  // The fold is there: the box's centre ray, seen from the view 76 deg away, lands inside the raw image.
+  const FreeSpaceView& at_76 = views[16];
+  const Vec3 centre_v = at_76.R_c_w * (T_w_c_ * Vec3(0.0, 0.0, kBoxDepth)) + at_76.t_c_w;
+  const Vec2 folded = distorted.project(centre_v);
+  ASSERT_GT(centre_v.z(), 0.0);
+  ASSERT_TRUE(folded.x() >= 0.0 && folded.x() < kWidth && folded.y() >= 0.0 && folded.y() < kHeight)
+      << folded.transpose();
+  options_.free_space_views = 1;
+  cv::Mat mask(kHeight, kWidth, CV_8UC1, cv::Scalar(0));
+  HindsightRelabeller relabeller(distorted, options_);
+  const HindsightFrameResult result = relabeller.relabel(depth_, T_w_c_, {}, &mask, views, 0.0);
+  EXPECT_EQ(cv::countNonZero(mask), 0);
+  EXPECT_EQ(result.regions_free_space, 0);
+}
+
+TEST(FreeSpaceView, EachPixelIsTheNearestDepthOfTheBlocksAroundAndUnknownBesideAHole) {
+  cv::Mat depth(16, 16, CV_32F, cv::Scalar(3.0));
+  depth(cv::Rect(0, 0, 4, 4)).setTo(1.0);   // a near block in the top-left corner
+  depth.at<float>(13, 1) = 0.0f;            // a pixel without depth in the bottom-left block
+  depth(cv::Rect(12, 12, 4, 4)).setTo(0.0f);  // the bottom-right block has none
+  const FreeSpaceView view = FreeSpaceView::fromDepth(depth, SE3(), 0.0, 4);
+  ASSERT_EQ(view.depth_m.cols, 4);
+  ASSERT_EQ(view.depth_m.rows, 4);
+  EXPECT_FLOAT_EQ(view.depth_m.at<float>(0, 0), 1.0f);
+  EXPECT_FLOAT_EQ(view.depth_m.at<float>(1, 1), 1.0f);   // the near block is its neighbour
+  EXPECT_FLOAT_EQ(view.depth_m.at<float>(0, 2), 3.0f);
+  EXPECT_FLOAT_EQ(view.depth_m.at<float>(3, 0), 3.0f);   // a block's nearest depth skips a pixel without depth
+  EXPECT_FLOAT_EQ(view.depth_m.at<float>(3, 3), 0.0f);   // a block without depth, and those beside it, unknown
+  EXPECT_FLOAT_EQ(view.depth_m.at<float>(2, 2), 0.0f);
+  EXPECT_FLOAT_EQ(view.depth_m.at<float>(1, 3), 3.0f);
+  EXPECT_TRUE(view.axis_w.isApprox(Vec3::UnitZ()));
 }
 
 }  // namespace

@@ -229,13 +229,15 @@ TEST_F(OccludedStartEndToEnd, ARelocalisedStartLeavesNoKeyFrameInTheOtherWorld) 
   // 12.8 cm off kf0's. Measured: kf0 stays 12.6 cm off every later keyframe with the switch off (at
   // 29 s of the 45 s run a proximity loop onto it pulls the map 12 cm, a false loop); with it on,
   // kf0 leaves the map and the worst keyframe is 0.7 cm off. Tracking.StartMotionCheck is off here:
-  // it sees the same change at 0.33 s, a frame before the loss (the next test).
+  // it sees the same change at 0.33 s, a frame before the loss (the next test). Seg.Clusters 24 (DESIGN.md's
+  // K): at the shipped 64 tracking is not lost there (the next test's case), so no relocalisation recovers.
   const fs::path dir = vgaSeed3Sequence(root());
   double worst_m[2] = {0.0, 0.0};
   for (const bool gauge : {false, true}) {
     worst_m[gauge] = worstStartKeyFrameError_m(
         dir, vocabulary(),
         [gauge](Settings& settings) {
+          settings.segmentation.num_clusters = 24;
           settings.tracking.start_recovery_gauge = gauge;
           settings.tracking.start_motion_check_m_s2 = 0.0;
         },
@@ -246,7 +248,7 @@ TEST_F(OccludedStartEndToEnd, ARelocalisedStartLeavesNoKeyFrameInTheOtherWorld) 
 }
 
 TEST_F(OccludedStartEndToEnd, AStartThatChangesWorldsWithoutALossLeavesNoKeyFrameInTheOtherWorld) {
-  // The same sequence with Seg.Clusters 64: tracking follows the box for 0.27 s and then the room
+  // The same sequence with Seg.Clusters 64 (the shipped K): tracking follows the box for 0.27 s and then the room
   // without being lost, so no relocalisation recovers it; kf1 and kf2, made in between, stay 13.5 cm
   // off kf0. Tracking.StartMotionCheck: the window to 0.33 s gives gravity 4.9 m/s^2 off the first
   // window's (bound 3; position sigma 3 mm), kf2 becomes the gauge and the worst keyframe is 1.1 cm off.
@@ -276,6 +278,10 @@ TEST_F(OccludedStartEndToEnd, ABoxAtRestFromTheFirstFrameIsDynamicInHindsight) {
   // Robot and box at rest for the first 3 s (simulate --occluded-start away --still 0,3, seed 2):
   // nothing moves, and online the box is the world. Once pushed away, the wall behind it enters the
   // map, and the hindsight masks (segmentation_final/) call the box dynamic in the frames before.
+  // Measured (320x240, 15 Hz, 8 s): static IoU before 1.5 s 0.382 online, 0.686 final with the map points'
+  // votes alone, 0.915 with the keyframes' depth as free space too (Seg.HindsightFreeSpace: the floor
+  // beside and behind the box, seen at a grazing angle, holds no map point but is seen in depth); over
+  // the run 0.731, 0.853 and 0.946.
   const fs::path dir = root() / "still_away_s2";
   if (!fs::exists(dir / "groundtruth.txt")) {
     sim::SimOptions sim_options = shortRunSimOptions(sim::Scenario::kLtlo, 2, kSeconds);
@@ -304,7 +310,7 @@ TEST_F(OccludedStartEndToEnd, ABoxAtRestFromTheFirstFrameIsDynamicInHindsight) {
   masks_options.masks_dir = options.segmentation_dir;
   const io::SequenceReader masks = io::SequenceReader::open(dir.string(), masks_options);
   const HindsightMaskResult result =
-      writeHindsightMasks(masks, report.trajectory, report.map_points_map, report.map_points,
+      writeHindsightMasks(masks, report.trajectory, report.keyframes, report.map_points_map, report.map_points,
                           settings.calib.camera.model(), HindsightMaskOptions::from(settings),
                           (run_dir / "segmentation_final").string());
   EXPECT_EQ(result.frames_written, frames);
@@ -336,8 +342,8 @@ TEST_F(OccludedStartEndToEnd, ABoxAtRestFromTheFirstFrameIsDynamicInHindsight) {
   log::info("box at rest from frame 0: static IoU before ", kBoxAtRestUntil_s, " s online ", online_rest, ", final ",
             final_rest, "; over the run online ", online_all, ", final ", final_all, " (", result.frames_changed,
             " frames changed)");
-  EXPECT_GT(final_rest, online_rest + 0.1);
-  EXPECT_GE(final_all, online_all);
+  EXPECT_GT(final_rest, online_rest + 0.4);
+  EXPECT_GT(final_all, online_all + 0.15);
 }
 
 }  // namespace

@@ -109,6 +109,11 @@ struct SegmentationOptions {
   /// ... when at least this share of their votes (beta-weighted) lie on the surface, none behind
   /// (Seg.HindsightStaticShare, [0.5, 1])
   double hindsight_static_share = 0.9;
+  /// Hindsight masks also ask the keyframes' depth images: a surface point of a frame that keyframes saw
+  /// through (the room seen empty there) is dynamic (Seg.HindsightFreeSpace, 0/1)
+  bool hindsight_free_space = true;
+  /// Keyframes that must see through a surface point (Seg.HindsightFreeSpaceViews, [1, 20])
+  int hindsight_free_space_views = 2;
 
   static SegmentationOptions load(const SettingsFile& file);
 };

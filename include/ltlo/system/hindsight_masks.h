@@ -32,7 +32,18 @@
 ///     cupboard's edge from elsewhere, says nothing about the cupboard;
 ///   - a point in front of the frame's surface does not vote: the frame sees past it, which speaks
 ///     against the point, not for or against the surface.
+/// Free space (free_space): the same question asked of the keyframes' depth images instead of the map's
+/// points. A surface point of the frame that at least free_space_views keyframes saw through (their
+/// depth along the ray through it lies beyond it by more than the V_i gap) stood where the room was seen
+/// empty: whatever is there moved. It needs no texture and no point behind it (a plain box at rest, the
+/// floor behind a box seen at a grazing angle), and a static surface is never seen through. Samples every
+/// kFreeSpaceStride label pixels; a region the online mask calls static with at least min_points seen-
+/// through samples turns dynamic, pixel by pixel as its nearest sample (3-D, among the region's samples
+/// some keyframe saw) says. The keyframe's depth is the nearest of blocks of 2 x 2 label pixels, then of
+/// the 3 x 3 blocks around (unknown beside a hole), so a depth edge counts as the surface in front and a
+/// pose error of a few pixels does not see past it.
 /// Frames without a final pose in the map the points belong to keep their online mask.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -61,6 +72,8 @@ struct HindsightMaskOptions {
   double vote_radius_m = 0.3;      ///< Seg.HindsightVoteRadius
   bool to_static = true;           ///< dynamic -> static too (Seg.HindsightToStatic)
   double static_share = 0.9;       ///< gamma~ at least this turns dynamic -> static (Seg.HindsightStaticShare)
+  bool free_space = true;          ///< the keyframes' depth as free space (Seg.HindsightFreeSpace)
+  int free_space_views = 2;        ///< keyframes that must see through a sample (Seg.HindsightFreeSpaceViews)
   int num_threads = 2;             ///< frames relabelled in parallel (folder pass)
 
   static HindsightMaskOptions from(const Settings& settings);
@@ -73,6 +86,22 @@ struct HindsightFrameResult {
   int regions_voted = 0;    ///< regions with at least min_points votes
   int regions_flipped = 0;  ///< static online, dynamic in hindsight
   int regions_to_static = 0;  ///< dynamic online, static in hindsight
+  int regions_free_space = 0;  ///< of regions_flipped, those flipped by free space
+};
+
+/// A keyframe's depth image as free-space evidence: depth_m at twice the label step (the camera's
+/// divided by view_scale), each pixel the nearest depth of its block and of the 3 x 3 blocks around,
+/// 0 = unknown (no depth there or beside).
+struct FreeSpaceView {
+  double t_s = 0.0;
+  Mat3 R_c_w = Mat3::Identity();  ///< T_c_w as a matrix and a translation (the inner loop's form)
+  Vec3 t_c_w = Vec3::Zero();
+  Vec3 axis_w = Vec3::UnitZ();  ///< optical axis in the world
+  int view_scale = 4;           ///< camera pixels per view pixel
+  cv::Mat depth_m;              ///< CV_32F
+
+  /// From a raw depth image (CV_32F m, 0 = none) at the camera's size seen from T_w_c.
+  static FreeSpaceView fromDepth(const cv::Mat& depth_m, const SE3& T_w_c, double t_s, int view_scale);
 };
 
 /// The per-frame step; one per thread (it keeps its buffers between frames).
@@ -84,17 +113,33 @@ class HindsightRelabeller {
   /// Relabels `mask` (CV_8UC1 at the camera's size, 255 = dynamic; changed in place) of the frame with
   /// raw depth `depth_m` (CV_32F m, 0 = none) seen from T_w_c, with `points` (those with beta >=
   /// min_beta vote; a point behind the surface needs its observer centres).
+  /// `views`: the keyframes' depths for the free-space test (empty or options.free_space off: none);
+  /// a view at the frame's own time t_s is skipped.
   HindsightFrameResult relabel(const cv::Mat& depth_m, const SE3& T_w_c, const std::vector<MapPointRecord>& points,
-                               cv::Mat* mask);
+                               cv::Mat* mask, const std::vector<FreeSpaceView>& views = {}, double t_s = -1.0);
+
+  /// Label pixels between free-space samples (both directions).
+  static constexpr int kFreeSpaceStride = 4;
 
  private:
   /// The 3-D point (camera frame) of label pixel (c, r) at its label depth (the pinhole's rays).
   Vec3 backProject(int c, int r) const;
+  /// The raw pixel of camera-frame point p_c, or nullopt when p_c lies outside the raw image's field
+  /// (its normalised coordinates beyond those of the image's border): a lens polynomial folds points
+  /// far outside the field back into the image.
+  std::optional<Vec2> projectInField(const Vec3& p_c) const;
   /// x_w lies within ray_tolerance_m of a segment from an observer's centre to the point.
   bool seenThrough(const Vec3& x_w, const MapPointRecord& point) const;
   /// regions_ = the 4-connected pieces of each cluster whose neighbouring depths differ by less than
   /// the clusters' gap threshold; -1 without depth. Returns their number.
   int splitClusters();
+  /// Free-space samples of the frame against `views`; returns each region's seen-through samples in
+  /// fs_violated_.
+  void sampleFreeSpace(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s, const cv::Mat& mask,
+                       int num_regions);
+  /// The nearest (3-D) free-space sample of label pixel (c, r) in `region` that some view saw: seen
+  /// through (1), seen at or behind (0), none (-1).
+  int nearestSampleState(int c, int r, int region, const Vec3& x_c) const;
 
   CameraModel camera_;
   PinholeCamera label_camera_;
@@ -114,6 +159,17 @@ class HindsightRelabeller {
   };
   std::vector<Voter> voters_;
   std::vector<int> stack_;   // flood fill
+  // Free space: label-pixel bearings (z = 1, lens included), the sample grid's states (-1 unseen, 0
+  // seen, 1 seen through) and points (camera frame), the seen-through samples per region, and which
+  // flipped regions free space flipped.
+  std::vector<Vec2> bearings_;
+  Vec2 field_min_ = Vec2::Zero(), field_max_ = Vec2::Zero();  // normalised bounds of the raw image
+  int grid_cols_ = 0, grid_rows_ = 0;
+  std::vector<signed char> sample_state_;
+  std::vector<Vec3> sample_x_c_;
+  std::vector<int> fs_violated_;
+  std::vector<char> fs_flip_;
+  std::vector<const FreeSpaceView*> active_views_;  // this frame's views
 };
 
 struct HindsightMaskResult {
@@ -122,18 +178,21 @@ struct HindsightMaskResult {
   int frames_changed = 0;      ///< of those, frames with at least one cluster flipped
   long regions_flipped = 0;
   long regions_to_static = 0;
+  long regions_free_space = 0;
   long regions_voted = 0;
+  int free_space_views = 0;   ///< keyframes whose depth served as free space
   long voting_points = 0;     ///< static points (beta >= min_beta)
   double seconds = 0.0;
 };
 
 /// The folder pass: for every frame of `reader` (opened with masks_dir = the run's segmentation/) that
 /// has an online mask, writes <its name> to `out_dir` (created): the online mask relabelled when
-/// `trajectory` has the frame's time in `points_map`, else as it is. Frames are shared among
+/// `trajectory` has the frame's time in `points_map`, else as it is; the `keyframes` of points_map give
+/// the free-space views (their depth read from `reader`). Frames are shared among
 /// options.num_threads threads (each frame's reading, relabelling and PNG writing on one). Throws
 /// InputError naming the file when a frame cannot be read or a mask written (after joining).
 HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const std::vector<FramePose>& trajectory,
-                                        map::MapId points_map, const std::vector<MapPointRecord>& points,
+                                        const std::vector<KeyFrameRecord>& keyframes, map::MapId points_map, const std::vector<MapPointRecord>& points,
                                         const CameraModel& camera, const HindsightMaskOptions& options,
                                         const std::string& out_dir);
 
