@@ -378,13 +378,12 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
   for (int k = 0; k < R; ++k) {
     if (votes_[k] < options_.min_points || beta_sum_[k] <= 0.0) continue;
     ++result.regions_voted;
-    const bool online_static = 2 * dynamic_pixels_[k] < pixels_[k];
     const double gamma_prior = 1.0 - vote_sum_[k] / beta_sum_[k];  // Eq. 56
-    if (online_static && gamma_prior < options_.static_threshold) {
+    if (online_static(k) && gamma_prior < options_.static_threshold) {
       flip_[k] = kToDynamic;
       ++result.regions_flipped;
     }
-    if (options_.to_static && !online_static && gamma_prior >= options_.static_share) {
+    if (options_.to_static && !online_static(k) && gamma_prior >= options_.static_share) {
       flip_[k] = kToStatic;
       ++result.regions_to_static;
     }
@@ -395,6 +394,12 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
   // region's new label: the votes speak for the surface around them, not for a far end of the region (a
   // box's side face and the floor it stands on are one depth-continuous region).
   const double radius_sq = options_.vote_radius_m * options_.vote_radius_m;
+  const auto fill_block = [&](int r, int c, std::uint8_t value) {  // label pixel (c, r) -> its raw block
+    for (int dv = 0; dv < scale_; ++dv) {
+      std::uint8_t* out = mask->ptr<std::uint8_t>(r * scale_ + dv) + c * scale_;
+      std::fill(out, out + scale_, value);
+    }
+  };
   for (int r = 0; r < regions_.rows; ++r) {
     const int* regions = regions_.ptr<int>(r);
     for (int c = 0; c < regions_.cols; ++c) {
@@ -405,10 +410,7 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
         const double z = label_depth_m_.ptr<float>(r)[c];
         if (!std::isnan(bearing.x()) &&
             nearestSampleState(c, r, regions[c], Vec3(bearing.x() * z, bearing.y() * z, z)) == 1) {
-          for (int dv = 0; dv < scale_; ++dv) {
-            std::uint8_t* out = mask->ptr<std::uint8_t>(r * scale_ + dv) + c * scale_;
-            std::fill(out, out + scale_, static_cast<std::uint8_t>(255));
-          }
+          fill_block(r, c, 255);
           continue;
         }
         if (!flip_[regions[c]]) continue;
@@ -426,10 +428,7 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
         }
       }
       if (nearest_sq >= radius_sq || dynamic == to_static) continue;
-      for (int dv = 0; dv < scale_; ++dv) {
-        std::uint8_t* out = mask->ptr<std::uint8_t>(r * scale_ + dv) + c * scale_;
-        std::fill(out, out + scale_, static_cast<std::uint8_t>(to_static ? 0 : 255));
-      }
+      fill_block(r, c, to_static ? 0 : 255);
     }
   }
   return result;
