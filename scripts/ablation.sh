@@ -43,6 +43,8 @@
 #   hindsight_to_static_off  Seg.HindsightToStatic = 0: the hindsight masks only turn static regions dynamic
 #   hindsight_free_space_off  Seg.HindsightFreeSpace = 0: the hindsight masks ask the map points only, not
 #                    the keyframes' depth images
+#   hindsight_views_all  Seg.HindsightFreeSpaceMaxViews = 0: every frame asks every keyframe facing it
+#                    (the same masks or nearly, a pass that grows with frames x keyframes)
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -109,6 +111,7 @@ variant_args() {
     hindsight_off) echo "${full[@]}" --set Seg.HindsightMasks=0 ;;
     hindsight_to_static_off) echo "${full[@]}" --set Seg.HindsightToStatic=0 ;;
     hindsight_free_space_off) echo "${full[@]}" --set Seg.HindsightFreeSpace=0 ;;
+    hindsight_views_all) echo "${full[@]}" --set Seg.HindsightFreeSpaceMaxViews=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

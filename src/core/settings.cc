@@ -63,6 +63,7 @@ void visitSegmentation(O& o, V& v) {
   v.real("Seg.HindsightStaticShare", o.hindsight_static_share, 0.5, 1.0);
   v.boolean("Seg.HindsightFreeSpace", o.hindsight_free_space);
   v.integer("Seg.HindsightFreeSpaceViews", o.hindsight_free_space_views, 1, 20);
+  v.integer("Seg.HindsightFreeSpaceMaxViews", o.hindsight_free_space_max_views, 0, 100000);
 }
 
 template <typename O, typename V>

@@ -123,6 +123,7 @@ HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   options.static_share = settings.segmentation.hindsight_static_share;
   options.free_space = settings.segmentation.hindsight_free_space;
   options.free_space_views = settings.segmentation.hindsight_free_space_views;
+  options.free_space_max_views = settings.segmentation.hindsight_free_space_max_views;
   return options;
 }
 
@@ -193,49 +194,93 @@ std::optional<Vec2> HindsightRelabeller::projectInField(const Vec3& p_c) const {
   return camera_.project(p_c);
 }
 
-void HindsightRelabeller::sampleFreeSpace(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s,
-                                          const cv::Mat& mask, int num_regions) {
-  const int width = label_depth_m_.cols, height = label_depth_m_.rows;
-  const std::size_t num_samples = static_cast<std::size_t>(grid_cols_) * static_cast<std::size_t>(grid_rows_);
-  sample_state_.assign(num_samples, -1);
-  sample_x_c_.resize(num_samples);
-  fs_violated_.assign(static_cast<std::size_t>(num_regions), 0);
+bool HindsightRelabeller::freeSpaceSample(int gc, int gr, Vec3* x_c, int* region) const {
+  const int r = std::min(label_depth_m_.rows - 1, gr * kFreeSpaceStride + kFreeSpaceStride / 2);
+  const int c = std::min(label_depth_m_.cols - 1, gc * kFreeSpaceStride + kFreeSpaceStride / 2);
+  *region = regions_.ptr<int>(r)[c];
+  if (*region < 0) return false;
+  const Vec2& bearing = bearings_[static_cast<std::size_t>(r * label_depth_m_.cols + c)];
+  if (std::isnan(bearing.x())) return false;
+  const double z = label_depth_m_.ptr<float>(r)[c];
+  *x_c = Vec3(bearing.x() * z, bearing.y() * z, z);
+  return true;
+}
+
+int HindsightRelabeller::viewState(const FreeSpaceView& view, const Vec3& x_w) const {
+  const Vec3 x_v = view.R_c_w * x_w + view.t_c_w;
+  if (x_v.z() < kMinViewDepth_m) return -1;
+  const std::optional<Vec2> u = projectInField(x_v);
+  if (!u) return -1;
+  const int vc = static_cast<int>(std::floor(u->x() / view.view_scale));
+  const int vr = static_cast<int>(std::floor(u->y() / view.view_scale));
+  if (vc < 0 || vr < 0 || vc >= view.depth_m.cols || vr >= view.depth_m.rows) return -1;
+  const float depth = view.depth_m.ptr<float>(vr)[vc];
+  if (depth <= 0.0f) return -1;
+  const double gap = options_.clusters.gapThreshold(x_v.z());
+  if (depth < x_v.z() - gap) return -1;  // the view's surface stands in front: it did not see here
+  return depth > x_v.z() + gap ? 1 : 0;  // past the point: free space
+}
+
+void HindsightRelabeller::selectViews(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s) {
   const Vec3 axis_w = T_w_c.rotationMatrix().col(2);
   active_views_.clear();
   for (const FreeSpaceView& view : views) {
     if (std::abs(view.t_s - t_s) < 1e-6 || view.axis_w.dot(axis_w) < kMinViewAxisCos) continue;
     active_views_.push_back(&view);
   }
+  const std::size_t max_views = static_cast<std::size_t>(options_.free_space_max_views);
+  if (max_views == 0 || active_views_.size() <= max_views) return;
+  // Probes: every n-th of the frame's samples in raster order, about kFreeSpaceProbes of them.
+  Vec3 x_c;
+  int region = 0, num_samples = 0;
+  for (int gr = 0; gr < grid_rows_; ++gr) {
+    for (int gc = 0; gc < grid_cols_; ++gc) num_samples += freeSpaceSample(gc, gr, &x_c, &region);
+  }
+  const int every = std::max(1, num_samples / kFreeSpaceProbes);
+  probe_x_w_.clear();
+  int index = 0;
+  for (int gr = 0; gr < grid_rows_; ++gr) {
+    for (int gc = 0; gc < grid_cols_; ++gc) {
+      if (freeSpaceSample(gc, gr, &x_c, &region) && index++ % every == 0) probe_x_w_.push_back(T_w_c * x_c);
+    }
+  }
+  view_scores_.clear();
+  for (std::size_t v = 0; v < active_views_.size(); ++v) {
+    int score = 0;
+    for (const Vec3& x_w : probe_x_w_) score += 1 + viewState(*active_views_[v], x_w);  // -1, 0, 1 -> 0, 1, 2
+    view_scores_.emplace_back(-score, static_cast<int>(v));
+  }
+  std::partial_sort(view_scores_.begin(), view_scores_.begin() + static_cast<std::ptrdiff_t>(max_views),
+                    view_scores_.end());
+  ranked_views_.clear();
+  for (std::size_t k = 0; k < max_views && view_scores_[k].first < 0; ++k) {
+    ranked_views_.push_back(active_views_[static_cast<std::size_t>(view_scores_[k].second)]);
+  }
+  active_views_.swap(ranked_views_);
+}
+
+void HindsightRelabeller::sampleFreeSpace(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s,
+                                          int num_regions) {
+  const std::size_t num_samples = static_cast<std::size_t>(grid_cols_) * static_cast<std::size_t>(grid_rows_);
+  sample_state_.assign(num_samples, -1);
+  sample_x_c_.resize(num_samples);
+  fs_violated_.assign(static_cast<std::size_t>(num_regions), 0);
+  selectViews(T_w_c, views, t_s);
   if (active_views_.empty()) return;
   const int needed = options_.free_space_views;
+  Vec3 x_c;
+  int region = 0;
   for (int gr = 0; gr < grid_rows_; ++gr) {
-    const int r = std::min(height - 1, gr * kFreeSpaceStride + kFreeSpaceStride / 2);
     for (int gc = 0; gc < grid_cols_; ++gc) {
-      const int c = std::min(width - 1, gc * kFreeSpaceStride + kFreeSpaceStride / 2);
-      const int region = regions_.ptr<int>(r)[c];
-      // Only what the online mask calls static can turn dynamic.
-      if (region < 0 || mask.ptr<std::uint8_t>(r * scale_)[c * scale_] != 0) continue;
-      const Vec2& bearing = bearings_[static_cast<std::size_t>(r * width + c)];
-      if (std::isnan(bearing.x())) continue;
-      const double z = label_depth_m_.ptr<float>(r)[c];
-      const Vec3 x_c(bearing.x() * z, bearing.y() * z, z);
+      if (!freeSpaceSample(gc, gr, &x_c, &region)) continue;
       const Vec3 x_w = T_w_c * x_c;
       int through = 0;
       bool seen = false;
       for (const FreeSpaceView* view : active_views_) {
-        const Vec3 x_v = view->R_c_w * x_w + view->t_c_w;
-        if (x_v.z() < kMinViewDepth_m) continue;
-        const std::optional<Vec2> u = projectInField(x_v);
-        if (!u) continue;
-        const int vc = static_cast<int>(std::floor(u->x() / view->view_scale));
-        const int vr = static_cast<int>(std::floor(u->y() / view->view_scale));
-        if (vc < 0 || vr < 0 || vc >= view->depth_m.cols || vr >= view->depth_m.rows) continue;
-        const float depth = view->depth_m.ptr<float>(vr)[vc];
-        if (depth <= 0.0f) continue;
-        const double gap = options_.clusters.gapThreshold(x_v.z());
-        if (depth < x_v.z() - gap) continue;  // the view's surface stands in front: it did not see here
+        const int state = viewState(*view, x_w);
+        if (state < 0) continue;
         seen = true;
-        if (depth > x_v.z() + gap && ++through >= needed) break;  // it saw past the point: free space
+        if (state > 0 && ++through >= needed) break;
       }
       if (!seen) continue;
       const std::size_t sample = static_cast<std::size_t>(gr * grid_cols_ + gc);
@@ -368,7 +413,8 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
   const auto online_static = [&](int k) { return 2 * dynamic_pixels_[k] < pixels_[k]; };
   // Free space: regions the online mask calls static where keyframes saw through min_points samples.
   if (options_.free_space && !views.empty()) {
-    sampleFreeSpace(T_w_c, views, t_s, *mask, R);
+    sampleFreeSpace(T_w_c, views, t_s, R);
+    result.views_asked = static_cast<int>(active_views_.size());
     for (int k = 0; k < R; ++k) {
       if (!online_static(k) || fs_violated_[k] < options_.min_points) continue;
       fs_flip_[k] = 1;
@@ -383,7 +429,10 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
       flip_[k] = kToDynamic;
       ++result.regions_flipped;
     }
-    if (options_.to_static && !online_static(k) && gamma_prior >= options_.static_share) {
+    // Free space vetoes: a surface keyframes saw through is no static surface, whatever points lie on it
+    // (points made on a box while it stood there, never seen again).
+    const bool seen_through = options_.free_space && !views.empty() && fs_violated_[k] >= options_.min_points;
+    if (options_.to_static && !online_static(k) && gamma_prior >= options_.static_share && !seen_through) {
       flip_[k] = kToStatic;
       ++result.regions_to_static;
     }
@@ -533,6 +582,7 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
       mine.regions_flipped += result.regions_flipped;
       mine.regions_to_static += result.regions_to_static;
       mine.regions_free_space += result.regions_free_space;
+      mine.views_asked += result.views_asked;
       mine.regions_voted += result.regions_voted;
     } else {
       mask = cv::imread(files.mask_path, cv::IMREAD_UNCHANGED);
@@ -549,6 +599,7 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
     total.regions_flipped += mine.regions_flipped;
     total.regions_to_static += mine.regions_to_static;
     total.regions_free_space += mine.regions_free_space;
+    total.views_asked += mine.views_asked;
     total.regions_voted += mine.regions_voted;
   }
   total.voting_points = std::count_if(points.begin(), points.end(),

@@ -4,7 +4,8 @@
 // parallax of a static object in front of a wall) change nothing; points the frame sees past do not
 // outvote the points behind the surface; a region the online mask calls dynamic turns static where the
 // static points lie on its surface. Free space: without any map point, a box where two keyframes saw the
-// wall turns dynamic; keyframes that saw the box there, one keyframe alone, or the frame's own depth do not.
+// wall turns dynamic; keyframes that saw the box there, one keyframe alone, or the frame's own depth do not;
+// among many keyframes a frame asks at most Seg.HindsightFreeSpaceMaxViews, those that saw its surface.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -205,6 +206,76 @@ TEST_F(HindsightRelabel, KeyFramesThatSawTheBoxThereOrOneKeyFrameAloneChangeNoth
   EXPECT_GT(freeSpaceShares(camera_, options_, T_w_c_, depth_, {{wall, Vec3(0.2, 0.0, 0.0)}, {depth_, Vec3::Zero()}})
                 .first,
             0.95);
+}
+
+TEST_F(HindsightRelabel, PointsOnABoxThatKeyFramesSawThroughDoNotTurnItStatic) {
+  // An all-dynamic mask and static points lying on the box's surface (made on the box while it stood
+  // there and never seen again): alone they turn the box static. Two keyframes that saw the wall where
+  // the box stands veto it: the box stays dynamic, and the wall, seen where it is, still turns static.
+  for (int v = 4; v < kHeight; v += 8) {
+    for (int u = 4; u < kWidth; u += 8) {
+      MapPointRecord point;
+      point.p_w = pointAt(u, v, kBox.contains(cv::Point(u, v)) ? kBoxDepth : kWallDepth);
+      point.beta = 0.9;
+      point.observer_centres_w.push_back(T_w_c_.translation());
+      points_.push_back(point);
+    }
+  }
+  const cv::Mat wall(kHeight, kWidth, CV_32F, cv::Scalar(kWallDepth));
+  std::vector<FreeSpaceView> views;
+  views.push_back(FreeSpaceView::fromDepth(wall, T_w_c_ * SE3(Quat::Identity(), Vec3(0.2, 0.0, 0.0)), 5.0, 4));
+  views.push_back(FreeSpaceView::fromDepth(wall, T_w_c_ * SE3(Quat::Identity(), Vec3(-0.2, 0.05, 0.0)), 6.0, 4));
+  const auto box_dynamic_share = [&](const std::vector<FreeSpaceView>& asked, double* outside_share) {
+    cv::Mat mask(kHeight, kWidth, CV_8UC1, cv::Scalar(255));
+    HindsightRelabeller relabeller(camera_, options_);
+    relabeller.relabel(depth_, T_w_c_, points_, &mask, asked, 0.0);
+    cv::Mat outside = mask.clone();
+    outside(kBox).setTo(0);
+    *outside_share = cv::countNonZero(outside) / static_cast<double>(kWidth * kHeight - kBox.area());
+    return cv::countNonZero(mask(kBox)) / static_cast<double>(kBox.area());
+  };
+  double outside = 1.0;
+  EXPECT_LT(box_dynamic_share({}, &outside), 0.05);  // the points alone: static
+  EXPECT_LT(outside, 0.01);
+  EXPECT_EQ(box_dynamic_share(views, &outside), 1.0);  // seen through: stays dynamic
+  EXPECT_LT(outside, 0.01);
+  options_.free_space = false;  // Seg.HindsightFreeSpace 0: no veto
+  EXPECT_LT(box_dynamic_share(views, &outside), 0.05);
+}
+
+TEST_F(HindsightRelabel, AmongManyKeyFramesAFrameAsksAtMostTheBoundThoseThatSawItsSurface) {
+  // 40 keyframes at rest beside the frame saw the box where it stands (seen, not through), then two
+  // keyframes 20 cm to either side saw the wall there, and 30 turned 95-99 deg away (inside the 100 deg the
+  // test allows, but their field holds none of the frame's surface). With
+  // Seg.HindsightFreeSpaceMaxViews 32 the frame asks 32 and the two that saw through are among them.
+  const cv::Mat wall(kHeight, kWidth, CV_32F, cv::Scalar(kWallDepth));
+  std::vector<FreeSpaceView> views;
+  const auto add = [&](const cv::Mat& depth, const SE3& T_c_v) {
+    views.push_back(FreeSpaceView::fromDepth(depth, T_w_c_ * T_c_v, 1.0 + static_cast<double>(views.size()), 4));
+  };
+  for (int k = 0; k < 40; ++k) add(depth_, SE3(Quat::Identity(), Vec3(0.001 * k, 0.0, 0.0)));
+  add(wall, SE3(Quat::Identity(), Vec3(0.2, 0.0, 0.0)));
+  add(wall, SE3(Quat::Identity(), Vec3(-0.2, 0.05, 0.0)));
+  for (int k = 0; k < 30; ++k) {
+    add(wall, SE3(Quat(Eigen::AngleAxisd((95.0 + 0.15 * k) * M_PI / 180.0, Vec3::UnitY())), Vec3::Zero()));
+  }
+  const auto relabel = [&](int max_views, HindsightFrameResult* result) {
+    options_.free_space_max_views = max_views;
+    cv::Mat mask(kHeight, kWidth, CV_8UC1, cv::Scalar(0));
+    HindsightRelabeller relabeller(camera_, options_);
+    *result = relabeller.relabel(depth_, T_w_c_, {}, &mask, views, 0.0);
+    return cv::countNonZero(mask(kBox)) / static_cast<double>(kBox.area());
+  };
+  HindsightFrameResult bounded, all, one;
+  EXPECT_GT(relabel(32, &bounded), 0.95);
+  EXPECT_EQ(bounded.views_asked, 32);
+  // All of them (0) give the same box, asking every keyframe that faces the frame (72).
+  EXPECT_GT(relabel(0, &all), 0.95);
+  EXPECT_EQ(all.views_asked, 72);
+  EXPECT_EQ(all.regions_free_space, bounded.regions_free_space);
+  // Asking only the best one: a single keyframe saw through, not the two needed.
+  EXPECT_EQ(relabel(1, &one), 0.0);
+  EXPECT_EQ(one.views_asked, 1);
 }
 
 TEST_F(HindsightRelabel, AKeyFrameFacingAwaySeesNothingThroughTheLensPolynomialsFold) {

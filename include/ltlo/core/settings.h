@@ -114,6 +114,9 @@ struct SegmentationOptions {
   bool hindsight_free_space = true;
   /// Keyframes that must see through a surface point (Seg.HindsightFreeSpaceViews, [1, 20])
   int hindsight_free_space_views = 2;
+  /// Keyframes a frame asks at most, those that saw most of its surface (Seg.HindsightFreeSpaceMaxViews,
+  /// 0 = all): bounds the pass's cost per frame on long runs, whose revisits add views of the same walls
+  int hindsight_free_space_max_views = 32;
 
   static SegmentationOptions load(const SettingsFile& file);
 };

@@ -42,9 +42,16 @@
 /// some keyframe saw) says. The keyframe's depth is the nearest of blocks of 2 x 2 label pixels, then of
 /// the 3 x 3 blocks around (unknown beside a hole), so a depth edge counts as the surface in front and a
 /// pose error of a few pixels does not see past it.
+/// The same samples veto to_static: a region the online mask calls dynamic with at least min_points
+/// seen-through samples stays dynamic, whatever points lie on its surface (points made on a box while it
+/// stood there and never seen again keep the beta of their first keyframes).
+/// A frame asks at most free_space_max_views keyframes: when more face it, those that saw most of
+/// kFreeSpaceProbes samples of its surface (seen through counting twice). So the pass's cost per frame is
+/// bounded, not the run's keyframes (revisits add views of the same walls).
 /// Frames without a final pose in the map the points belong to keep their online mask.
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -74,6 +81,9 @@ struct HindsightMaskOptions {
   double static_share = 0.9;       ///< gamma~ at least this turns dynamic -> static (Seg.HindsightStaticShare)
   bool free_space = true;          ///< the keyframes' depth as free space (Seg.HindsightFreeSpace)
   int free_space_views = 2;        ///< keyframes that must see through a sample (Seg.HindsightFreeSpaceViews)
+  /// keyframes a frame asks at most (Seg.HindsightFreeSpaceMaxViews, 0 = all): when more face it, those
+  /// that saw most of kFreeSpaceProbes probes of its surface (seen through counting twice)
+  int free_space_max_views = 32;
   int num_threads = 2;             ///< frames relabelled in parallel (folder pass)
 
   static HindsightMaskOptions from(const Settings& settings);
@@ -87,6 +97,7 @@ struct HindsightFrameResult {
   int regions_flipped = 0;  ///< static online, dynamic in hindsight
   int regions_to_static = 0;  ///< dynamic online, static in hindsight
   int regions_free_space = 0;  ///< of regions_flipped, those flipped by free space
+  int views_asked = 0;         ///< keyframe depths the free-space test asked
 };
 
 /// A keyframe's depth image as free-space evidence: depth_m at twice the label step (the camera's
@@ -120,6 +131,8 @@ class HindsightRelabeller {
 
   /// Label pixels between free-space samples (both directions).
   static constexpr int kFreeSpaceStride = 4;
+  /// Samples of the frame's surface that rank the views when more than free_space_max_views face it.
+  static constexpr int kFreeSpaceProbes = 64;
 
  private:
   /// The 3-D point (camera frame) of label pixel (c, r) at its label depth (the pinhole's rays).
@@ -133,10 +146,19 @@ class HindsightRelabeller {
   /// regions_ = the 4-connected pieces of each cluster whose neighbouring depths differ by less than
   /// the clusters' gap threshold; -1 without depth. Returns their number.
   int splitClusters();
-  /// Free-space samples of the frame against `views`; returns each region's seen-through samples in
-  /// fs_violated_.
-  void sampleFreeSpace(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s, const cv::Mat& mask,
-                       int num_regions);
+  /// Free-space samples of the frame (every region, whatever the online mask says) against `views`;
+  /// returns each region's seen-through samples in fs_violated_.
+  void sampleFreeSpace(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s, int num_regions);
+  /// active_views_ = the views facing the frame (not its own time); when more than free_space_max_views,
+  /// the free_space_max_views that saw most of kFreeSpaceProbes of the frame's samples (seen through
+  /// counting twice; ties to the earlier view), so a frame's cost does not grow with the run's keyframes.
+  void selectViews(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s);
+  /// The frame's free-space sample of grid cell (gc, gr) in the camera frame, when it has one (a region
+  /// and a bearing); its region in *region.
+  bool freeSpaceSample(int gc, int gr, Vec3* x_c, int* region) const;
+  /// What `view` saw at world point x_w: -1 nothing (out of its field, no depth, or a surface in front),
+  /// 0 the point's surface (or behind it within the gap), 1 past it (free space).
+  int viewState(const FreeSpaceView& view, const Vec3& x_w) const;
   /// The nearest (3-D) free-space sample of label pixel (c, r) in `region` that some view saw: seen
   /// through (1), seen at or behind (0), none (-1).
   int nearestSampleState(int c, int r, int region, const Vec3& x_c) const;
@@ -170,6 +192,9 @@ class HindsightRelabeller {
   std::vector<int> fs_violated_;
   std::vector<char> fs_flip_;
   std::vector<const FreeSpaceView*> active_views_;  // this frame's views
+  std::vector<Vec3> probe_x_w_;                     // view ranking: probes of the frame's surface,
+  std::vector<std::pair<int, int>> view_scores_;    // and (-score, index into active_views_)
+  std::vector<const FreeSpaceView*> ranked_views_;
 };
 
 struct HindsightMaskResult {
@@ -179,6 +204,7 @@ struct HindsightMaskResult {
   long regions_flipped = 0;
   long regions_to_static = 0;
   long regions_free_space = 0;
+  long views_asked = 0;       ///< over the frames (their mean: views_asked / frames_relabelled)
   long regions_voted = 0;
   int free_space_views = 0;   ///< keyframes whose depth served as free space
   long voting_points = 0;     ///< static points (beta >= min_beta)
