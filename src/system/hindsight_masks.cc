@@ -194,18 +194,6 @@ std::optional<Vec2> HindsightRelabeller::projectInField(const Vec3& p_c) const {
   return camera_.project(p_c);
 }
 
-bool HindsightRelabeller::freeSpaceSample(int gc, int gr, Vec3* x_c, int* region) const {
-  const int r = std::min(label_depth_m_.rows - 1, gr * kFreeSpaceStride + kFreeSpaceStride / 2);
-  const int c = std::min(label_depth_m_.cols - 1, gc * kFreeSpaceStride + kFreeSpaceStride / 2);
-  *region = regions_.ptr<int>(r)[c];
-  if (*region < 0) return false;
-  const Vec2& bearing = bearings_[static_cast<std::size_t>(r * label_depth_m_.cols + c)];
-  if (std::isnan(bearing.x())) return false;
-  const double z = label_depth_m_.ptr<float>(r)[c];
-  *x_c = Vec3(bearing.x() * z, bearing.y() * z, z);
-  return true;
-}
-
 int HindsightRelabeller::viewState(const FreeSpaceView& view, const Vec3& x_w) const {
   const Vec3 x_v = view.R_c_w * x_w + view.t_c_w;
   if (x_v.z() < kMinViewDepth_m) return -1;
@@ -231,23 +219,13 @@ void HindsightRelabeller::selectViews(const SE3& T_w_c, const std::vector<FreeSp
   const std::size_t max_views = static_cast<std::size_t>(options_.free_space_max_views);
   if (max_views == 0 || active_views_.size() <= max_views) return;
   // Probes: every n-th of the frame's samples in raster order, about kFreeSpaceProbes of them.
-  Vec3 x_c;
-  int region = 0, num_samples = 0;
-  for (int gr = 0; gr < grid_rows_; ++gr) {
-    for (int gc = 0; gc < grid_cols_; ++gc) num_samples += freeSpaceSample(gc, gr, &x_c, &region);
-  }
-  const int every = std::max(1, num_samples / kFreeSpaceProbes);
-  probe_x_w_.clear();
-  int index = 0;
-  for (int gr = 0; gr < grid_rows_; ++gr) {
-    for (int gc = 0; gc < grid_cols_; ++gc) {
-      if (freeSpaceSample(gc, gr, &x_c, &region) && index++ % every == 0) probe_x_w_.push_back(T_w_c * x_c);
-    }
-  }
+  const std::size_t every = std::max<std::size_t>(1, samples_.size() / kFreeSpaceProbes);
   view_scores_.clear();
   for (std::size_t v = 0; v < active_views_.size(); ++v) {
     int score = 0;
-    for (const Vec3& x_w : probe_x_w_) score += 1 + viewState(*active_views_[v], x_w);  // -1, 0, 1 -> 0, 1, 2
+    for (std::size_t n = 0; n < samples_.size(); n += every) {
+      score += 1 + viewState(*active_views_[v], samples_[n].x_w);  // -1, 0, 1 -> 0, 1, 2
+    }
     view_scores_.emplace_back(-score, static_cast<int>(v));
   }
   std::partial_sort(view_scores_.begin(), view_scores_.begin() + static_cast<std::ptrdiff_t>(max_views),
@@ -265,29 +243,37 @@ void HindsightRelabeller::sampleFreeSpace(const SE3& T_w_c, const std::vector<Fr
   sample_state_.assign(num_samples, -1);
   sample_x_c_.resize(num_samples);
   fs_violated_.assign(static_cast<std::size_t>(num_regions), 0);
+  // The frame's samples: the label pixel at the middle of each grid cell, with a region and a ray.
+  samples_.clear();
+  for (int gr = 0; gr < grid_rows_; ++gr) {
+    const int r = std::min(label_depth_m_.rows - 1, gr * kFreeSpaceStride + kFreeSpaceStride / 2);
+    for (int gc = 0; gc < grid_cols_; ++gc) {
+      const int c = std::min(label_depth_m_.cols - 1, gc * kFreeSpaceStride + kFreeSpaceStride / 2);
+      const int region = regions_.ptr<int>(r)[c];
+      if (region < 0) continue;
+      const Vec2& bearing = bearings_[static_cast<std::size_t>(r * label_depth_m_.cols + c)];
+      if (std::isnan(bearing.x())) continue;
+      const double z = label_depth_m_.ptr<float>(r)[c];
+      const Vec3 x_c(bearing.x() * z, bearing.y() * z, z);
+      samples_.push_back({gr * grid_cols_ + gc, region, x_c, T_w_c * x_c});
+    }
+  }
   selectViews(T_w_c, views, t_s);
   if (active_views_.empty()) return;
   const int needed = options_.free_space_views;
-  Vec3 x_c;
-  int region = 0;
-  for (int gr = 0; gr < grid_rows_; ++gr) {
-    for (int gc = 0; gc < grid_cols_; ++gc) {
-      if (!freeSpaceSample(gc, gr, &x_c, &region)) continue;
-      const Vec3 x_w = T_w_c * x_c;
-      int through = 0;
-      bool seen = false;
-      for (const FreeSpaceView* view : active_views_) {
-        const int state = viewState(*view, x_w);
-        if (state < 0) continue;
-        seen = true;
-        if (state > 0 && ++through >= needed) break;
-      }
-      if (!seen) continue;
-      const std::size_t sample = static_cast<std::size_t>(gr * grid_cols_ + gc);
-      sample_state_[sample] = through >= needed ? 1 : 0;
-      sample_x_c_[sample] = x_c;
-      fs_violated_[static_cast<std::size_t>(region)] += through >= needed;
+  for (const FreeSpaceSample& sample : samples_) {
+    int through = 0;
+    bool seen = false;
+    for (const FreeSpaceView* view : active_views_) {
+      const int state = viewState(*view, sample.x_w);
+      if (state < 0) continue;
+      seen = true;
+      if (state > 0 && ++through >= needed) break;
     }
+    if (!seen) continue;
+    sample_state_[static_cast<std::size_t>(sample.cell)] = through >= needed ? 1 : 0;
+    sample_x_c_[static_cast<std::size_t>(sample.cell)] = sample.x_c;
+    fs_violated_[static_cast<std::size_t>(sample.region)] += through >= needed;
   }
 }
 

@@ -150,12 +150,9 @@ class HindsightRelabeller {
   /// returns each region's seen-through samples in fs_violated_.
   void sampleFreeSpace(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s, int num_regions);
   /// active_views_ = the views facing the frame (not its own time); when more than free_space_max_views,
-  /// the free_space_max_views that saw most of kFreeSpaceProbes of the frame's samples (seen through
-  /// counting twice; ties to the earlier view), so a frame's cost does not grow with the run's keyframes.
+  /// the free_space_max_views that saw most of kFreeSpaceProbes of samples_ (seen through counting
+  /// twice; ties to the earlier view), so a frame's cost does not grow with the run's keyframes.
   void selectViews(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s);
-  /// The frame's free-space sample of grid cell (gc, gr) in the camera frame, when it has one (a region
-  /// and a bearing); its region in *region.
-  bool freeSpaceSample(int gc, int gr, Vec3* x_c, int* region) const;
   /// What `view` saw at world point x_w: -1 nothing (out of its field, no depth, or a surface in front),
   /// 0 the point's surface (or behind it within the gap), 1 past it (free space).
   int viewState(const FreeSpaceView& view, const Vec3& x_w) const;
@@ -192,8 +189,13 @@ class HindsightRelabeller {
   std::vector<int> fs_violated_;
   std::vector<char> fs_flip_;
   std::vector<const FreeSpaceView*> active_views_;  // this frame's views
-  std::vector<Vec3> probe_x_w_;                     // view ranking: probes of the frame's surface,
-  std::vector<std::pair<int, int>> view_scores_;    // and (-score, index into active_views_)
+  struct FreeSpaceSample {
+    int cell = 0;    // index into the sample grid
+    int region = 0;
+    Vec3 x_c, x_w;   // the frame's surface point, camera frame and world
+  };
+  std::vector<FreeSpaceSample> samples_;            // this frame's samples, in raster order
+  std::vector<std::pair<int, int>> view_scores_;    // view ranking: (-score, index into active_views_)
   std::vector<const FreeSpaceView*> ranked_views_;
 };
 
