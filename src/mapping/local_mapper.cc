@@ -12,6 +12,7 @@
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/process_memory.h"
+#include "ltlo/core/timing.h"
 #include "ltlo/map/run_state_io.h"
 #include "ltlo/optim/bundle_adjust.h"
 #include "map_culling.h"
@@ -55,7 +56,7 @@ struct LocalMapper::Impl {
   void process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded);
   /// Appends `kf`'s entry to the mapping timeline (atlas sizes and memory read now) with its local
   /// BA's problem size `ba`.
-  void recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba,
+  void recordTimeline(const map::KeyFrame& kf, double mapping_ms, double mapping_cpu_ms, const WindowBaStats& ba,
                       const MappingPhaseTimes& phases);
   WindowBaStats localBundleAdjust(map::Map& map, const std::shared_ptr<map::KeyFrame>& kf, const ImuState& imu,
                          bool threaded, LocalMapperCounters& delta);
@@ -114,6 +115,7 @@ struct LocalMapper::Impl {
 void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool threaded) {
   LTLO_ASSERT(kf != nullptr, "LocalMapper: null keyframe");
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start_s = threadCpuTimeS();
   std::optional<ScopedTimer> timer;
   if (timing != nullptr) timer.emplace(*timing, "mapping.keyframe");
   LocalMapperCounters delta;
@@ -196,7 +198,7 @@ void LocalMapper::Impl::process(const std::shared_ptr<map::KeyFrame>& kf, bool t
   }
   if (timer) timer->stop();
   recordTimeline(*kf, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-                 ba_stats, phases);
+                 1e3 * (threadCpuTimeS() - cpu_start_s), ba_stats, phases);
   // 6. Hand on (loop closing).
   if (callback) callback(kf);
 }
@@ -597,8 +599,8 @@ TimeOffsetStatus LocalMapper::timeOffset() const {
   return impl_->time_offset;
 }
 
-void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_ms, const WindowBaStats& ba,
-                                       const MappingPhaseTimes& phases) {
+void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_ms, double mapping_cpu_ms,
+                                       const WindowBaStats& ba, const MappingPhaseTimes& phases) {
   MappingTimelineEntry entry;
   entry.points_ms = phases.points_ms;
   entry.ba_ms = phases.ba_ms;
@@ -615,6 +617,7 @@ void LocalMapper::Impl::recordTimeline(const map::KeyFrame& kf, double mapping_m
   entry.t_s = kf.t_s();
   entry.keyframe_id = kf.id().value;
   entry.mapping_ms = mapping_ms;
+  entry.mapping_cpu_ms = mapping_cpu_ms;
   for (const map::MapId id : atlas.mapIds()) {
     map::Map* map = atlas.map(id);
     if (map == nullptr) continue;

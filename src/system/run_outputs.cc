@@ -25,7 +25,7 @@ namespace {
 constexpr const char* kKeyFramesHeader = "# t tx ty tz qx qy qz qw id map static_area_ratio";
 constexpr const char* kMappingTimelineHeader =
     "# t keyframe_id mapping_ms atlas_keyframes atlas_map_points resident_mb ba_optimised ba_fixed ba_points "
-    "ba_observations ba_fixed_observations ba_fixed_observation_limit ba_probe_points ba_iterations points_ms ba_ms keyframe_culling_ms imu_ms";
+    "ba_observations ba_fixed_observations ba_fixed_observation_limit ba_probe_points ba_iterations points_ms ba_ms keyframe_culling_ms imu_ms mapping_cpu_ms";
 constexpr const char* kPlyVertexLayout[] = {"property float x",     "property float y",
                                             "property float z",     "property uchar red",
                                             "property uchar green", "property uchar blue",
@@ -101,7 +101,8 @@ void writeMappingTimeline(const std::string& path, const std::vector<mapping::Ma
         << entry.ba_fixed_keyframes << ' ' << entry.ba_points << ' ' << entry.ba_observations << ' '
         << entry.ba_fixed_observations << ' ' << entry.ba_fixed_observation_limit << ' ' << entry.ba_probe_points << ' '
         << entry.ba_iterations << ' ' << std::setprecision(3)
-        << entry.points_ms << ' ' << entry.ba_ms << ' ' << entry.keyframe_culling_ms << ' ' << entry.imu_ms << '\n';
+        << entry.points_ms << ' ' << entry.ba_ms << ' ' << entry.keyframe_culling_ms << ' ' << entry.imu_ms << ' '
+        << entry.mapping_cpu_ms << '\n';
   }
   if (!out) throw InputError(path, 0, "write failed");
 }
@@ -118,7 +119,7 @@ MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::Mappi
   }
   // The two windows must not overlap, or the ratio would compare a stretch with itself.
   if (last_t_s - first_t_s < 2.0 * window_s) return summary;
-  std::vector<double> first_ms, last_ms;
+  std::vector<double> first_ms, last_ms, first_cpu_ms, last_cpu_ms;
   // Local BA sizes of the keyframes that ran one: observations, points, fixed keyframes.
   std::vector<double> first_ba[3], last_ba[3];
   auto add_ba = [](const mapping::MappingTimelineEntry& entry, std::vector<double>* sizes) {
@@ -130,10 +131,12 @@ MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::Mappi
   for (const mapping::MappingTimelineEntry& entry : timeline) {
     if (entry.t_s < first_t_s + window_s) {
       first_ms.push_back(entry.mapping_ms);
+      first_cpu_ms.push_back(entry.mapping_cpu_ms);
       add_ba(entry, first_ba);
     }
     if (entry.t_s > last_t_s - window_s) {
       last_ms.push_back(entry.mapping_ms);
+      last_cpu_ms.push_back(entry.mapping_cpu_ms);
       add_ba(entry, last_ba);
       summary.last_resident_mb = std::max(summary.last_resident_mb, entry.resident_mb);
     } else if (entry.t_s < first_t_s + window_s) {
@@ -143,6 +146,8 @@ MappingTimelineSummary summariseMappingTimeline(const std::vector<mapping::Mappi
   summary.windows = true;
   summary.first_median_ms = percentile(first_ms, 0.5);
   summary.last_median_ms = percentile(last_ms, 0.5);
+  summary.first_median_cpu_ms = percentile(first_cpu_ms, 0.5);
+  summary.last_median_cpu_ms = percentile(last_cpu_ms, 0.5);
   auto median = [](std::vector<double>& values) { return values.empty() ? 0.0 : percentile(values, 0.5); };
   summary.first_ba_observations = median(first_ba[0]);
   summary.last_ba_observations = median(last_ba[0]);
@@ -356,6 +361,10 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
     metrics.set("mapping_keyframe_last_minute_median_ms", timeline.last_median_ms);
     metrics.set("mapping_keyframe_last_to_first_minute",
                 timeline.first_median_ms > 0.0 ? timeline.last_median_ms / timeline.first_median_ms : 0.0);
+    metrics.set("mapping_keyframe_cpu_first_minute_median_ms", timeline.first_median_cpu_ms);
+    metrics.set("mapping_keyframe_cpu_last_minute_median_ms", timeline.last_median_cpu_ms);
+    metrics.set("mapping_keyframe_cpu_last_to_first_minute",
+                timeline.first_median_cpu_ms > 0.0 ? timeline.last_median_cpu_ms / timeline.first_median_cpu_ms : 0.0);
     metrics.set("resident_first_minute_max_mb", timeline.first_resident_mb);
     metrics.set("resident_last_minute_max_mb", timeline.last_resident_mb);
     metrics.set("local_ba_first_minute_median_observations", timeline.first_ba_observations);

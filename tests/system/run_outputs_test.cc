@@ -218,6 +218,7 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
     entry.ba_ms = 0.8 * entry.mapping_ms;
     entry.keyframe_culling_ms = 0.5;
     entry.imu_ms = 1.25;
+    entry.mapping_cpu_ms = 50.0 + entry.t_s / 10.0;  // 50 ms -> 80 ms: the thread's own work
     timeline.push_back(entry);
   }
   const MappingTimelineSummary summary = summariseMappingTimeline(timeline, 60.0);
@@ -225,6 +226,8 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   // First minute: t in [0, 60), median at t = 29.75 s; last: t in (240, 300], median at 270.25 s.
   EXPECT_NEAR(summary.first_median_ms, 100.0 + 29.75 / 3.0, 5.01);
   EXPECT_NEAR(summary.last_median_ms, 100.0 + 270.25 / 3.0, 5.01);
+  EXPECT_NEAR(summary.first_median_cpu_ms, 50.0 + 29.75 / 10.0, 1e-9);
+  EXPECT_NEAR(summary.last_median_cpu_ms, 50.0 + 270.25 / 10.0, 1e-9);
   EXPECT_NEAR(summary.first_resident_mb, 259.5, 1e-9);
   EXPECT_NEAR(summary.last_resident_mb, 500.0, 1e-9);
   EXPECT_NEAR(summary.max_resident_mb, 500.0, 1e-9);
@@ -244,6 +247,7 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   const io::Metrics metrics = computeRunMetrics(report, circleGroundTruth(10));
   EXPECT_NEAR(metrics.number("mapping_keyframe_last_to_first_minute"),
               summary.last_median_ms / summary.first_median_ms, 1e-12);
+  EXPECT_NEAR(metrics.number("mapping_keyframe_cpu_last_to_first_minute"), 77.025 / 52.975, 1e-12);
   EXPECT_NEAR(metrics.number("local_ba_first_minute_median_observations"), summary.first_ba_observations, 1e-12);
   EXPECT_NEAR(metrics.number("local_ba_last_minute_median_observations"), summary.last_ba_observations, 1e-12);
   writeMappingTimeline(path("timeline.txt"), timeline);
@@ -256,21 +260,21 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
     std::string name;
     int columns = -1;  // the leading '#'
     while (names >> name) ++columns;
-    EXPECT_EQ(columns, 18) << header;
-    EXPECT_NE(header.find("ba_probe_points ba_iterations points_ms ba_ms keyframe_culling_ms imu_ms"), std::string::npos);
+    EXPECT_EQ(columns, 19) << header;
+    EXPECT_NE(header.find("ba_probe_points ba_iterations points_ms ba_ms keyframe_culling_ms imu_ms mapping_cpu_ms"), std::string::npos);
   }
   int lines = 0;
   double t_s = 0.0, mapping_ms = 0.0, resident_mb = 0.0;
   std::uint64_t id = 0, keyframes = 0, points = 0;
   int ba_optimised = 0, ba_fixed = 0, ba_points = 0, ba_observations = 0, ba_fixed_observations = 0;
   int ba_fixed_limit = -1, ba_probes = 0, ba_iterations = 0;
-  double points_ms = 0.0, ba_ms = 0.0, culling_ms = 0.0, imu_ms = 0.0;
+  double points_ms = 0.0, ba_ms = 0.0, culling_ms = 0.0, imu_ms = 0.0, cpu_ms = 0.0;
   std::string rest;
   while (std::getline(in, line)) {
     std::istringstream row(line);
     row >> t_s >> id >> mapping_ms >> keyframes >> points >> resident_mb >> ba_optimised >> ba_fixed >> ba_points >>
         ba_observations >> ba_fixed_observations >> ba_fixed_limit >> ba_probes >> ba_iterations >> points_ms >> ba_ms >>
-        culling_ms >> imu_ms;
+        culling_ms >> imu_ms >> cpu_ms;
     EXPECT_TRUE(row && !(row >> rest)) << line;  // every column, no more
     ++lines;
   }
@@ -280,6 +284,7 @@ TEST_F(RunOutputs, MappingTimelineGivesTheFirstAndLastMinutesCostAndIsWritten) {
   EXPECT_NEAR(ba_ms, 0.8 * timeline.back().mapping_ms, 1e-3);
   EXPECT_NEAR(culling_ms, 0.5, 1e-3);
   EXPECT_NEAR(imu_ms, 1.25, 1e-3);
+  EXPECT_NEAR(cpu_ms, 80.0, 1e-3);
   EXPECT_EQ(ba_optimised, 10);
   EXPECT_EQ(ba_fixed, 50);
   EXPECT_EQ(ba_points, 500);

@@ -30,6 +30,10 @@ struct MappingTimelineEntry {
   double ba_ms = 0.0;
   double keyframe_culling_ms = 0.0;
   double imu_ms = 0.0;
+  /// The mapping thread's CPU time for the keyframe (ms, CLOCK_THREAD_CPUTIME_ID): its work alone.
+  /// mapping_ms is wall time and also counts the waits for the cores, which the loop closer's
+  /// global BA and the other threads take on a 2-core machine.
+  double mapping_cpu_ms = 0.0;
 };
 
 }  // namespace ltlo::mapping

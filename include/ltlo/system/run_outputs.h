@@ -47,6 +47,9 @@ struct MappingTimelineSummary {
   bool windows = false;
   double first_median_ms = 0.0;
   double last_median_ms = 0.0;
+  /// The same medians of the mapping thread's CPU time (its work, without the waits for the cores).
+  double first_median_cpu_ms = 0.0;
+  double last_median_cpu_ms = 0.0;
   double first_resident_mb = 0.0;  ///< the largest resident memory in each window, MB
   double last_resident_mb = 0.0;
   double max_resident_mb = 0.0;    ///< over the whole timeline
