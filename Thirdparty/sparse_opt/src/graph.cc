@@ -65,6 +65,7 @@ void Graph::addVertexImpl(std::unique_ptr<VertexBase> vertex) {
     throw Error("sparse_opt: Graph::addVertex: vertex id " + std::to_string(id) + " already in the graph");
   }
   vertices_.emplace(id, std::move(vertex));
+  ++version_;
 }
 
 void Graph::addEdgeImpl(std::unique_ptr<EdgeBase> edge) {
@@ -88,12 +89,16 @@ void Graph::addEdgeImpl(std::unique_ptr<EdgeBase> edge) {
   }
   edge->id_ = next_edge_id_++;
   edges_.emplace(edge->id_, std::move(edge));
+  ++version_;
 }
 
 void Graph::removeEdge(const EdgeBase* edge) {
   if (edge == nullptr) return;
   const auto it = edges_.find(edge->id());
-  if (it != edges_.end() && it->second.get() == edge) edges_.erase(it);
+  if (it != edges_.end() && it->second.get() == edge) {
+    edges_.erase(it);
+    ++version_;
+  }
 }
 
 void Graph::removeVertex(int vertex_id) {
@@ -106,6 +111,7 @@ void Graph::removeVertex(int vertex_id) {
     e = uses ? edges_.erase(e) : std::next(e);
   }
   vertices_.erase(it);
+  ++version_;
 }
 
 VertexBase* Graph::vertex(int vertex_id) const {
@@ -133,7 +139,7 @@ Summary Graph::optimize(const Options& options) {
   if (options.num_threads < 1) throw Error("sparse_opt: Options::num_threads must be >= 1");
   if (options.max_iterations < 0) throw Error("sparse_opt: Options::max_iterations must be >= 0");
   const auto setup_start = std::chrono::steady_clock::now();
-  solver_->setup(activeEdges(options.level), options.use_schur);
+  solver_->setup(activeEdges(options.level), options.use_schur, version_);
   solver_->setSetupTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count());
   Summary summary = solver_->run(options);
   // Edges of other levels get their chi2() at the final estimate too (outlier re-checks).
@@ -160,7 +166,7 @@ std::vector<Eigen::MatrixXd> Graph::marginalCovariance(const std::vector<int>& v
     any_marginalized = any_marginalized || v->marginalized();
     selected.push_back(v);
   }
-  solver_->setup(activeEdges(options.level), options.use_schur && !any_marginalized);
+  solver_->setup(activeEdges(options.level), options.use_schur && !any_marginalized, version_);
   return solver_->covariance(selected, options);
 }
 

@@ -86,7 +86,27 @@ void Solver::throwNonFinite(int edge_index, const char* what) const {
               what + ": " + e->describeValues());
 }
 
-void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
+void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur, std::uint64_t graph_version) {
+  StructureKey& key = candidate_key_;
+  key.use_schur = use_schur;
+  key.graph_version = graph_version;
+  key.pointers.clear();
+  key.vertex_states.clear();
+  for (const EdgeBase* e : edges) {
+    key.pointers.push_back(e);
+    for (int s = 0; s < e->numVertices(); ++s) {
+      const VertexBase* v = e->vertex(s);
+      key.pointers.push_back(v);
+      key.vertex_states.push_back(v->dimension() * 4 + (v->marginalized() ? 2 : 0) + (v->fixed() ? 1 : 0));
+    }
+  }
+  reused_structure_ = structure_valid_ && key == structure_key_;
+  if (reused_structure_) {
+    resetBuffers();
+    return;
+  }
+  structure_valid_ = false;
+  std::swap(structure_key_, candidate_key_);
   use_schur_ = use_schur;
   edges_ = edges;
   cameras_.clear();
@@ -320,6 +340,15 @@ void Solver::setup(const std::vector<EdgeBase*>& edges, bool use_schur) {
     }
   }
 
+  resetBuffers();
+  structure_valid_ = true;
+}
+
+void Solver::resetBuffers() {
+  const int nc = static_cast<int>(cameras_.size());
+  const int nl = static_cast<int>(landmarks_.size());
+  const int num_blocks = blk_col_start_.empty() ? 0 : blk_col_start_[nc];
+  const int num_obs = lm_obs_start_.empty() ? 0 : lm_obs_start_[nl];
   hcc_.assign(static_cast<size_t>(blk_offset_[num_blocks]), 0.0);
   hcc_other_.assign(hcc_.size(), 0.0);
   s_.assign(hcc_.size(), 0.0);
@@ -608,6 +637,7 @@ Summary Solver::run(const Options& options) {
   Summary summary;
   summary.used_schur = use_schur_ && !landmarks_.empty();
   summary.reduced_dimension = cam_total_;
+  summary.reused_structure = reused_structure_;
   use_cholmod_ = options.linear_solver == LinearSolverType::kCholmod ||
                  (options.linear_solver == LinearSolverType::kAuto && cam_total_ > options.dense_max_dimension);
   summary.used_cholmod = use_cholmod_;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -22,8 +23,10 @@ struct BlockWrite {
 
 class Solver {
  public:
-  /// Classifies vertices and builds the block structure for these edges (throws Error on misuse).
-  void setup(const std::vector<EdgeBase*>& edges, bool use_schur);
+  /// Classifies vertices and builds the block structure for these edges (throws Error on misuse);
+  /// keeps the previous one when nothing it depends on changed, `graph_version` included (the
+  /// graph's count of additions and removals).
+  void setup(const std::vector<EdgeBase*>& edges, bool use_schur, std::uint64_t graph_version);
   /// Adds the setup time (measured by the caller) to the next run's summary.
   void setSetupTime(double seconds) {
     times_ = StageTimes();
@@ -54,6 +57,24 @@ class Solver {
   void backSubstituteLandmark(int l);
   [[noreturn]] void throwNonFinite(int edge_index, const char* what) const;
 
+  /// The zeroed accumulators and vectors of a run, sized by the structure (end of every setup).
+  void resetBuffers();
+  /// What the structure depends on: the edges in the order given, each one's vertices, and each
+  /// vertex's fixed and marginalised flags and dimension. setup() of an unchanged key keeps the
+  /// structure (a robust BA's alternations optimise the same graph with new weights).
+  struct StructureKey {
+    bool use_schur = true;
+    std::uint64_t graph_version = 0;
+    std::vector<const void*> pointers;  // per edge: the edge, then its vertices
+    std::vector<int> vertex_states;     // per vertex slot: dimension * 4 + marginalised * 2 + fixed
+    bool operator==(const StructureKey& other) const {
+      return use_schur == other.use_schur && graph_version == other.graph_version && pointers == other.pointers && vertex_states == other.vertex_states;
+    }
+  };
+  StructureKey structure_key_;
+  StructureKey candidate_key_;  // scratch for the next setup's key
+  bool structure_valid_ = false;
+
   bool use_schur_ = true;
   std::vector<EdgeBase*> edges_;
   std::vector<VertexBase*> cameras_;    // free vertices in the reduced system
@@ -83,6 +104,7 @@ class Solver {
   StageTimes times_;
   double structure_setup_s_ = 0.0;
   bool reused_symbolic_ = false;
+  bool reused_structure_ = false;  // the last setup() kept the structure
 };
 
 }  // namespace sparse_opt::internal

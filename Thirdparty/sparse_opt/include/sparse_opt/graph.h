@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <atomic>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
@@ -69,6 +70,10 @@ struct Summary {
   bool used_schur = false;
   bool used_cholmod = false;
   bool reused_symbolic = false;  ///< CHOLMOD symbolic analysis reused from a previous call
+  /// The block structure reused from the previous call: the same edges (in the same order) on the
+  /// same vertices, none of them fixed, freed or marginalised since (only the estimates and the
+  /// edges' weights changed, as between a robust BA's rounds)
+  bool reused_structure = false;
   int reduced_dimension = 0;
   std::vector<IterationStats> history;
   StageTimes stage_times;
@@ -129,6 +134,9 @@ class Graph {
   std::map<int, std::unique_ptr<VertexBase>> vertices_;
   std::map<int, std::unique_ptr<EdgeBase>> edges_;
   int next_edge_id_ = 0;
+  /// Counts additions and removals: a vertex or edge freed and another made at the same address must
+  /// not pass for the one before in the solver's structure key.
+  std::uint64_t version_ = 0;
   std::unique_ptr<internal::Solver> solver_;  // keeps CHOLMOD's symbolic analysis across calls
 };
 
