@@ -68,7 +68,8 @@ class Solver {
     std::vector<const void*> pointers;  // per edge: the edge, then its vertices
     std::vector<int> vertex_states;     // per vertex slot: dimension * 4 + marginalised * 2 + fixed
     bool operator==(const StructureKey& other) const {
-      return use_schur == other.use_schur && graph_version == other.graph_version && pointers == other.pointers && vertex_states == other.vertex_states;
+      return use_schur == other.use_schur && graph_version == other.graph_version && pointers == other.pointers &&
+             vertex_states == other.vertex_states;
     }
   };
   StructureKey structure_key_;
