@@ -330,6 +330,33 @@ SequenceStats writeSequence(const SimOptions& options, const std::string& out_di
   return stats;
 }
 
+std::uintmax_t expectedSequenceBytes(const SimOptions& options) {
+  constexpr double kVgaFrameBytes = 0.9e6;  // colour + depth + mask PNGs, photo-textured scenes
+  constexpr double kMargin = 1.25;
+  const double pixels = static_cast<double>(options.width_px) * options.height_px;
+  return static_cast<std::uintmax_t>(kMargin * kVgaFrameBytes * numFramesOf(options) * pixels / (640.0 * 480.0));
+}
+
+void requireFreeSpace(const std::string& out_dir, std::uintmax_t bytes) {
+  namespace fs = std::filesystem;
+  fs::path existing = fs::absolute(fs::path(out_dir));
+  std::error_code error;
+  while (!fs::exists(existing, error) && existing.has_parent_path() && existing != existing.parent_path()) {
+    existing = existing.parent_path();
+  }
+  const fs::space_info space = fs::space(existing, error);
+  if (error) return;  // no answer from the file system: the writes themselves report a full disk
+  if (space.available >= bytes) return;
+  const auto gb = [](std::uintmax_t b) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.2f GB", static_cast<double>(b) / 1e9);
+    return std::string(text);
+  };
+  throw InputError(out_dir, 0,
+                   "the sequence needs about " + gb(bytes) + " and its file system has " + gb(space.available) +
+                       " available (free space, or a shorter --seconds or smaller --width/--height)");
+}
+
 namespace {
 
 void createSequenceFolders(const std::string& out_dir) {
@@ -572,6 +599,7 @@ void writeStatsFile(const Simulator& sim, const SequenceStats& stats, const std:
 SequenceStats writeSequence(Simulator& sim, const std::string& out_dir, int progress_every) {
   const SimOptions& options = sim.options();
   const auto start = std::chrono::steady_clock::now();
+  requireFreeSpace(out_dir, expectedSequenceBytes(options));
   createSequenceFolders(out_dir);
   logSequenceStart(sim);
 

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -529,6 +530,36 @@ TEST(SimOptions, ReadsTheImuUnderItsOwnKeysAndTheOldOnesWithAWarning) {
     EXPECT_NE(std::string(e.what()).find("IMU.NoiseAcc"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("Sim.Imu.NoiseAcc"), std::string::npos) << e.what();
   }
+}
+
+
+TEST(SequenceSpace, EstimateCoversAMeasuredSequenceAndScalesWithPixelsAndFrames) {
+  SimOptions vga;
+  vga.duration_s = 45.0;
+  const std::uintmax_t bytes = expectedSequenceBytes(vga);
+  // A 45 s VGA photo-textured sequence measured 1.1-1.2 GB on disk; the estimate has a margin over it.
+  EXPECT_GE(bytes, 1'200'000'000u);
+  EXPECT_LE(bytes, 2'000'000'000u);
+  SimOptions small = vga;
+  small.width_px = 320;
+  small.height_px = 240;
+  small.duration_s = 22.5;
+  EXPECT_NEAR(static_cast<double>(expectedSequenceBytes(small)), bytes / 8.0, bytes * 1e-3);
+}
+
+TEST(SequenceSpace, TooLittleSpaceIsAnInputErrorNamingTheFolderAndBothSizes) {
+  const std::string out = (std::filesystem::temp_directory_path() / "ltlo_space_test" / "not" / "made").string();
+  EXPECT_NO_THROW(requireFreeSpace(out, 0));
+  try {
+    requireFreeSpace(out, std::numeric_limits<std::uintmax_t>::max() / 2);
+    ADD_FAILURE() << "expected InputError";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(out), std::string::npos) << what;
+    EXPECT_NE(what.find("needs about"), std::string::npos) << what;
+    EXPECT_NE(what.find("available"), std::string::npos) << what;
+  }
+  EXPECT_FALSE(std::filesystem::exists(out));  // nothing made for a sequence that cannot fit
 }
 
 }  // namespace
