@@ -11,7 +11,8 @@
 #   VARIANTS  ["rgbd_inertial rgbd_only seg_off"]  rgbd_inertial: the full system;
 #             rgbd_only: --no-imu; seg_off: Seg.Enable = 0 (every pixel static)
 #   SEQ_ROOT  [/work/seqs]  sequences <scenario>_s<seed> that hold a DONE file are used from there;
-#             the others are generated into OUT/sequences/ (simulate)
+#             the others are generated into OUT/sequences/ (simulate; 1.1-1.2 GB a 45 s sequence, and
+#             simulate exits 2 before the first frame when the file system lacks about 1.5 GB)
 #   SETTINGS  [config_yaml/synthetic.yaml]   RECON [1]: reconstruct + check_surfels the
 #             rgbd_inertial runs   BUILD [1]: build first (scripts/build.sh)
 #   RESULTS_MD [unset]  e.g. docs/results.md: its benchmark block becomes this report's summary
