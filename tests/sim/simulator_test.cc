@@ -532,7 +532,6 @@ TEST(SimOptions, ReadsTheImuUnderItsOwnKeysAndTheOldOnesWithAWarning) {
   }
 }
 
-
 TEST(SequenceSpace, EstimateCoversAMeasuredSequenceAndScalesWithPixelsAndFrames) {
   SimOptions vga;
   vga.duration_s = 45.0;
