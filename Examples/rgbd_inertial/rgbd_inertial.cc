@@ -284,7 +284,7 @@ void writeFinalMasks(const Arguments& args, const RunSetup& setup, const system:
               result.frames_relabelled, " relabelled against the final map, ", result.frames_changed, " changed (",
               result.regions_flipped, " regions static -> dynamic (", result.regions_free_space, " by free space), ",
               result.regions_to_static, " dynamic -> static, ", result.voting_points, " static points, ",
-              result.free_space_views, " keyframe depths, ",
+              result.free_space_views, " keyframe and ", result.free_space_frame_views, " frame depths, ",
               result.frames_relabelled > 0 ? static_cast<double>(result.views_asked) / result.frames_relabelled : 0.0,
               " asked a frame) in ",
               result.seconds, " s");

@@ -64,6 +64,7 @@ void visitSegmentation(O& o, V& v) {
   v.boolean("Seg.HindsightFreeSpace", o.hindsight_free_space);
   v.integer("Seg.HindsightFreeSpaceViews", o.hindsight_free_space_views, 1, 20);
   v.integer("Seg.HindsightFreeSpaceMaxViews", o.hindsight_free_space_max_views, 0, 100000);
+  v.real("Seg.HindsightFreeSpaceFrameInterval", o.hindsight_free_space_frame_interval_s, 0.0, 60.0);
 }
 
 template <typename O, typename V>

@@ -124,6 +124,7 @@ HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   options.free_space = settings.segmentation.hindsight_free_space;
   options.free_space_views = settings.segmentation.hindsight_free_space_views;
   options.free_space_max_views = settings.segmentation.hindsight_free_space_max_views;
+  options.free_space_frame_interval_s = settings.segmentation.hindsight_free_space_frame_interval_s;
   return options;
 }
 
@@ -213,7 +214,10 @@ void HindsightRelabeller::selectViews(const SE3& T_w_c, const std::vector<FreeSp
   const Vec3 axis_w = T_w_c.rotationMatrix().col(2);
   active_views_.clear();
   for (const FreeSpaceView& view : views) {
-    if (std::abs(view.t_s - t_s) < 1e-6 || view.axis_w.dot(axis_w) < kMinViewAxisCos) continue;
+    if (std::abs(view.t_s - t_s) < (view.keyframe ? 1e-6 : kFrameViewMinGapS) ||
+        view.axis_w.dot(axis_w) < kMinViewAxisCos) {
+      continue;
+    }
     active_views_.push_back(&view);
   }
   const std::size_t max_views = static_cast<std::size_t>(options_.free_space_max_views);
@@ -522,28 +526,53 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
   HindsightMaskResult total;
 
   // The free-space views: the depth of every keyframe of points_map at its final pose, at twice the label
-  // step.
+  // step, and of a frame every free_space_frame_interval_s between them.
   std::vector<FreeSpaceView> views;
   if (options.free_space) {
     std::vector<std::pair<double, int>> frame_times;  // every frame of the reader, by time
     for (int i = 0; i < reader.frameCount(); ++i) frame_times.emplace_back(reader.frameFiles(i).t_s, i);
     std::sort(frame_times.begin(), frame_times.end());
-    std::vector<std::pair<int, const KeyFrameRecord*>> sources;
+    struct ViewSource {
+      int frame = 0;
+      double t_s = 0.0;
+      SE3 T_w_c;
+      bool keyframe = true;
+    };
+    std::vector<ViewSource> sources;
     for (const KeyFrameRecord& keyframe : keyframes) {
       if (keyframe.map != points_map.value) continue;
       const auto it = std::lower_bound(frame_times.begin(), frame_times.end(),
                                        std::make_pair(keyframe.t_s - 1e-6, std::numeric_limits<int>::min()));
       if (it == frame_times.end() || it->first > keyframe.t_s + 1e-6) continue;
-      sources.emplace_back(it->second, &keyframe);
+      sources.push_back({it->second, keyframe.t_s, keyframe.T_w_c});
+    }
+    total.free_space_views = static_cast<int>(sources.size());
+    if (options.free_space_frame_interval_s > 0.0 && !poses.t_s.empty()) {
+      // At most kMaxFrameViews over the final poses' span; a keyframe's own frame is a view already.
+      const double span_s = poses.t_s.back() - poses.t_s.front();
+      const double interval_s = std::max(options.free_space_frame_interval_s, span_s / kMaxFrameViews);
+      std::vector<double> keyframe_times;
+      for (const ViewSource& source : sources) keyframe_times.push_back(source.t_s);
+      std::sort(keyframe_times.begin(), keyframe_times.end());
+      double next_t_s = -std::numeric_limits<double>::infinity();
+      for (const auto& [t_s, index] : frame_times) {
+        const SE3* T_w_c = poses.find(t_s);
+        if (T_w_c == nullptr || t_s < next_t_s) continue;
+        next_t_s = t_s + interval_s - 1e-6;
+        const auto kf = std::lower_bound(keyframe_times.begin(), keyframe_times.end(), t_s - 1e-6);
+        if (kf != keyframe_times.end() && *kf <= t_s + 1e-6) continue;
+        sources.push_back({index, t_s, *T_w_c, /*keyframe=*/false});
+        ++total.free_space_frame_views;
+      }
     }
     const int view_scale = 2 * (camera.pinhole().width() / options.label_width);
     views.resize(sources.size());
     forEachFrame(sources.size(), num_threads, [&](int, std::size_t n) {
-      const io::RgbdImuFrame frame = reader.load(sources[n].first, /*with_colour=*/false);
-      if (frame.depth_m.empty()) throw InputError(reader.frameFiles(sources[n].first).depth_path, 0, "cannot read the depth");
-      views[n] = FreeSpaceView::fromDepth(frame.depth_m, sources[n].second->T_w_c, sources[n].second->t_s, view_scale);
+      const io::RgbdImuFrame frame = reader.load(sources[n].frame, /*with_colour=*/false);
+      if (frame.depth_m.empty()) throw InputError(reader.frameFiles(sources[n].frame).depth_path, 0, "cannot read the depth");
+      views[n] = FreeSpaceView::fromDepth(frame.depth_m, sources[n].T_w_c, sources[n].t_s, view_scale);
+      views[n].keyframe = sources[n].keyframe;
     });
-    total.free_space_views = static_cast<int>(views.size());
   }
 
   // Every frame's mask, relabelled when it has a final pose.

@@ -6,14 +6,24 @@
 // static points lie on its surface. Free space: without any map point, a box where two keyframes saw the
 // wall turns dynamic; keyframes that saw the box there, one keyframe alone, or the frame's own depth do not;
 // among many keyframes a frame asks at most Seg.HindsightFreeSpaceMaxViews, those that saw its surface.
+// The folder pass: a leaf that comes to rest where only frames between the keyframes saw the wall turns
+// dynamic with Seg.HindsightFreeSpaceFrameInterval, and stays as it was with the keyframes alone.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "ltlo/core/camera_model.h"
+#include "ltlo/io/sequence_reader.h"
 #include "ltlo/system/hindsight_masks.h"
 
 namespace ltlo::system {
@@ -328,6 +338,135 @@ TEST(FreeSpaceView, EachPixelIsTheNearestDepthOfTheBlocksAroundAndUnknownBesideA
   EXPECT_FLOAT_EQ(view.depth_m.at<float>(2, 2), 0.0f);
   EXPECT_FLOAT_EQ(view.depth_m.at<float>(1, 3), 3.0f);
   EXPECT_TRUE(view.axis_w.isApprox(Vec3::UnitZ()));
+}
+
+/// A sequence folder (DATA_FORMAT.md) of a camera standing still before a wall at kWallDepth: frames
+/// 0..3 see the bare wall (a door open), frames 4..7 the leaf at rest at kBoxDepth over kBox. Online
+/// masks all static. The run's final poses: every frame at T_w_c in map 0; its one keyframe is frame 5.
+class HindsightFolderPass : public ::testing::Test {
+ protected:
+  static constexpr int kFrames = 8;
+  static constexpr double kFramePeriodS = 0.5;
+  static constexpr int kKeyFrame = 5;
+
+  void SetUp() override {
+    namespace fs = std::filesystem;
+    dir_ = fs::temp_directory_path() / ("ltlo_hindsight_folder_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    for (const char* sub : {"rgb", "depth", "online", "final"}) fs::create_directories(dir_ / sub);
+    std::ofstream rgb_list(dir_ / "rgb.txt"), depth_list(dir_ / "depth.txt");
+    const SE3 T_w_c(SE3::exp((Vec6() << 0.1, -0.2, 0.05, 0.5, 0.2, -0.3).finished()));
+    for (int i = 0; i < kFrames; ++i) {
+      char stamp[32];
+      std::snprintf(stamp, sizeof(stamp), "%.6f", i * kFramePeriodS);
+      cv::Mat depth_mm(kHeight, kWidth, CV_16UC1, cv::Scalar(kWallDepth * 1000.0));
+      if (i >= 4) depth_mm(kBox).setTo(kBoxDepth * 1000.0);
+      ASSERT_TRUE(cv::imwrite((dir_ / "depth" / (std::string(stamp) + ".png")).string(), depth_mm));
+      ASSERT_TRUE(cv::imwrite((dir_ / "rgb" / (std::string(stamp) + ".png")).string(),
+                              cv::Mat(kHeight, kWidth, CV_8UC3, cv::Scalar(90, 120, 150))));
+      ASSERT_TRUE(cv::imwrite((dir_ / "online" / (std::string(stamp) + ".png")).string(),
+                              cv::Mat(kHeight, kWidth, CV_8UC1, cv::Scalar(0))));
+      rgb_list << stamp << " rgb/" << stamp << ".png\n";
+      depth_list << stamp << " depth/" << stamp << ".png\n";
+      trajectory_.push_back({i * kFramePeriodS, T_w_c, /*tracked=*/true, map::MapId(0)});
+    }
+    KeyFrameRecord keyframe;
+    keyframe.t_s = kKeyFrame * kFramePeriodS;
+    keyframe.T_w_c = T_w_c;
+    keyframe.id = 0;
+    keyframe.map = 0;
+    keyframes_.push_back(keyframe);
+    std::ofstream calib(dir_ / "calib.yaml");
+    calib << "%YAML:1.0\nCamera.fx: 120.0\nCamera.fy: 120.0\nCamera.cx: 79.5\nCamera.cy: 59.5\n"
+             "Camera.width: 160\nCamera.height: 120\nCamera.fps: 2\nDepthMapFactor: 1000.0\n";
+    options_.clusters.num_clusters = 8;
+    options_.label_width = kWidth / 2;
+    options_.label_height = kHeight / 2;
+    options_.num_threads = 2;
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  /// Runs the pass; returns the leaf's and the rest's dynamic shares in each frame's written mask.
+  std::vector<std::pair<double, double>> run(HindsightMaskResult* result) {
+    io::SequenceReaderOptions reader_options;
+    reader_options.masks_dir = (dir_ / "online").string();
+    reader_options.read_ground_truth = false;
+    const io::SequenceReader reader = io::SequenceReader::open(dir_.string(), reader_options);
+    const CameraModel camera(PinholeCamera(120.0, 120.0, 79.5, 59.5, kWidth, kHeight), LensDistortion());
+    std::filesystem::remove_all(dir_ / "final");
+    *result = writeHindsightMasks(reader, trajectory_, keyframes_, map::MapId(0), {}, camera, options_,
+                                  (dir_ / "final").string());
+    std::vector<std::pair<double, double>> shares;
+    for (int i = 0; i < kFrames; ++i) {
+      char stamp[32];
+      std::snprintf(stamp, sizeof(stamp), "%.6f", i * kFramePeriodS);
+      const cv::Mat mask = cv::imread((dir_ / "final" / (std::string(stamp) + ".png")).string(), cv::IMREAD_UNCHANGED);
+      EXPECT_FALSE(mask.empty()) << stamp;
+      if (mask.empty()) return shares;
+      cv::Mat outside = mask.clone();
+      outside(kBox).setTo(0);
+      shares.emplace_back(cv::countNonZero(mask(kBox)) / static_cast<double>(kBox.area()),
+                          cv::countNonZero(outside) / static_cast<double>(kWidth * kHeight - kBox.area()));
+    }
+    return shares;
+  }
+
+  std::filesystem::path dir_;
+  std::vector<FramePose> trajectory_;
+  std::vector<KeyFrameRecord> keyframes_;
+  HindsightMaskOptions options_;
+};
+
+TEST_F(HindsightFolderPass, ALeafAtRestWhereOnlyFramesSawTheWallTurnsDynamicWithFrameViews) {
+  // Keyframes only: the one keyframe saw the leaf where it rests, so nothing changes.
+  options_.free_space_frame_interval_s = 0.0;
+  HindsightMaskResult result;
+  std::vector<std::pair<double, double>> shares = run(&result);
+  ASSERT_EQ(shares.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(result.free_space_views, 1);
+  EXPECT_EQ(result.free_space_frame_views, 0);
+  for (const auto& [leaf, rest] : shares) {
+    EXPECT_EQ(leaf, 0.0);
+    EXPECT_EQ(rest, 0.0);
+  }
+  // A frame every 0.5 s: the seven frames that are not the keyframe's are views too; frames 0..3 saw the
+  // wall where the leaf rests in frames 4..7, which turn dynamic there and nowhere else.
+  options_.free_space_frame_interval_s = kFramePeriodS;
+  shares = run(&result);
+  ASSERT_EQ(shares.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(result.free_space_views, 1);
+  EXPECT_EQ(result.free_space_frame_views, kFrames - 1);
+  for (int i = 0; i < kFrames; ++i) {
+    EXPECT_EQ(shares[static_cast<std::size_t>(i)].second, 0.0) << "frame " << i;
+    if (i < 4) {
+      EXPECT_EQ(shares[static_cast<std::size_t>(i)].first, 0.0) << "frame " << i;
+    } else {
+      EXPECT_GT(shares[static_cast<std::size_t>(i)].first, 0.95) << "frame " << i;
+    }
+  }
+  // A frame asks no frame view within kFrameViewMinGapS (1 s): with Seg.HindsightFreeSpaceViews 4, frame 4
+  // (t = 2 s) has three views of the wall at least 1 s away (frames 0..2; frame 3 is 0.5 s away), frame 7
+  // four (frames 0..3).
+  options_.free_space_views = 4;
+  shares = run(&result);
+  ASSERT_EQ(shares.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(shares[4].first, 0.0);
+  EXPECT_GT(shares[7].first, 0.95);
+  options_.free_space_views = 2;
+  // One frame every 1.25 s: frames 0, 3 and 6 (t = 0, 1.5, 3), the first two of which saw the wall:
+  // Seg.HindsightFreeSpaceViews 2 still holds for frame 7.
+  options_.free_space_frame_interval_s = 1.25;
+  shares = run(&result);
+  ASSERT_EQ(shares.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(result.free_space_frame_views, 3);
+  EXPECT_GT(shares[7].first, 0.95);
+  // One every 1.75 s: frames 0 and 4 (t = 0, 2); one view of the wall is not enough.
+  options_.free_space_frame_interval_s = 1.75;
+  shares = run(&result);
+  ASSERT_EQ(shares.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(result.free_space_frame_views, 2);
+  EXPECT_EQ(shares[7].first, 0.0);
 }
 
 }  // namespace

@@ -117,6 +117,10 @@ struct SegmentationOptions {
   /// Keyframes a frame asks at most, those that saw most of its surface (Seg.HindsightFreeSpaceMaxViews,
   /// 0 = all): bounds the pass's cost per frame on long runs, whose revisits add views of the same walls
   int hindsight_free_space_max_views = 32;
+  /// Frames between the keyframes also serve as free-space views, one per this many seconds of the run
+  /// (Seg.HindsightFreeSpaceFrameInterval, [0, 60]; 0: the keyframes only): a door that swings open shows
+  /// where its closed leaf stood to the frames of that moment, which need not include a keyframe
+  double hindsight_free_space_frame_interval_s = 0.0;
 
   static SegmentationOptions load(const SettingsFile& file);
 };

@@ -48,6 +48,9 @@
 /// A frame asks at most free_space_max_views keyframes: when more face it, those that saw most of
 /// kFreeSpaceProbes samples of its surface (seen through counting twice). So the pass's cost per frame is
 /// bounded, not the run's keyframes (revisits add views of the same walls).
+/// With free_space_frame_interval_s, a frame every that many seconds (not a keyframe's) is a view as well: a
+/// door leaf at rest where only frames between the keyframes saw the doorway empty. A frame asks no frame
+/// view within kFrameViewMinGapS of its own time.
 /// Frames without a final pose in the map the points belong to keep their online mask.
 #include <optional>
 #include <string>
@@ -84,6 +87,10 @@ struct HindsightMaskOptions {
   /// keyframes a frame asks at most (Seg.HindsightFreeSpaceMaxViews, 0 = all): when more face it, those
   /// that saw most of kFreeSpaceProbes probes of its surface (seen through counting twice)
   int free_space_max_views = 32;
+  /// frames that are not keyframes also serve as views, one per this many seconds of each stretch of
+  /// final poses (Seg.HindsightFreeSpaceFrameInterval; 0: keyframes only), at most kMaxFrameViews of
+  /// them over the run (the interval widens on longer runs)
+  double free_space_frame_interval_s = 0.0;
   int num_threads = 2;             ///< frames relabelled in parallel (folder pass)
 
   static HindsightMaskOptions from(const Settings& settings);
@@ -109,6 +116,7 @@ struct FreeSpaceView {
   Vec3 t_c_w = Vec3::Zero();
   Vec3 axis_w = Vec3::UnitZ();  ///< optical axis in the world
   int view_scale = 4;           ///< camera pixels per view pixel
+  bool keyframe = true;         ///< a keyframe's depth; false: a frame's between them (frame interval)
   cv::Mat depth_m;              ///< CV_32F
 
   /// From a raw depth image (CV_32F m, 0 = none) at the camera's size seen from T_w_c.
@@ -133,6 +141,9 @@ class HindsightRelabeller {
   static constexpr int kFreeSpaceStride = 4;
   /// Samples of the frame's surface that rank the views when more than free_space_max_views face it.
   static constexpr int kFreeSpaceProbes = 64;
+  /// A frame view this close in time to the frame is not asked, s: it saw the world as the frame does
+  /// (an object at rest stands where it stands), and its neighbours would fill the bound on views.
+  static constexpr double kFrameViewMinGapS = 1.0;
 
  private:
   /// The 3-D point (camera frame) of label pixel (c, r) at its label depth (the pinhole's rays).
@@ -199,6 +210,9 @@ class HindsightRelabeller {
   std::vector<const FreeSpaceView*> ranked_views_;
 };
 
+/// Frame views at most, so the pass's memory stays bounded on hour-long runs (77 KB a VGA view: 150 MB).
+constexpr int kMaxFrameViews = 2000;
+
 struct HindsightMaskResult {
   int frames_written = 0;
   int frames_relabelled = 0;   ///< frames with a final pose in the points' map
@@ -209,6 +223,7 @@ struct HindsightMaskResult {
   long views_asked = 0;       ///< over the frames (their mean: views_asked / frames_relabelled)
   long regions_voted = 0;
   int free_space_views = 0;   ///< keyframes whose depth served as free space
+  int free_space_frame_views = 0;  ///< frames between them whose depth served too
   long voting_points = 0;     ///< static points (beta >= min_beta)
   double seconds = 0.0;
 };
@@ -216,7 +231,8 @@ struct HindsightMaskResult {
 /// The folder pass: for every frame of `reader` (opened with masks_dir = the run's segmentation/) that
 /// has an online mask, writes <its name> to `out_dir` (created): the online mask relabelled when
 /// `trajectory` has the frame's time in `points_map`, else as it is; the `keyframes` of points_map give
-/// the free-space views (their depth read from `reader`). Frames are shared among
+/// the free-space views (their depth read from `reader`), with a frame of `trajectory` in points_map every
+/// options.free_space_frame_interval_s. Frames are shared among
 /// options.num_threads threads (each frame's reading, relabelling and PNG writing on one). Throws
 /// InputError naming the file when a frame cannot be read or a mask written (after joining).
 HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const std::vector<FramePose>& trajectory,
