@@ -551,16 +551,14 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
       // At most kMaxFrameViews over the final poses' span; a keyframe's own frame is a view already.
       const double span_s = poses.t_s.back() - poses.t_s.front();
       const double interval_s = std::max(options.free_space_frame_interval_s, span_s / kMaxFrameViews);
-      std::vector<double> keyframe_times;
-      for (const ViewSource& source : sources) keyframe_times.push_back(source.t_s);
-      std::sort(keyframe_times.begin(), keyframe_times.end());
+      std::vector<char> is_keyframe(static_cast<std::size_t>(reader.frameCount()), 0);
+      for (const ViewSource& source : sources) is_keyframe[static_cast<std::size_t>(source.frame)] = 1;
       double next_t_s = -std::numeric_limits<double>::infinity();
       for (const auto& [t_s, index] : frame_times) {
         const SE3* T_w_c = poses.find(t_s);
         if (T_w_c == nullptr || t_s < next_t_s) continue;
         next_t_s = t_s + interval_s - 1e-6;
-        const auto kf = std::lower_bound(keyframe_times.begin(), keyframe_times.end(), t_s - 1e-6);
-        if (kf != keyframe_times.end() && *kf <= t_s + 1e-6) continue;
+        if (is_keyframe[static_cast<std::size_t>(index)]) continue;
         sources.push_back({index, t_s, *T_w_c, /*keyframe=*/false});
         ++total.free_space_frame_views;
       }
