@@ -49,6 +49,10 @@ Frame::Frame(double t_s, const PinholeCamera& camera, const SE3& T_b_c, features
 std::vector<int> Frame::featuresInArea(float x_px, float y_px, float radius_px, int min_octave, int max_octave) const {
   return grid_.featuresInArea(features_.keypoints, x_px, y_px, radius_px, min_octave, max_octave);
 }
+void Frame::featuresInArea(float x_px, float y_px, float radius_px, int min_octave, int max_octave,
+                           std::vector<int>* found) const {
+  grid_.featuresInArea(features_.keypoints, x_px, y_px, radius_px, min_octave, max_octave, found);
+}
 
 void Frame::setSegmentation(ClusterSegmentation segmentation, double static_threshold) {
   segmentation.validate();

@@ -20,7 +20,14 @@ GridIndex::GridIndex(const std::vector<features::Keypoint>& keypoints, int width
 std::vector<int> GridIndex::featuresInArea(const std::vector<features::Keypoint>& keypoints, float x_px, float y_px,
                                            float radius_px, int min_octave, int max_octave) const {
   std::vector<int> found;
-  if (cells_.empty()) return found;
+  featuresInArea(keypoints, x_px, y_px, radius_px, min_octave, max_octave, &found);
+  return found;
+}
+
+void GridIndex::featuresInArea(const std::vector<features::Keypoint>& keypoints, float x_px, float y_px,
+                               float radius_px, int min_octave, int max_octave, std::vector<int>* found) const {
+  found->clear();
+  if (cells_.empty()) return;
   const int col_min = std::max(0, static_cast<int>(std::floor((x_px - radius_px) * inv_cell_)));
   const int col_max = std::min(cols_ - 1, static_cast<int>(std::floor((x_px + radius_px) * inv_cell_)));
   const int row_min = std::max(0, static_cast<int>(std::floor((y_px - radius_px) * inv_cell_)));
@@ -31,12 +38,11 @@ std::vector<int> GridIndex::featuresInArea(const std::vector<features::Keypoint>
         const features::Keypoint& kp = keypoints[static_cast<std::size_t>(i)];
         if (kp.octave < min_octave || (max_octave >= 0 && kp.octave > max_octave)) continue;
         if (std::abs(kp.x_px - x_px) > radius_px || std::abs(kp.y_px - y_px) > radius_px) continue;
-        found.push_back(i);
+        found->push_back(i);
       }
     }
   }
-  std::sort(found.begin(), found.end());
-  return found;
+  std::sort(found->begin(), found->end());
 }
 
 }  // namespace ltlo::map

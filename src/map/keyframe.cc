@@ -65,6 +65,10 @@ std::vector<int> KeyFrame::featuresInArea(float x_px, float y_px, float radius_p
                                           int max_octave) const {
   return grid_.featuresInArea(features_.keypoints, x_px, y_px, radius_px, min_octave, max_octave);
 }
+void KeyFrame::featuresInArea(float x_px, float y_px, float radius_px, int min_octave, int max_octave,
+                              std::vector<int>* found) const {
+  grid_.featuresInArea(features_.keypoints, x_px, y_px, radius_px, min_octave, max_octave, found);
+}
 
 std::vector<double> KeyFrame::gamma() const {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -50,6 +50,14 @@ std::shared_ptr<MapPoint> Map::mapPoint(MapPointId id) const {
   const auto it = points_.find(id);
   return it == points_.end() ? nullptr : it->second;
 }
+void Map::mapPointsInto(const std::vector<MapPointId>& ids, std::vector<std::shared_ptr<MapPoint>>* out) const {
+  out->resize(ids.size());
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const auto it = ids[i].valid() ? points_.find(ids[i]) : points_.end();
+    (*out)[i] = it == points_.end() ? nullptr : it->second;
+  }
+}
 std::vector<std::shared_ptr<KeyFrame>> Map::keyFrames() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return sortedValues(keyframes_);
@@ -177,10 +185,23 @@ void Map::updateConnections(KeyFrame& kf) {
   }
 }
 
+void Map::observersInto(const Observations& observations, std::vector<std::shared_ptr<KeyFrame>>* out) const {
+  out->resize(observations.size());
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    const auto it = keyframes_.find(observations[i].first);
+    (*out)[i] = it == keyframes_.end() ? nullptr : it->second;
+  }
+}
+
 void Map::updateDescriptor(MapPoint& point) {
   std::vector<features::Descriptor> descriptors;
-  for (const auto& [kf_id, index] : point.observations()) {
-    const std::shared_ptr<KeyFrame> kf = keyFrame(kf_id);
+  const Observations observations = point.observations();
+  std::vector<std::shared_ptr<KeyFrame>> observers;
+  observersInto(observations, &observers);
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    const std::shared_ptr<KeyFrame>& kf = observers[i];
+    const int index = observations[i].second;
     if (kf && !kf->isBad()) descriptors.push_back(kf->descriptors()[static_cast<std::size_t>(index)]);
   }
   const int best = MapPoint::medianDescriptorIndex(descriptors);
@@ -194,8 +215,12 @@ void Map::updateNormalAndDistances(MapPoint& point) {
   int num_views = 0;
   std::shared_ptr<KeyFrame> reference;
   int reference_index = -1;
-  for (const auto& [kf_id, index] : point.observations()) {
-    const std::shared_ptr<KeyFrame> kf = keyFrame(kf_id);
+  const Observations observations = point.observations();
+  std::vector<std::shared_ptr<KeyFrame>> observers;
+  observersInto(observations, &observers);
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    const auto& [kf_id, index] = observations[i];
+    const std::shared_ptr<KeyFrame>& kf = observers[i];
     if (!kf) continue;
     const Vec3 ray = p_w - kf->cameraCentre_w();
     if (ray.norm() <= 0.0) continue;

@@ -161,10 +161,13 @@ std::vector<std::shared_ptr<map::MapPoint>> addObservedPoints(map::Map& map, con
   std::vector<std::shared_ptr<map::MapPoint>> points;
   std::unordered_map<map::KeyFrameId, int> fixed_counts;
   map::Observations observations;
+  std::vector<std::shared_ptr<map::MapPoint>> kf_points;
   for (std::size_t k = 0; k < window_end; ++k) {
-    for (const map::MapPointId id : keyframes[k].kf->mapPoints()) {
-      if (!id.valid() || !point_seen->insert(id).second) continue;
-      const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+    const std::vector<map::MapPointId> ids = keyframes[k].kf->mapPoints();
+    map.mapPointsInto(ids, &kf_points);
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      if (!ids[i].valid() || !point_seen->insert(ids[i]).second) continue;
+      const std::shared_ptr<map::MapPoint>& point = kf_points[i];
       if (!point || point->isBad() || point->beta() < options.min_point_beta) continue;
       points.push_back(point);
       point->observationsInto(&observations);
@@ -318,10 +321,13 @@ std::size_t fixedObservationLimit(const std::vector<std::shared_ptr<map::MapPoin
 void addProbePoints(map::Map& map, const WindowBaOptions& options, std::size_t window_end,
                     std::unordered_set<map::MapPointId>* point_seen, Window* window) {
   const std::vector<WindowKeyFrame>& keyframes = window->keyframes;
+  std::vector<std::shared_ptr<map::MapPoint>> kf_points;
   for (std::size_t k = window_end; k < keyframes.size(); ++k) {
-    for (const map::MapPointId id : keyframes[k].kf->mapPoints()) {
-      if (!id.valid() || !point_seen->insert(id).second) continue;
-      const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+    const std::vector<map::MapPointId> ids = keyframes[k].kf->mapPoints();
+    map.mapPointsInto(ids, &kf_points);
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      if (!ids[i].valid() || !point_seen->insert(ids[i]).second) continue;
+      const std::shared_ptr<map::MapPoint>& point = kf_points[i];
       if (!point || point->isBad()) continue;
       const double beta = point->beta();
       if (beta < options.min_point_beta) continue;
@@ -568,8 +574,12 @@ void robustWindowBundleAdjust(map::Map& map, const Window& window, const WindowB
   std::vector<int> window_observations(window.points.size(), 0);
   for (const ObservationRef& ref : window.refs) ++window_observations[ref.point];
   std::vector<bool> cluster_evidence;
+  // Only the optimised keyframes' residuals enter the scores (a revisit's window has about as many
+  // observations from fixed keyframes).
+  std::vector<bool> scored(window.refs.size(), false);
+  for (std::size_t o = 0; o < scored.size(); ++o) scored[o] = layout.score_observation[o] >= 0;
   auto score_step = [&] {
-    graph.residuals(&r_sq, &in_front);
+    graph.residuals(scored, &r_sq, &in_front);
     for (std::size_t o = 0; o < r_sq.size(); ++o) {
       const int s = layout.score_observation[o];
       if (s >= 0) layout.problem.observations[static_cast<std::size_t>(s)].r_sq = in_front[o] ? r_sq[o] : kBehindCameraRsq;

@@ -2,15 +2,18 @@
 
 #include <algorithm>
 #include <optional>
+#include <unordered_map>
 
 namespace ltlo::mapping {
 
 void RecentPointCuller::addPointsOf(const map::Map& map, const map::KeyFrame& kf, int sequence) {
-  for (const map::MapPointId id : kf.mapPoints()) {
-    if (!id.valid()) continue;
-    const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
+  const std::vector<map::MapPointId> ids = kf.mapPoints();
+  std::vector<std::shared_ptr<map::MapPoint>> points;
+  map.mapPointsInto(ids, &points);
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::shared_ptr<map::MapPoint>& point = points[i];
     if (point && !point->isBad() && point->referenceKeyFrame() == kf.id()) {
-      entries_.push_back({map.id(), id, sequence});
+      entries_.push_back({map.id(), ids[i], sequence});
     }
   }
 }
@@ -58,15 +61,39 @@ int RecentPointCuller::cull(map::Atlas& atlas, int sequence) {
 
 int cullDynamicPoints(map::Map& map, const map::KeyFrame& kf, double min_point_beta) {
   int culled = 0;
-  for (const map::MapPointId id : kf.mapPoints()) {
-    if (!id.valid()) continue;
-    const std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
-    if (point && !point->isBad() && point->beta() < min_point_beta && map.eraseMapPoint(id)) ++culled;
+  const std::vector<map::MapPointId> ids = kf.mapPoints();
+  std::vector<std::shared_ptr<map::MapPoint>> points;
+  map.mapPointsInto(ids, &points);
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::shared_ptr<map::MapPoint>& point = points[i];
+    if (point && !point->isBad() && point->beta() < min_point_beta && map.eraseMapPoint(ids[i])) ++culled;
   }
   return culled;
 }
 
 namespace {
+
+/// Map::keyFrame() remembered over one culling pass: the redundancy test looks up every observer
+/// of every point, and on a revisited map the same few dozen keyframes observe them all (each
+/// Map::keyFrame() takes the map's lock, which tracking's searches share). Ids erased during the
+/// pass are forgotten.
+class KeyFrameLookup {
+ public:
+  explicit KeyFrameLookup(const map::Map& map) : map_(map) {}
+  const map::KeyFrame* find(map::KeyFrameId id) {
+    auto it = cache_.find(id);
+    if (it == cache_.end()) it = cache_.emplace(id, map_.keyFrame(id)).first;
+    return it->second.get();
+  }
+  void forget(map::KeyFrameId id) { cache_.erase(id); }
+
+ private:
+  const map::Map& map_;
+  std::unordered_map<map::KeyFrameId, std::shared_ptr<map::KeyFrame>> cache_;
+};
+
+bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other_observers, double ratio,
+                     KeyFrameLookup& keyframes);
 
 /// What culling `kf` does to the IMU chain: bridge it (both neighbours in time exist with
 /// preintegrations spanning at most max_imu_span_s), cut it (kf and its next keyframe are at least
@@ -92,7 +119,17 @@ std::optional<map::Map::ImuLink> imuChainOnCulling(const map::Map& map, const ma
 // at most n left, the share can reach at most (r + n) / (w + n) (issue 32: on a revisited map
 // every point has many observers, and most candidates fail early).
 bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other_observers, double ratio) {
+  KeyFrameLookup keyframes(map);
+  return mostlyRedundant(map, kf, min_other_observers, ratio, keyframes);
+}
+
+namespace {
+
+bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other_observers, double ratio,
+                     KeyFrameLookup& keyframes) {
   const std::vector<map::MapPointId> ids = kf.mapPoints();
+  std::vector<std::shared_ptr<map::MapPoint>> points;
+  map.mapPointsInto(ids, &points);
   int left = 0;
   for (std::size_t i = 0; i < ids.size(); ++i) {
     if (ids[i].valid() && kf.depth_m(static_cast<int>(i)) > 0.0f) ++left;
@@ -105,7 +142,7 @@ bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other
     // (Rounding is monotone, so the bound fails the ratio only if the share would.)
     if (static_cast<double>(redundant + left) / (with_depth + left) < ratio) return false;
     --left;
-    const std::shared_ptr<map::MapPoint> point = map.mapPoint(ids[i]);
+    const std::shared_ptr<map::MapPoint>& point = points[i];
     if (!point || point->isBad()) continue;
     ++with_depth;
     point->observationsInto(&observations);
@@ -114,8 +151,8 @@ bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other
     int observers = 0;
     for (const auto& [other_id, index] : observations) {
       if (other_id == kf.id()) continue;
-      const std::shared_ptr<map::KeyFrame> other = map.keyFrame(other_id);
-      if (!other || index < 0 || index >= other->numKeypoints()) continue;
+      const map::KeyFrame* other = keyframes.find(other_id);
+      if (other == nullptr || index < 0 || index >= other->numKeypoints()) continue;
       if (other->keypoints()[static_cast<std::size_t>(index)].octave <= octave + 1 &&
           ++observers >= min_other_observers) {
         break;
@@ -126,11 +163,14 @@ bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other
   return with_depth > 0 && static_cast<double>(redundant) / with_depth >= ratio;
 }
 
+}  // namespace
+
 std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::KeyFrame& current,
                                                     const KeyFrameCullingOptions& options, int* cut_links) {
   std::vector<map::KeyFrameId> culled;
   if (map.numKeyFrames() <= options.min_map_keyframes) return culled;
   const std::vector<map::KeyFrameId> origins = map.originKeyFrames();
+  KeyFrameLookup keyframes(map);
   for (const map::KeyFrameId id : current.bestCovisibles(options.max_candidates)) {
     // Only keyframes older than the one processed and its predecessor: tracking links its next
     // keyframe's IMU chain to the newest ones (threaded, tracking may be keyframes ahead).
@@ -144,8 +184,9 @@ std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, const map::Ke
       if (!allowed) continue;
       imu_link = *allowed;
     }
-    if (!mostlyRedundant(map, *kf, options.min_other_observers, options.redundant_ratio)) continue;
+    if (!mostlyRedundant(map, *kf, options.min_other_observers, options.redundant_ratio, keyframes)) continue;
     if (map.eraseKeyFrame(id, imu_link)) {
+      keyframes.forget(id);
       culled.push_back(id);
       if (cut_links != nullptr && imu_link == map::Map::ImuLink::kCut) ++*cut_links;
     }

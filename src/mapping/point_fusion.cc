@@ -21,11 +21,10 @@ using map::kMinViewingCos;
 
 std::vector<std::shared_ptr<map::MapPoint>> livePointsOf(const map::Map& map, const map::KeyFrame& kf) {
   std::vector<std::shared_ptr<map::MapPoint>> points;
-  for (const map::MapPointId id : kf.mapPoints()) {
-    if (!id.valid()) continue;
-    std::shared_ptr<map::MapPoint> point = map.mapPoint(id);
-    if (point && !point->isBad()) points.push_back(std::move(point));
-  }
+  map.mapPointsInto(kf.mapPoints(), &points);
+  points.erase(std::remove_if(points.begin(), points.end(),
+                              [](const std::shared_ptr<map::MapPoint>& point) { return !point || point->isBad(); }),
+               points.end());
   return points;
 }
 
@@ -43,6 +42,7 @@ FusionStats fusePointsInto(map::Map& map, map::KeyFrame& target,
   const std::vector<float>& scales = target.scaleFactors();
   std::vector<bool> is_static(static_cast<std::size_t>(target.numKeypoints()), false);
   for (const int i : target.staticKeypoints()) is_static[static_cast<std::size_t>(i)] = true;
+  std::vector<int> area;
 
   for (const std::shared_ptr<map::MapPoint>& point : points) {
     if (!point || point->isBad() || point->beta() < options.min_point_beta) continue;
@@ -61,8 +61,8 @@ FusionStats fusePointsInto(map::Map& map, map::KeyFrame& target,
     if (ray_w.dot(point->normal_w()) < kMinViewingCos * distance_m) continue;
     const int level = point->predictScale(distance_m, scales);
     const float radius_px = static_cast<float>(options.radius_px * scales[static_cast<std::size_t>(level)]);
-    const std::vector<int> area = target.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()),
-                                                        radius_px, std::max(0, level - 1), level);
+    target.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()), radius_px, std::max(0, level - 1),
+                          level, &area);
     if (area.empty()) continue;
     // Predicted RGB-D observation [u, v, u_r] (reprojection_edges.h).
     const double u_r_pred = uv.x() - options.bf_px_m / p_c.z();

@@ -311,11 +311,15 @@ sparse_opt::Summary LocalBaGraph::optimize(int iterations) {
   return impl_->graph.optimize(solver_options);
 }
 
-void LocalBaGraph::residuals(std::vector<double>* r_sq, std::vector<bool>* in_front) const {
+void LocalBaGraph::residuals(const std::vector<bool>& wanted, std::vector<double>* r_sq,
+                             std::vector<bool>* in_front) const {
   const Impl& d = *impl_;
-  if (r_sq != nullptr) r_sq->resize(d.edges.size());
-  if (in_front != nullptr) in_front->resize(d.edges.size());
+  LTLO_ASSERT(wanted.size() == d.edges.size(), "LocalBaGraph::residuals: " << wanted.size() << " flags for "
+                                                                            << d.edges.size() << " observations");
+  if (r_sq != nullptr) r_sq->assign(d.edges.size(), 0.0);
+  if (in_front != nullptr) in_front->assign(d.edges.size(), false);
   for (std::size_t o = 0; o < d.edges.size(); ++o) {
+    if (!wanted[o]) continue;
     bool depth_positive = false;
     const double chi2 = d.edges[o].unweightedChi2(&depth_positive);
     if (r_sq != nullptr) (*r_sq)[o] = chi2;

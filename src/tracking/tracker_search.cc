@@ -54,9 +54,11 @@ int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {
   features::RotationHistogram histogram;
   std::vector<std::pair<int, int>> candidates_matched;  // (current keypoint, last keypoint)
   std::vector<int> best_distance(static_cast<std::size_t>(frame.numKeypoints()), 257);
+  active.mapPointsInto(last.map_points, &point_scratch_);
+  std::vector<int>& area = area_scratch_;
   for (int j = 0; j < last.numKeypoints(); ++j) {
     if (!isMatched(last, j)) continue;
-    const auto point = active.mapPoint(last.map_points[static_cast<std::size_t>(j)]);
+    const std::shared_ptr<map::MapPoint>& point = point_scratch_[static_cast<std::size_t>(j)];
     if (!point || point->isBad()) continue;
     const Vec3 p_c = T_c_w * point->p_w();
     if (p_c.z() <= 0.0) continue;
@@ -67,8 +69,8 @@ int Tracker::matchLastFrame(map::Frame& frame, double radius_scale) {
     const float radius = searchRadius(static_cast<float>(options_.last_frame_radius_px * radius_scale *
                                                          last.scaleFactors()[static_cast<std::size_t>(octave)]),
                                       p_c.z(), camera.fx());
-    const std::vector<int> area = frame.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()),
-                                                       radius, std::max(0, octave - 1), octave + 1);
+    frame.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()), radius, std::max(0, octave - 1),
+                         octave + 1, &area);
     const features::Descriptor& d_last = last.descriptors()[static_cast<std::size_t>(j)];
     int best = -1, best_d = 257;
     for (const int i : area) {
@@ -188,9 +190,12 @@ int Tracker::searchLocalMap(map::Frame& frame) {
   for (int i = 0; i < frame.numKeypoints(); ++i) {
     if (isMatched(frame, i)) best_distance[static_cast<std::size_t>(i)] = -1;  // keep last-frame matches
   }
-  for (const map::MapPointId id : local_points_) {
+  active.mapPointsInto(local_points_, &point_scratch_);
+  std::vector<int>& area = area_scratch_;
+  for (std::size_t n = 0; n < local_points_.size(); ++n) {
+    const map::MapPointId id = local_points_[n];
     if (already.count(id)) continue;
-    const auto point = active.mapPoint(id);
+    const std::shared_ptr<map::MapPoint>& point = point_scratch_[n];
     if (!point || point->isBad()) continue;
     const Vec3 p_w = point->p_w();
     const Vec3 p_c = T_c_w * p_w;
@@ -213,8 +218,8 @@ int Tracker::searchLocalMap(map::Frame& frame) {
     const float radius = searchRadius(static_cast<float>(options_.local_map_radius_px * window / 2.5 *
                                                          frame.scaleFactors()[static_cast<std::size_t>(level)]),
                                       distance_m, camera.fx());
-    const std::vector<int> area = frame.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()),
-                                                       radius, std::max(0, level - 1), level);
+    frame.featuresInArea(static_cast<float>(uv.x()), static_cast<float>(uv.y()), radius, std::max(0, level - 1), level,
+                         &area);
     const features::Descriptor descriptor = point->descriptor();
     int best = -1, best_d = 257, second_d = 257, best_level = -1, second_level = -1;
     for (const int i : area) {

@@ -108,14 +108,24 @@ TEST(MapConcurrency, InsertCullReadAndCorrectFromSeveralThreads) {
     merged_point_p_w = points[0]->p_w();
   });
 
-  auto reader = [&](int iterations) {  // tracking: snapshots and relocalisation queries
+  // tracking: snapshots and relocalisation queries; a keyframe's points one by one or all under one
+  // lock (Map::mapPointsInto, as tracking's searches do)
+  auto reader = [&](int iterations, bool batched) {
+    std::vector<std::shared_ptr<MapPoint>> looked_up;
     for (int it = 0; it < iterations; ++it) {
       for (const std::shared_ptr<KeyFrame>& kf : map.keyFrames()) {
         const SE3 T_w_c = kf->T_w_c();
         (void)T_w_c;
         for (const auto& [other, w] : kf->covisibles()) (void)map.keyFrame(other);
-        for (MapPointId id : kf->mapPoints()) {
-          if (const std::shared_ptr<MapPoint> p = map.mapPoint(id)) {
+        const std::vector<MapPointId> ids = kf->mapPoints();
+        if (batched) {
+          map.mapPointsInto(ids, &looked_up);
+        } else {
+          looked_up.clear();
+          for (MapPointId id : ids) looked_up.push_back(map.mapPoint(id));
+        }
+        for (const std::shared_ptr<MapPoint>& p : looked_up) {
+          if (p) {
             (void)p->p_w();
             (void)p->descriptor();
             p->increaseVisible();
@@ -129,7 +139,7 @@ TEST(MapConcurrency, InsertCullReadAndCorrectFromSeveralThreads) {
       ++reads;
     }
   };
-  std::thread reader_a(reader, 40), reader_b(reader, 40);
+  std::thread reader_a(reader, 40, false), reader_b(reader, 40, true);
 
   for (std::size_t k = 0; k < frames.size(); ++k) to_mapper.push(k);
   to_mapper.close();

@@ -59,6 +59,12 @@ TEST(Frame, FeaturesInAreaMatchesBruteForce) {
   }
   EXPECT_EQ(found, expected);
   EXPECT_EQ(expected.size(), 8u);  // x in {90..120} x y in {40..70}: 16 keypoints, half with octave 1 or 2
+  // Into a reused buffer: cleared first, the same answer.
+  std::vector<int> reused = {7, 7, 7};
+  frame.featuresInArea(105.0f, 52.0f, 21.0f, 1, 2, &reused);
+  EXPECT_EQ(reused, expected);
+  frame.featuresInArea(2000.0f, 2000.0f, 5.0f, 0, -1, &reused);
+  EXPECT_TRUE(reused.empty());
 }
 
 TEST(Frame, StaticFilterFollowsClusterScores) {

@@ -104,5 +104,25 @@ TEST(MapPointFusion, ReplaceMovesObservationsAndMarksTheOldPoint) {
   EXPECT_FALSE(map.replaceMapPoint(duplicate->id(), kept->id()));
 }
 
+TEST(MapPointLookup, ManyIdsUnderOneLockMatchOneByOne) {
+  Map map;
+  test::SceneBuilder scene(map, 29);
+  const auto a = scene.addKeyFrame(), b = scene.addKeyFrame();
+  const std::vector<std::shared_ptr<MapPoint>> points = scene.share({a, b}, 4);
+  ASSERT_TRUE(map.eraseMapPoint(points[1]->id()));
+  // A live point, an erased one, an invalid id, one never made, and a live one again.
+  const std::vector<MapPointId> ids = {points[0]->id(), points[1]->id(), MapPointId(), MapPointId(987654),
+                                       points[3]->id()};
+  std::vector<std::shared_ptr<MapPoint>> found(9, points[2]);  // stale content is overwritten
+  map.mapPointsInto(ids, &found);
+  ASSERT_EQ(found.size(), ids.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) EXPECT_EQ(found[i], map.mapPoint(ids[i])) << "id " << i;
+  EXPECT_EQ(found[0], points[0]);
+  EXPECT_EQ(found[1], nullptr);
+  EXPECT_EQ(found[2], nullptr);
+  EXPECT_EQ(found[3], nullptr);
+  EXPECT_EQ(found[4], points[3]);
+}
+
 }  // namespace
 }  // namespace ltlo::map

@@ -87,6 +87,43 @@ TEST(OptimEdges, RgbdReprojectionBodyPoseJacobiansMatchNumeric) {
   }
 }
 
+TEST(OptimEdges, ReprojectionWithAFixedPoseFillsThePointJacobianOnly) {
+  // Local BA's fixed keyframes: the pose block is skipped (never read); the point block is the
+  // same as with the pose free.
+  std::mt19937 rng(4);
+  const ProjectionModel model = bodyModel(rng);
+  VertexPose pose(0, randomPose(rng, 2.5, 3.0));
+  VertexPoint point(1, pointInFront(rng, pose.estimate() * model.T_c_x.inverse()));
+  EdgeRgbdReprojection<VertexPose> rgbd(model);
+  EdgeMonoReprojection<VertexPose> mono(model);
+  rgbd.setVertex(0, &pose);
+  rgbd.setVertex(1, &point);
+  mono.setVertex(0, &pose);
+  mono.setVertex(1, &point);
+  rgbd.computeError();
+  rgbd.linearizeOplus();
+  mono.computeError();
+  mono.linearizeOplus();
+  const Mat3 rgbd_point_free = rgbd.jacobian<1>();
+  const Eigen::Matrix<double, 2, 3> mono_point_free = mono.jacobian<1>();
+  ASSERT_GT(rgbd.jacobian<0>().norm(), 0.0);
+  pose.setFixed(true);
+  EdgeRgbdReprojection<VertexPose> rgbd_fixed(model);
+  EdgeMonoReprojection<VertexPose> mono_fixed(model);
+  rgbd_fixed.setVertex(0, &pose);
+  rgbd_fixed.setVertex(1, &point);
+  mono_fixed.setVertex(0, &pose);
+  mono_fixed.setVertex(1, &point);
+  rgbd_fixed.computeError();
+  rgbd_fixed.linearizeOplus();
+  mono_fixed.computeError();
+  mono_fixed.linearizeOplus();
+  EXPECT_EQ(rgbd_fixed.jacobian<1>(), rgbd_point_free);
+  EXPECT_EQ(mono_fixed.jacobian<1>(), mono_point_free);
+  EXPECT_EQ(rgbd_fixed.jacobian<0>().norm(), 0.0);
+  EXPECT_EQ(mono_fixed.jacobian<0>().norm(), 0.0);
+}
+
 TEST(OptimEdges, RgbdReprojectionCameraPoseJacobiansMatchNumeric) {
   std::mt19937 rng(2);
   ProjectionModel model = bodyModel(rng);

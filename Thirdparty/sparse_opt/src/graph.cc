@@ -88,14 +88,15 @@ void Graph::addEdgeImpl(std::unique_ptr<EdgeBase> edge) {
     }
   }
   edge->id_ = next_edge_id_++;
-  edges_.emplace(edge->id_, std::move(edge));
+  edges_.push_back(std::move(edge));
   ++version_;
 }
 
 void Graph::removeEdge(const EdgeBase* edge) {
   if (edge == nullptr) return;
-  const auto it = edges_.find(edge->id());
-  if (it != edges_.end() && it->second.get() == edge) {
+  const auto it = std::lower_bound(edges_.begin(), edges_.end(), edge->id(),
+                                   [](const std::unique_ptr<EdgeBase>& e, int id) { return e->id() < id; });
+  if (it != edges_.end() && it->get() == edge) {
     edges_.erase(it);
     ++version_;
   }
@@ -105,11 +106,13 @@ void Graph::removeVertex(int vertex_id) {
   const auto it = vertices_.find(vertex_id);
   if (it == vertices_.end()) return;
   const VertexBase* v = it->second.get();
-  for (auto e = edges_.begin(); e != edges_.end();) {
-    bool uses = false;
-    for (int s = 0; s < e->second->numVertices(); ++s) uses = uses || e->second->vertex(s) == v;
-    e = uses ? edges_.erase(e) : std::next(e);
-  }
+  edges_.erase(std::remove_if(edges_.begin(), edges_.end(),
+                              [v](const std::unique_ptr<EdgeBase>& e) {
+                                bool uses = false;
+                                for (int s = 0; s < e->numVertices(); ++s) uses = uses || e->vertex(s) == v;
+                                return uses;
+                              }),
+               edges_.end());
   vertices_.erase(it);
   ++version_;
 }
@@ -122,14 +125,14 @@ VertexBase* Graph::vertex(int vertex_id) const {
 std::vector<EdgeBase*> Graph::edges() const {
   std::vector<EdgeBase*> result;
   result.reserve(edges_.size());
-  for (const auto& [id, e] : edges_) result.push_back(e.get());
+  for (const auto& e : edges_) result.push_back(e.get());
   return result;
 }
 
 std::vector<EdgeBase*> Graph::activeEdges(int level) const {
   std::vector<EdgeBase*> result;
   result.reserve(edges_.size());
-  for (const auto& [id, e] : edges_) {
+  for (const auto& e : edges_) {
     if (e->level() == level) result.push_back(e.get());
   }
   return result;
@@ -143,7 +146,7 @@ Summary Graph::optimize(const Options& options) {
   solver_->setSetupTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count());
   Summary summary = solver_->run(options);
   // Edges of other levels get their chi2() at the final estimate too (outlier re-checks).
-  for (const auto& [id, e] : edges_) {
+  for (const auto& e : edges_) {
     if (e->level() != options.level) e->evaluateChi2();
   }
   return summary;
@@ -151,7 +154,7 @@ Summary Graph::optimize(const Options& options) {
 
 double Graph::chi2(int level) {
   double sum = 0.0;
-  for (const auto& [id, e] : edges_) {
+  for (const auto& e : edges_) {
     if (e->level() == level) sum += e->evaluateChi2();
   }
   return sum;

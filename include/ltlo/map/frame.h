@@ -56,6 +56,9 @@ class Frame {
   /// Keypoints within radius_px of (x_px, y_px), octave in [min_octave, max_octave] (see GridIndex).
   std::vector<int> featuresInArea(float x_px, float y_px, float radius_px, int min_octave = 0,
                                   int max_octave = -1) const;
+  /// The same into *found, reusing its capacity (per-frame searches allocate nothing).
+  void featuresInArea(float x_px, float y_px, float radius_px, int min_octave, int max_octave,
+                      std::vector<int>* found) const;
   const GridIndex& grid() const { return grid_; }
 
   // ---- segmentation seam ----

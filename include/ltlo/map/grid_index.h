@@ -20,6 +20,9 @@ class GridIndex {
   /// (max_octave < 0: no upper bound), in increasing index order.
   std::vector<int> featuresInArea(const std::vector<features::Keypoint>& keypoints, float x_px, float y_px,
                                   float radius_px, int min_octave = 0, int max_octave = -1) const;
+  /// The same into *found (cleared first; its capacity is reused across queries).
+  void featuresInArea(const std::vector<features::Keypoint>& keypoints, float x_px, float y_px, float radius_px,
+                      int min_octave, int max_octave, std::vector<int>* found) const;
 
  private:
   int cols_ = 0;

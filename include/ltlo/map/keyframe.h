@@ -46,6 +46,9 @@ class KeyFrame {
   const Vec3& p_c(int i) const { return p_c_[static_cast<std::size_t>(i)]; }
   std::vector<int> featuresInArea(float x_px, float y_px, float radius_px, int min_octave = 0,
                                   int max_octave = -1) const;
+  /// The same into *found, reusing its capacity (searches over many points).
+  void featuresInArea(float x_px, float y_px, float radius_px, int min_octave, int max_octave,
+                      std::vector<int>* found) const;
   /// Cluster of each keypoint (fixed); the scores may change.
   int clusterOf(int i) const { return keypoint_cluster_[static_cast<std::size_t>(i)]; }
   const std::vector<int>& keypointClusters() const { return keypoint_cluster_; }

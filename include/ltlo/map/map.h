@@ -71,6 +71,9 @@ class Map {
   /// nullptr when the id is not (or no longer) in this map.
   std::shared_ptr<KeyFrame> keyFrame(KeyFrameId id) const;
   std::shared_ptr<MapPoint> mapPoint(MapPointId id) const;
+  /// mapPoint() of every id under one lock (a keyframe's points at once: the lock is shared with
+  /// tracking's per-frame searches): (*out)[i] for ids[i], nullptr for an invalid or absent id.
+  void mapPointsInto(const std::vector<MapPointId>& ids, std::vector<std::shared_ptr<MapPoint>>* out) const;
   /// Snapshots copied under the lock, ordered by id.
   std::vector<std::shared_ptr<KeyFrame>> keyFrames() const;
   std::vector<std::shared_ptr<MapPoint>> mapPoints() const;
@@ -144,6 +147,8 @@ class Map {
   void addContent(Content content);
   bool isOrigin(KeyFrameId id) const;
   void eraseMapPointUnserialised(MapPointId id);
+  /// keyFrame() of every observer under one lock ((*out)[i] for observations[i]; nullptr if absent).
+  void observersInto(const Observations& observations, std::vector<std::shared_ptr<KeyFrame>>* out) const;
 
   const MapId id_;
   const std::shared_ptr<IdSource> ids_;

@@ -39,9 +39,10 @@ class LocalBaGraph {
   int setStaticWeights(const std::vector<double>& weights);
   /// Runs Levenberg-Marquardt on the active reprojection edges and the inertial edges.
   sparse_opt::Summary optimize(int iterations);
-  /// Unweighted whitened |r|^2 of every observation at the current estimate (all levels), and
-  /// whether its point lies in front of the camera.
-  void residuals(std::vector<double>* r_sq, std::vector<bool>* in_front) const;
+  /// Unweighted whitened |r|^2 at the current estimate (all levels), and whether the point lies in
+  /// front of the camera, of the observations o with wanted[o] (one flag per observation; the others
+  /// get 0 and false): the static scores read the optimised keyframes' only.
+  void residuals(const std::vector<bool>& wanted, std::vector<double>* r_sq, std::vector<bool>* in_front) const;
   /// ORB-SLAM's second pass: observations failing their chi2 gate (or behind the camera) leave the
   /// system and the robust kernels are removed. Returns the number still active.
   int rejectOutliers();

@@ -96,7 +96,8 @@ class EdgeRgbdReprojection final
     const Vec3 p_x = PoseVertex::pointInFrame(T, this->template estimate<1>());
     const Mat3 d_r_d_p_x =
         -model_.projectRgbdJacobian(model_.T_c_x * p_x) * model_.T_c_x.rotationMatrix();
-    this->template jacobian<0>() = d_r_d_p_x * PoseVertex::d_point_d_delta(T, p_x);
+    // A fixed pose's block is never read (local BA's fixed keyframes: about half the edges).
+    if (!this->vertex(0)->fixed()) this->template jacobian<0>() = d_r_d_p_x * PoseVertex::d_point_d_delta(T, p_x);
     this->template jacobian<1>() = d_r_d_p_x * PoseVertex::d_point_d_world(T);
   }
   /// The point lies in front of the camera.
@@ -121,7 +122,7 @@ class EdgeMonoReprojection final
     const Vec3 p_x = PoseVertex::pointInFrame(T, this->template estimate<1>());
     const Mat23 d_r_d_p_x =
         -model_.camera.projectJacobian(model_.T_c_x * p_x) * model_.T_c_x.rotationMatrix();
-    this->template jacobian<0>() = d_r_d_p_x * PoseVertex::d_point_d_delta(T, p_x);
+    if (!this->vertex(0)->fixed()) this->template jacobian<0>() = d_r_d_p_x * PoseVertex::d_point_d_delta(T, p_x);
     this->template jacobian<1>() = d_r_d_p_x * PoseVertex::d_point_d_world(T);
   }
   bool isDepthPositive() const { return cameraPoint().z() > 0.0; }

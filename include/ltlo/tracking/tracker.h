@@ -378,6 +378,10 @@ class Tracker : private RecoverySteps {
   int keyframes_deferred_on_revisit_ = 0;
   std::vector<map::KeyFrameId> local_keyframes_;
   std::vector<map::MapPointId> local_points_;
+  /// Scratch of the searches by projection, reused frame to frame: the map points looked up under
+  /// one map lock (Map::mapPointsInto) and a keypoint area.
+  std::vector<std::shared_ptr<map::MapPoint>> point_scratch_;
+  std::vector<int> area_scratch_;
 
   /// A run in a loaded atlas that has no pose yet (TrackerOptions::start_in_loaded_atlas), and the
   /// time of its first frame.

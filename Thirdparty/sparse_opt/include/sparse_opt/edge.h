@@ -131,7 +131,12 @@ class BaseEdge : public EdgeBase {
   template <int I>
   using JacobianType = Eigen::Matrix<double, D, VertexType<I>::kDimension>;
 
-  BaseEdge() : EdgeBase(kNumVertices), information_(InformationMatrix::Identity()), error_(ErrorVector::Zero()) {}
+  // Jacobians start at zero: an analytic linearizeOplus() may skip a fixed vertex's block, which
+  // the solver never reads.
+  BaseEdge() : EdgeBase(kNumVertices), information_(InformationMatrix::Identity()), error_(ErrorVector::Zero()) {
+    detail::forEachIndex([this](auto i) { std::get<decltype(i)::value>(jacobians_).setZero(); },
+                         std::make_integer_sequence<int, kNumVertices>{});
+  }
 
   int dimension() const final { return D; }
 

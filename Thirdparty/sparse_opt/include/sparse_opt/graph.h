@@ -132,7 +132,7 @@ class Graph {
   std::vector<EdgeBase*> activeEdges(int level) const;
 
   std::map<int, std::unique_ptr<VertexBase>> vertices_;
-  std::map<int, std::unique_ptr<EdgeBase>> edges_;
+  std::vector<std::unique_ptr<EdgeBase>> edges_;  ///< in id order (ids only grow): a local BA adds thousands
   int next_edge_id_ = 0;
   /// Counts additions and removals: a vertex or edge freed and another made at the same address must
   /// not pass for the one before in the solver's structure key.
