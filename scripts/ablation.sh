@@ -48,6 +48,8 @@
 #   hindsight_frame_views  Seg.HindsightFreeSpaceFrameInterval = 0.2 and Seg.HindsightFreeSpaceMaxViews = 0:
 #                    a frame every 0.2 s is a free-space view too, and every frame asks every view (an
 #                    addition, off in the settings: door s1 +0.001 final IoU for 3x the pass's time)
+#   hindsight_rejudge_off  Seg.HindsightRejudge = 0: the hindsight masks keep the online judgement of the
+#                    frames whose online motion the final poses contradict
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -116,6 +118,7 @@ variant_args() {
     hindsight_free_space_off) echo "${full[@]}" --set Seg.HindsightFreeSpace=0 ;;
     hindsight_views_all) echo "${full[@]}" --set Seg.HindsightFreeSpaceMaxViews=0 ;;
     hindsight_frame_views) echo "${full[@]}" --set Seg.HindsightFreeSpaceFrameInterval=0.2 --set Seg.HindsightFreeSpaceMaxViews=0 ;;
+    hindsight_rejudge_off) echo "${full[@]}" --set Seg.HindsightRejudge=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

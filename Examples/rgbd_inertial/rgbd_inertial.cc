@@ -279,15 +279,15 @@ void writeFinalMasks(const Arguments& args, const RunSetup& setup, const system:
     const io::SequenceReader reader = io::SequenceReader::open(args.sequence_dir, reader_options);
     const system::HindsightMaskResult result = system::writeHindsightMasks(
         reader, report.trajectory, report.keyframes, report.map_points_map, report.map_points, setup.settings.calib.camera.model(),
-        system::HindsightMaskOptions::from(setup.settings), final_dir.string());
+        system::HindsightMaskOptions::from(setup.settings), final_dir.string(), report.trajectory_online);
     log::info(kProgram, ": hindsight masks: ", result.frames_written, " written to ", final_dir.string(), ", ",
               result.frames_relabelled, " relabelled against the final map, ", result.frames_changed, " changed (",
               result.regions_flipped, " regions static -> dynamic (", result.regions_free_space, " by free space), ",
               result.regions_to_static, " dynamic -> static, ", result.voting_points, " static points, ",
               result.free_space_views, " keyframe and ", result.free_space_frame_views, " frame depths, ",
               result.frames_relabelled > 0 ? static_cast<double>(result.views_asked) / result.frames_relabelled : 0.0,
-              " asked a frame) in ",
-              result.seconds, " s");
+              " asked a frame), ", result.frames_rejudged, " judged again at the final poses (",
+              result.rejudge_seconds, " s), in ", result.seconds, " s");
   } catch (const std::exception& e) {
     log::error(kProgram, ": hindsight masks not written: ", e.what());
     fs::remove_all(final_dir, error);

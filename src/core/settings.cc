@@ -65,6 +65,8 @@ void visitSegmentation(O& o, V& v) {
   v.integer("Seg.HindsightFreeSpaceViews", o.hindsight_free_space_views, 1, 20);
   v.integer("Seg.HindsightFreeSpaceMaxViews", o.hindsight_free_space_max_views, 0, 100000);
   v.real("Seg.HindsightFreeSpaceFrameInterval", o.hindsight_free_space_frame_interval_s, 0.0, 60.0);
+  v.boolean("Seg.HindsightRejudge", o.hindsight_rejudge);
+  v.real("Seg.HindsightRejudgeMinShift", o.hindsight_rejudge_min_shift_px, 0.0, 100.0);
 }
 
 template <typename O, typename V>

@@ -23,6 +23,9 @@ namespace ltlo::system {
 namespace {
 
 constexpr char kToDynamic = 1, kToStatic = 2;  // flip_ values
+/// Consecutive frames a thread relabels in one go (forEachFrame): a re-judged stretch prepares each of
+/// its frames once on one thread.
+constexpr std::size_t kFramesPerChunk = 128;
 /// A free-space view must face within this of the frame's optical axis (cos 100 deg): a view facing
 /// away sees none of the frame's surface, and skipping it saves its projections.
 constexpr double kMinViewAxisCos = -0.17;
@@ -125,6 +128,7 @@ HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   options.free_space_views = settings.segmentation.hindsight_free_space_views;
   options.free_space_max_views = settings.segmentation.hindsight_free_space_max_views;
   options.free_space_frame_interval_s = settings.segmentation.hindsight_free_space_frame_interval_s;
+  options.rejudge = RejudgeOptions::from(settings);
   return options;
 }
 
@@ -476,18 +480,19 @@ HindsightFrameResult HindsightRelabeller::relabel(const cv::Mat& depth_m, const 
 namespace {
 
 /// Runs fn(worker, frame position) for every position of `frames` on num_threads threads (worker 0 is
-/// the caller), each thread taking every num_threads-th frame. The first exception stops the others
-/// at their next frame and is rethrown after all have joined.
+/// the caller), each thread taking every num_threads-th chunk of `chunk` consecutive frames, in order
+/// (a re-judged stretch then meets its frames in order on one thread, which prepares each once). The
+/// first exception stops the others at their next frame and is rethrown after all have joined.
 template <typename Fn>
-void forEachFrame(std::size_t num_frames, int num_threads, Fn&& fn) {
+void forEachFrame(std::size_t num_frames, int num_threads, Fn&& fn, std::size_t chunk = 1) {
   std::atomic<bool> failed{false};
   std::exception_ptr first_error;
   std::mutex error_mutex;  // guards first_error
   auto work = [&](int worker) {
     try {
-      for (std::size_t n = static_cast<std::size_t>(worker); n < num_frames && !failed.load();
-           n += static_cast<std::size_t>(num_threads)) {
-        fn(worker, n);
+      for (std::size_t begin = static_cast<std::size_t>(worker) * chunk; begin < num_frames && !failed.load();
+           begin += static_cast<std::size_t>(num_threads) * chunk) {
+        for (std::size_t n = begin; n < std::min(num_frames, begin + chunk) && !failed.load(); ++n) fn(worker, n);
       }
     } catch (...) {
       std::lock_guard<std::mutex> lock(error_mutex);
@@ -507,7 +512,7 @@ void forEachFrame(std::size_t num_frames, int num_threads, Fn&& fn) {
 HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const std::vector<FramePose>& trajectory,
                                         const std::vector<KeyFrameRecord>& keyframes, map::MapId points_map, const std::vector<MapPointRecord>& points,
                                         const CameraModel& camera, const HindsightMaskOptions& options,
-                                        const std::string& out_dir) {
+                                        const std::string& out_dir, const std::vector<FramePose>& trajectory_online) {
   namespace fs = std::filesystem;
   const auto start = std::chrono::steady_clock::now();
   std::error_code error;
@@ -573,11 +578,45 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
     });
   }
 
+  // Re-judging (hindsight_rejudge.h): each frame's online pose, its previous frame and its reference
+  // frame (the newest at least a reference baseline earlier) among `frames`.
+  const bool rejudging = options.rejudge.enable && !trajectory_online.empty();
+  std::vector<RejudgePoses> rejudge_poses(frames.size());
+  std::vector<int> reference_of(frames.size(), -1);
+  if (rejudging) {
+    std::vector<std::pair<double, std::size_t>> online;  // time, index into trajectory_online
+    for (std::size_t k = 0; k < trajectory_online.size(); ++k) online.emplace_back(trajectory_online[k].t_s, k);
+    std::sort(online.begin(), online.end());
+    for (std::size_t n = 0; n < frames.size(); ++n) {
+      const double t_s = reader.frameFiles(frames[n]).t_s;
+      rejudge_poses[n].T_w_c_final = frame_poses[n];
+      const auto it = std::lower_bound(online.begin(), online.end(), std::make_pair(t_s - 1e-6, std::size_t{0}));
+      if (it != online.end() && it->first <= t_s + 1e-6) {
+        const FramePose& pose = trajectory_online[it->second];
+        rejudge_poses[n].T_w_c_online = &pose.T_w_c;
+        rejudge_poses[n].online_map = pose.map.value;
+      }
+    }
+    const double baseline_s = options.rejudge.reference_baseline_s;
+    if (baseline_s > 0.0) {
+      std::size_t m = 0;
+      for (std::size_t n = 0; n < frames.size(); ++n) {
+        const double t_s = reader.frameFiles(frames[n]).t_s;
+        while (m + 1 < n && reader.frameFiles(frames[m + 1]).t_s <= t_s - baseline_s + 1e-3) ++m;
+        if (m < n && reader.frameFiles(frames[m]).t_s <= t_s - baseline_s + 1e-3) reference_of[n] = static_cast<int>(m);
+      }
+    }
+  }
+  std::shared_ptr<const Undistorter> undistorter;
+  if (rejudging) undistorter = std::make_shared<const Undistorter>(camera);
+
   // Every frame's mask, relabelled when it has a final pose.
   std::vector<HindsightMaskResult> partial(static_cast<std::size_t>(num_threads));
   std::vector<std::unique_ptr<HindsightRelabeller>> relabellers;
+  std::vector<std::unique_ptr<HindsightRejudger>> rejudgers;
   for (int worker = 0; worker < num_threads; ++worker) {
     relabellers.push_back(std::make_unique<HindsightRelabeller>(camera, options));
+    if (rejudging) rejudgers.push_back(std::make_unique<HindsightRejudger>(camera, undistorter, options.rejudge));
   }
   forEachFrame(frames.size(), num_threads, [&](int worker, std::size_t n) {
     HindsightMaskResult& mine = partial[static_cast<std::size_t>(worker)];
@@ -587,6 +626,27 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
       io::RgbdImuFrame frame = reader.load(frames[n], /*with_colour=*/false);
       mask = frame.mask;
       if (mask.empty()) throw InputError(files.mask_path, 0, "cannot read the online mask");
+      if (rejudging && n > 0 && frame_poses[n - 1] != nullptr && frames[n - 1] == frames[n] - 1) {
+        // The gate asks the reference frame; without one (the run's first baseline, or a baseline of
+        // 0), the previous frame.
+        const int gate_frame = reference_of[n] >= 0 ? reference_of[n] : static_cast<int>(n) - 1;
+        const double shift_px = rejudgers[static_cast<std::size_t>(worker)]->onlineShiftPx(
+            frame.depth_m, rejudge_poses[n], rejudge_poses[static_cast<std::size_t>(gate_frame)]);
+        if (shift_px > options.rejudge.min_shift_px) {
+          const auto rejudge_start = std::chrono::steady_clock::now();
+          const int ref = reference_of[n];
+          const bool with_reference = ref >= 0 && frame_poses[static_cast<std::size_t>(ref)] != nullptr;
+          const auto load = [&reader](int index) { return reader.load(index); };
+          if (rejudgers[static_cast<std::size_t>(worker)]->rejudge(
+                  frames[n], *frame_poses[n], frames[n - 1], *frame_poses[n - 1],
+                  with_reference ? frames[static_cast<std::size_t>(ref)] : -1,
+                  with_reference ? *frame_poses[static_cast<std::size_t>(ref)] : SE3(), load, &mask)) {
+            ++mine.frames_rejudged;
+          }
+          mine.rejudge_seconds +=
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - rejudge_start).count();
+        }
+      }
       const HindsightFrameResult result =
           relabellers[static_cast<std::size_t>(worker)]->relabel(frame.depth_m, *frame_poses[n], points, &mask, views,
                                                                  files.t_s);
@@ -604,7 +664,7 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
     const std::string path = (fs::path(out_dir) / fs::path(files.mask_path).filename()).string();
     if (!cv::imwrite(path, mask)) throw InputError(path, 0, "cannot write the hindsight mask");
     ++mine.frames_written;
-  });
+  }, kFramesPerChunk);
   for (const HindsightMaskResult& mine : partial) {
     total.frames_written += mine.frames_written;
     total.frames_relabelled += mine.frames_relabelled;
@@ -614,6 +674,8 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
     total.regions_free_space += mine.regions_free_space;
     total.views_asked += mine.views_asked;
     total.regions_voted += mine.regions_voted;
+    total.frames_rejudged += mine.frames_rejudged;
+    total.rejudge_seconds += mine.rejudge_seconds;
   }
   total.voting_points = std::count_if(points.begin(), points.end(),
                                       [&](const MapPointRecord& point) { return point.beta >= options.min_beta; });

@@ -10,7 +10,7 @@
 #include "ltlo/core/errors.h"
 #include "ltlo/core/log.h"
 #include "ltlo/map/binary_io.h"
-#include "prepared_frame.h"
+#include "ltlo/tracking/prepared_frame.h"
 #include "segmentation_worker.h"
 
 namespace ltlo::tracking {

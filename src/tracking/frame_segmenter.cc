@@ -5,7 +5,7 @@
 
 #include "ltlo/core/assert.h"
 #include "ltlo/core/log.h"
-#include "prepared_frame.h"
+#include "ltlo/tracking/prepared_frame.h"
 #include "segmentation_worker.h"
 
 namespace ltlo::tracking {

@@ -1,4 +1,4 @@
-#include "prepared_frame.h"
+#include "ltlo/tracking/prepared_frame.h"
 
 #include <cstdint>
 #include <optional>

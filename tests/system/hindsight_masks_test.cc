@@ -384,11 +384,14 @@ class HindsightFolderPass : public ::testing::Test {
     options_.label_width = kWidth / 2;
     options_.label_height = kHeight / 2;
     options_.num_threads = 2;
+    options_.rejudge.frame.width = kWidth / 2;
+    options_.rejudge.frame.height = kHeight / 2;
+    options_.rejudge.clusters.num_clusters = 8;
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
   /// Runs the pass; returns the leaf's and the rest's dynamic shares in each frame's written mask.
-  std::vector<std::pair<double, double>> run(HindsightMaskResult* result) {
+  std::vector<std::pair<double, double>> run(HindsightMaskResult* result, const std::vector<FramePose>& online = {}) {
     io::SequenceReaderOptions reader_options;
     reader_options.masks_dir = (dir_ / "online").string();
     reader_options.read_ground_truth = false;
@@ -396,7 +399,7 @@ class HindsightFolderPass : public ::testing::Test {
     const CameraModel camera(PinholeCamera(120.0, 120.0, 79.5, 59.5, kWidth, kHeight), LensDistortion());
     std::filesystem::remove_all(dir_ / "final");
     *result = writeHindsightMasks(reader, trajectory_, keyframes_, map::MapId(0), {}, camera, options_,
-                                  (dir_ / "final").string());
+                                  (dir_ / "final").string(), online);
     std::vector<std::pair<double, double>> shares;
     for (int i = 0; i < kFrames; ++i) {
       char stamp[32];
@@ -467,6 +470,37 @@ TEST_F(HindsightFolderPass, ALeafAtRestWhereOnlyFramesSawTheWallTurnsDynamicWith
   ASSERT_EQ(shares.size(), static_cast<std::size_t>(kFrames));
   EXPECT_EQ(result.free_space_frame_views, 2);
   EXPECT_EQ(shares[7].first, 0.0);
+}
+
+// Re-judging (hindsight_rejudge.h) asks the online poses: a frame is judged again where its online motion
+// from its reference frame (here the frame before: 0.5 s apart, more than the 0.3-s baseline) moved its
+// surface from where the final poses put it, or where the two online poses lie in different maps.
+TEST_F(HindsightFolderPass, AFrameIsJudgedAgainWhereItsOnlineMotionDisagreesWithTheFinalPoses) {
+  HindsightMaskResult result;
+  run(&result);  // no online trajectory: nothing to compare
+  EXPECT_EQ(result.frames_rejudged, 0);
+  std::vector<FramePose> online = trajectory_;
+  run(&result, online);  // the online poses are the final ones
+  EXPECT_EQ(result.frames_relabelled, kFrames);
+  EXPECT_EQ(result.frames_rejudged, 0);
+  // Frames 4..7 online 10 cm to the side: only frame 4's motion from frame 3 is wrong (2 label pixels on
+  // the wall 3 m away, 6 on the leaf 1 m away).
+  for (int i = 4; i < kFrames; ++i) {
+    online[static_cast<std::size_t>(i)].T_w_c = SE3(Quat::Identity(), Vec3(0.1, 0.0, 0.0)) * trajectory_[static_cast<std::size_t>(i)].T_w_c;
+  }
+  run(&result, online);
+  EXPECT_EQ(result.frames_rejudged, 1);
+  // Frame 6 began a new online map: its motion from frame 5 is unknown.
+  for (int i = 6; i < kFrames; ++i) online[static_cast<std::size_t>(i)].map = map::MapId(1);
+  const std::vector<std::pair<double, double>> shares = run(&result, online);
+  EXPECT_EQ(result.frames_rejudged, 2);
+  // The online masks called everything static, and re-judging only turns dynamic pixels static.
+  ASSERT_EQ(shares.size(), static_cast<std::size_t>(kFrames));
+  for (const auto& [leaf, rest] : shares) EXPECT_EQ(rest, 0.0);
+  // Off: the online judgement stands.
+  options_.rejudge.enable = false;
+  run(&result, online);
+  EXPECT_EQ(result.frames_rejudged, 0);
 }
 
 }  // namespace

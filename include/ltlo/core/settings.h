@@ -121,6 +121,16 @@ struct SegmentationOptions {
   /// (Seg.HindsightFreeSpaceFrameInterval, [0, 60]; 0: the keyframes only): a door that swings open shows
   /// where its closed leaf stood to the frames of that moment, which need not include a keyframe
   double hindsight_free_space_frame_interval_s = 0.0;
+  /// Hindsight masks judge a frame's clusters again with the Gamma step of Eq. 59-61 at the final
+  /// relative poses of its previous and reference frames when the online motion over the reference
+  /// baseline moved the frame's surface by more than Seg.HindsightRejudgeMinShift label pixels from
+  /// where the final poses put it (Seg.HindsightRejudge, 0/1): a stretch dead-reckoned on a biased
+  /// IMU called the static room beside a mover dynamic
+  bool hindsight_rejudge = true;
+  /// Mean image shift of the frame's surface, label pixels, between the online and the final motion
+  /// over the reference baseline above which the frame is judged again (Seg.HindsightRejudgeMinShift,
+  /// [0, 100])
+  double hindsight_rejudge_min_shift_px = 0.5;
 
   static SegmentationOptions load(const SettingsFile& file);
 };

@@ -65,6 +65,7 @@
 #include "ltlo/io/sequence_reader.h"
 #include "ltlo/map/ids.h"
 #include "ltlo/segmentation/depth_kmeans.h"
+#include "ltlo/system/hindsight_rejudge.h"
 #include "ltlo/system/run_records.h"
 
 namespace ltlo::system {
@@ -92,6 +93,9 @@ struct HindsightMaskOptions {
   /// them over the run (the interval widens on longer runs)
   double free_space_frame_interval_s = 0.0;
   int num_threads = 2;             ///< frames relabelled in parallel (folder pass)
+  /// the frames whose online motion was wrong judged again at the final poses first (folder pass with
+  /// the online trajectory; hindsight_rejudge.h)
+  RejudgeOptions rejudge;
 
   static HindsightMaskOptions from(const Settings& settings);
 };
@@ -225,6 +229,8 @@ struct HindsightMaskResult {
   int free_space_views = 0;   ///< keyframes whose depth served as free space
   int free_space_frame_views = 0;  ///< frames between them whose depth served too
   long voting_points = 0;     ///< static points (beta >= min_beta)
+  int frames_rejudged = 0;    ///< frames judged again at the final poses (hindsight_rejudge.h)
+  double rejudge_seconds = 0.0;  ///< thread time of that, summed over the threads
   double seconds = 0.0;
 };
 
@@ -233,11 +239,14 @@ struct HindsightMaskResult {
 /// `trajectory` has the frame's time in `points_map`, else as it is; the `keyframes` of points_map give
 /// the free-space views (their depth read from `reader`), with a frame of `trajectory` in points_map every
 /// options.free_space_frame_interval_s. Frames are shared among
-/// options.num_threads threads (each frame's reading, relabelling and PNG writing on one). Throws
-/// InputError naming the file when a frame cannot be read or a mask written (after joining).
+/// options.num_threads threads (each frame's reading, relabelling and PNG writing on one). With
+/// `trajectory_online` (the poses tracking returned) and options.rejudge.enable, a frame whose online
+/// motion over the reference baseline the final poses contradict is judged again first
+/// (hindsight_rejudge.h; the reader must then give colour images). Throws InputError naming the file
+/// when a frame cannot be read or a mask written (after joining).
 HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const std::vector<FramePose>& trajectory,
                                         const std::vector<KeyFrameRecord>& keyframes, map::MapId points_map, const std::vector<MapPointRecord>& points,
                                         const CameraModel& camera, const HindsightMaskOptions& options,
-                                        const std::string& out_dir);
+                                        const std::string& out_dir, const std::vector<FramePose>& trajectory_online = {});
 
 }  // namespace ltlo::system
