@@ -31,7 +31,8 @@ HindsightRejudger::HindsightRejudger(const CameraModel& camera, std::shared_ptr<
       undistorter_(std::move(undistorter)),
       options_(options),
       solver_(options.solver),
-      kmeans_(options.clusters) {
+      kmeans_(options.clusters),
+      raw_grid_(undistorter_) {
   const int width = camera.pinhole().width();
   LTLO_ASSERT(options.frame.width > 0 && width % options.frame.width == 0,
               "label width " << options.frame.width << " for a camera " << width << " px wide");
@@ -173,22 +174,13 @@ bool HindsightRejudger::rejudge(int current_index, const SE3& T_w_c_current, int
     judged.static_shares[k] = std::max(judged.static_shares[k], result.gamma[k]);
   }
   // On the raw image's grid, as the online masks are written (SegmentationWriter).
-  const int width = camera_.pinhole().width(), height = camera_.pinhole().height();
-  if (undistorter_ && undistorter_->active()) {
-    const int scale = width / labels.cols;
-    if (raw_to_ideal_.empty() || raw_to_ideal_scale_ != scale) {
-      raw_to_ideal_ = undistorter_->rawToIdealMap(scale);
-      raw_to_ideal_scale_ = scale;
-    }
-    cv::remap(labels, rejudged_, raw_to_ideal_, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_REPLICATE);
-  } else {
-    cv::resize(labels, rejudged_, cv::Size(width, height), 0.0, 0.0, cv::INTER_NEAREST);
-  }
+  const cv::Mat& rejudged =
+      raw_grid_.toRaw(labels, camera_.pinhole().width(), camera_.pinhole().height(), &rejudged_);
   // Only the online pass's dynamic pixels can turn static; a pixel the online motion found static stays.
-  if (mask->size() == rejudged_.size() && mask->type() == CV_8UC1) {
-    cv::min(*mask, rejudged_, *mask);
+  if (mask->size() == rejudged.size() && mask->type() == CV_8UC1) {
+    cv::min(*mask, rejudged, *mask);
   } else {
-    rejudged_.copyTo(*mask);
+    rejudged.copyTo(*mask);
   }
   return true;
 }

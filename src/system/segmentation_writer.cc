@@ -14,9 +14,28 @@
 
 namespace ltlo::system {
 
+const cv::Mat& RawGridMasks::toRaw(const cv::Mat& mask, int width, int height, cv::Mat* scratch) {
+  if (undistorter_ && undistorter_->active() && width == undistorter_->model().pinhole().width() &&
+      height == undistorter_->model().pinhole().height() && width % mask.cols == 0) {
+    const int scale = width / mask.cols;
+    if (scale != raw_to_ideal_scale_) {
+      raw_to_ideal_ = undistorter_->rawToIdealMap(scale);
+      raw_to_ideal_scale_ = scale;
+    }
+    // Raw pixels whose ideal position lies beyond the label image take its border's label.
+    cv::remap(mask, *scratch, raw_to_ideal_, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_REPLICATE);
+    return *scratch;
+  }
+  if (mask.cols != width || mask.rows != height) {
+    cv::resize(mask, *scratch, cv::Size(width, height), 0.0, 0.0, cv::INTER_NEAREST);
+    return *scratch;
+  }
+  return mask;
+}
+
 SegmentationWriter::SegmentationWriter(std::string dir, std::size_t capacity,
                                        std::shared_ptr<const Undistorter> undistorter)
-    : dir_(std::move(dir)), undistorter_(std::move(undistorter)), queue_(capacity) {
+    : dir_(std::move(dir)), raw_grid_(std::move(undistorter)), queue_(capacity) {
   std::error_code error;
   std::filesystem::create_directories(dir_, error);
   if (error) throw InputError(dir_, 0, "cannot create the segmentation folder: " + error.message());
@@ -53,21 +72,7 @@ void SegmentationWriter::run() {
   cv::Mat full;
   while (std::optional<Item> item = queue_.pop()) {
     if (failed_) continue;  // drain after a failure
-    const cv::Mat* image = &item->mask;
-    if (undistorter_ && undistorter_->active() && item->width == undistorter_->model().pinhole().width() &&
-        item->height == undistorter_->model().pinhole().height() && item->width % item->mask.cols == 0) {
-      const int scale = item->width / item->mask.cols;
-      if (scale != raw_to_ideal_scale_) {
-        raw_to_ideal_ = undistorter_->rawToIdealMap(scale);
-        raw_to_ideal_scale_ = scale;
-      }
-      // Raw pixels whose ideal position lies beyond the label image take its border's label.
-      cv::remap(item->mask, full, raw_to_ideal_, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_REPLICATE);
-      image = &full;
-    } else if (item->mask.cols != item->width || item->mask.rows != item->height) {
-      cv::resize(item->mask, full, cv::Size(item->width, item->height), 0.0, 0.0, cv::INTER_NEAREST);
-      image = &full;
-    }
+    const cv::Mat* image = &raw_grid_.toRaw(item->mask, item->width, item->height, &full);
     const std::string path = (std::filesystem::path(dir_) / (item->name + ".png")).string();
     bool ok = false;
     try {

@@ -42,6 +42,7 @@
 #include "ltlo/segmentation/dense_frame.h"
 #include "ltlo/segmentation/dense_solver.h"
 #include "ltlo/segmentation/depth_kmeans.h"
+#include "ltlo/system/segmentation_writer.h"
 #include "ltlo/tracking/prepared_frame.h"
 
 namespace ltlo::system {
@@ -116,8 +117,8 @@ class HindsightRejudger {
   segmentation::DenseSolver solver_;
   segmentation::DepthKMeans kmeans_;
   std::vector<std::unique_ptr<CachedFrame>> cache_;  ///< most recently used first
-  cv::Mat mask_ideal_, raw_to_ideal_, rejudged_;
-  int raw_to_ideal_scale_ = 0;
+  RawGridMasks raw_grid_;
+  cv::Mat mask_ideal_, rejudged_;
   std::vector<std::pair<int, int>> gate_pixels_;  ///< (u, v) of the gate's grid, raw image
   std::vector<Vec3> gate_bearings_;               ///< their rays, z = 1 (zero: outside the lens model)
 };

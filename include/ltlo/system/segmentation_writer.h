@@ -23,6 +23,21 @@
 
 namespace ltlo::system {
 
+/// Masks at the label resolution (CV_8U) onto the raw image's grid: with a distorting lens and the
+/// camera's size, each raw pixel takes the label at its undistorted position (Undistorter::rawToIdealMap,
+/// built once per label scale); otherwise nearest upsampling. One per thread (it keeps its map).
+class RawGridMasks {
+ public:
+  explicit RawGridMasks(std::shared_ptr<const Undistorter> undistorter) : undistorter_(std::move(undistorter)) {}
+  /// `mask` at width x height: `mask` itself when it is that size and no lens applies, else `*scratch`.
+  const cv::Mat& toRaw(const cv::Mat& mask, int width, int height, cv::Mat* scratch);
+
+ private:
+  std::shared_ptr<const Undistorter> undistorter_;
+  cv::Mat raw_to_ideal_;  // rawToIdealMap of raw_to_ideal_scale_
+  int raw_to_ideal_scale_ = 0;
+};
+
 class SegmentationWriter {
  public:
   /// Creates `dir` (throws InputError when it cannot) and starts the writer thread.
@@ -53,9 +68,7 @@ class SegmentationWriter {
   void run();
 
   std::string dir_;
-  std::shared_ptr<const Undistorter> undistorter_;
-  cv::Mat raw_to_ideal_;  // writer thread only: rawToIdealMap of raw_to_ideal_scale_
-  int raw_to_ideal_scale_ = 0;
+  RawGridMasks raw_grid_;  // writer thread only
   BlockingQueue<Item> queue_;
   std::atomic<int> written_{0};
   bool failed_ = false;  // writer thread only: stop writing after the first failure
