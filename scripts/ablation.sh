@@ -50,6 +50,8 @@
 #                    addition, off in the settings: door s1 +0.001 final IoU for 3x the pass's time)
 #   hindsight_rejudge_off  Seg.HindsightRejudge = 0: the hindsight masks keep the online judgement of the
 #                    frames whose online motion the final poses contradict
+#   hindsight_free_space_gap  Seg.HindsightFreeSpaceTolerance = 0: a keyframe sees through a surface point
+#                    only beyond the V_i gap (a closed door leaf 6 cm in front of its wall is the wall)
 # Each run goes to OUT/<variant>/ (run outputs) with OUT/<variant>.log (the log at info level);
 # loops and merges are checked against the ground truth (scripts/check_loops.py) and the map
 # against the scene (build/bin/check_map) when the sequence has scene.ply. Prints one Markdown
@@ -119,6 +121,7 @@ variant_args() {
     hindsight_views_all) echo "${full[@]}" --set Seg.HindsightFreeSpaceMaxViews=0 ;;
     hindsight_frame_views) echo "${full[@]}" --set Seg.HindsightFreeSpaceFrameInterval=0.2 --set Seg.HindsightFreeSpaceMaxViews=0 ;;
     hindsight_rejudge_off) echo "${full[@]}" --set Seg.HindsightRejudge=0 ;;
+    hindsight_free_space_gap) echo "${full[@]}" --set Seg.HindsightFreeSpaceTolerance=0 ;;
     *) echo "ablation.sh: unknown variant $1" >&2; exit 2 ;;
   esac
 }

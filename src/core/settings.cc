@@ -67,6 +67,7 @@ void visitSegmentation(O& o, V& v) {
   v.real("Seg.HindsightFreeSpaceFrameInterval", o.hindsight_free_space_frame_interval_s, 0.0, 60.0);
   v.boolean("Seg.HindsightRejudge", o.hindsight_rejudge);
   v.real("Seg.HindsightRejudgeMinShift", o.hindsight_rejudge_min_shift_px, 0.0, 100.0);
+  v.real("Seg.HindsightFreeSpaceTolerance", o.hindsight_free_space_tolerance_m, 0.0, 1.0);
 }
 
 template <typename O, typename V>

@@ -128,6 +128,8 @@ HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   options.free_space_views = settings.segmentation.hindsight_free_space_views;
   options.free_space_max_views = settings.segmentation.hindsight_free_space_max_views;
   options.free_space_frame_interval_s = settings.segmentation.hindsight_free_space_frame_interval_s;
+  options.free_space_tolerance_m = settings.segmentation.hindsight_free_space_tolerance_m;
+  options.depth_noise_m = settings.recon.depth_noise_m;
   options.rejudge = RejudgeOptions::from(settings);
   return options;
 }
@@ -174,6 +176,12 @@ HindsightRelabeller::HindsightRelabeller(const CameraModel& camera, const Hindsi
   grid_rows_ = (options.label_height + kFreeSpaceStride - 1) / kFreeSpaceStride;
 }
 
+double HindsightRelabeller::freeSpaceTolerance(double z_m) const {
+  const double gap = options_.clusters.gapThreshold(z_m);
+  if (options_.free_space_tolerance_m <= 0.0) return gap;
+  return std::min(gap, options_.free_space_tolerance_m + 3.0 * options_.depth_noise_m * z_m * z_m);
+}
+
 Vec3 HindsightRelabeller::backProject(int c, int r) const {
   const double z = label_depth_m_.ptr<float>(r)[c];
   return Vec3((c - label_camera_.cx()) / label_camera_.fx() * z, (r - label_camera_.cy()) / label_camera_.fy() * z, z);
@@ -211,7 +219,7 @@ int HindsightRelabeller::viewState(const FreeSpaceView& view, const Vec3& x_w) c
   if (depth <= 0.0f) return -1;
   const double gap = options_.clusters.gapThreshold(x_v.z());
   if (depth < x_v.z() - gap) return -1;  // the view's surface stands in front: it did not see here
-  return depth > x_v.z() + gap ? 1 : 0;  // past the point: free space
+  return depth > x_v.z() + freeSpaceTolerance(x_v.z()) ? 1 : 0;  // past the point: free space
 }
 
 void HindsightRelabeller::selectViews(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s) {
