@@ -112,6 +112,29 @@ FreeSpaceView FreeSpaceView::fromDepth(const cv::Mat& depth_m, const SE3& T_w_c,
   return view;
 }
 
+double measureDepthNoise(const std::vector<cv::Mat>& depths_m, const segmentation::DepthKMeansOptions& clusters) {
+  std::vector<float> second;  // second differences of inverse depth
+  for (const cv::Mat& depth : depths_m) {
+    LTLO_ASSERT(depth.type() == CV_32F, "depth type " << depth.type());
+    for (int r = 0; r < depth.rows; r += 2) {
+      const float* z = depth.ptr<float>(r);
+      for (int c = 1; c + 1 < depth.cols; ++c) {
+        if (!validDepth(z[c - 1]) || !validDepth(z[c]) || !validDepth(z[c + 1])) continue;
+        const float gap = static_cast<float>(clusters.gapThreshold(z[c]));
+        if (std::abs(z[c - 1] - z[c]) >= gap || std::abs(z[c + 1] - z[c]) >= gap) continue;
+        second.push_back(1.0f / z[c - 1] - 2.0f / z[c] + 1.0f / z[c + 1]);
+      }
+    }
+  }
+  if (second.empty()) return 0.0;
+  const auto middle = second.begin() + static_cast<std::ptrdiff_t>(second.size() / 2);
+  std::nth_element(second.begin(), middle, second.end());
+  const float median = *middle;
+  for (float& e : second) e = std::abs(e - median);
+  std::nth_element(second.begin(), middle, second.end());
+  return 1.4826 * static_cast<double>(*middle) / std::sqrt(6.0);
+}
+
 HindsightMaskOptions HindsightMaskOptions::from(const Settings& settings) {
   HindsightMaskOptions options;
   options.clusters = segmentation::DepthKMeansOptions::from(settings.segmentation);
@@ -179,7 +202,8 @@ HindsightRelabeller::HindsightRelabeller(const CameraModel& camera, const Hindsi
 double HindsightRelabeller::freeSpaceTolerance(double z_m) const {
   const double gap = options_.clusters.gapThreshold(z_m);
   if (options_.free_space_tolerance_m <= 0.0) return gap;
-  return std::min(gap, options_.free_space_tolerance_m + 3.0 * options_.depth_noise_m * z_m * z_m);
+  const double noise_m = std::max(options_.depth_noise_m, options_.measured_noise_m);
+  return std::min(gap, options_.free_space_tolerance_m + 3.0 * noise_m * z_m * z_m);
 }
 
 Vec3 HindsightRelabeller::backProject(int c, int r) const {
@@ -618,12 +642,27 @@ HindsightMaskResult writeHindsightMasks(const io::SequenceReader& reader, const 
   std::shared_ptr<const Undistorter> undistorter;
   if (rejudging) undistorter = std::make_shared<const Undistorter>(camera);
 
+  // The sensor's depth noise, measured in kNoiseSampleFrames frames spread over the run: a sensor noisier
+  // than Recon.DepthNoise says would see through static walls with the free-space tolerance.
+  HindsightMaskOptions run_options = options;
+  if (options.free_space && options.free_space_tolerance_m > 0.0 && !views.empty()) {
+    const std::size_t count = std::min<std::size_t>(frames.size(), kNoiseSampleFrames);
+    std::vector<cv::Mat> depths(count);
+    forEachFrame(count, num_threads, [&](int, std::size_t k) {
+      const int index = frames[k * frames.size() / count];
+      depths[k] = reader.load(index, /*with_colour=*/false).depth_m;
+      if (depths[k].empty()) throw InputError(reader.frameFiles(index).depth_path, 0, "cannot read the depth");
+    });
+    run_options.measured_noise_m = measureDepthNoise(depths, options.clusters);
+    total.measured_noise_m = run_options.measured_noise_m;
+  }
+
   // Every frame's mask, relabelled when it has a final pose.
   std::vector<HindsightMaskResult> partial(static_cast<std::size_t>(num_threads));
   std::vector<std::unique_ptr<HindsightRelabeller>> relabellers;
   std::vector<std::unique_ptr<HindsightRejudger>> rejudgers;
   for (int worker = 0; worker < num_threads; ++worker) {
-    relabellers.push_back(std::make_unique<HindsightRelabeller>(camera, options));
+    relabellers.push_back(std::make_unique<HindsightRelabeller>(camera, run_options));
     if (rejudging) rejudgers.push_back(std::make_unique<HindsightRejudger>(camera, undistorter, options.rejudge));
   }
   forEachFrame(frames.size(), num_threads, [&](int worker, std::size_t n) {

@@ -133,8 +133,9 @@ struct SegmentationOptions {
   double hindsight_rejudge_min_shift_px = 0.5;
   /// A keyframe saw through a frame's surface point in hindsight when its depth there lies beyond the
   /// point by more than this + 3 sigma of the sensor's depth noise (Recon.DepthNoise z^2), at most the
-  /// V_i gap (Seg.HindsightFreeSpaceTolerance, m, [0, 1]; 0: the V_i gap). The gap (0.15 m from 1.6 m
-  /// on) took a closed door leaf 6 cm in front of its wall for the wall
+  /// V_i gap (Seg.HindsightFreeSpaceTolerance, m, [0, 1]; 0: the V_i gap); the noise measured in the
+  /// run's depth images instead when larger. The gap (0.15 m from 1.6 m on) took a closed door leaf 6 cm
+  /// in front of its wall for the wall
   double hindsight_free_space_tolerance_m = 0.02;
 
   static SegmentationOptions load(const SettingsFile& file);

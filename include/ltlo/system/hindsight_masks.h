@@ -56,7 +56,9 @@
 /// gap (0: the gap). The gap joins the pieces of one surface across noise and slant (0.15 m from 1.6 m on),
 /// and a view that saw the wall where a closed door leaf stands 6 cm in front of it did not see through
 /// the leaf. The map points' votes keep the gap (a point 6-15 cm behind the surface counts as on it):
-/// judged with the tolerance as well, 24 of 27 runs moved by 0.0001 either way.
+/// judged with the tolerance as well, 24 of 27 runs moved by 0.0001 either way. The folder pass measures
+/// the noise in kNoiseSampleFrames of the run's depth images first (measureDepthNoise), and the larger of
+/// it and depth_noise_m counts: a sensor noisier than Recon.DepthNoise says does not see through walls.
 /// Frames without a final pose in the map the points belong to keep their online mask.
 #include <optional>
 #include <string>
@@ -102,6 +104,9 @@ struct HindsightMaskOptions {
   /// clusters' gap (Seg.HindsightFreeSpaceTolerance, Recon.DepthNoise at 1 m; 0: the gap)
   double free_space_tolerance_m = 0.02;
   double depth_noise_m = 0.0025;
+  /// The depth noise the folder pass measured in the run's own depth images (measureDepthNoise), m at 1 m;
+  /// the tolerance's noise term is 3 x the larger of it and depth_noise_m (0: not measured)
+  double measured_noise_m = 0.0;
   int num_threads = 2;             ///< frames relabelled in parallel (folder pass)
   /// the frames whose online motion was wrong judged again at the final poses first (folder pass with
   /// the online trajectory; hindsight_rejudge.h)
@@ -228,6 +233,16 @@ class HindsightRelabeller {
 
 /// Frame views at most, so the pass's memory stays bounded on hour-long runs (77 KB a VGA view: 150 MB).
 constexpr int kMaxFrameViews = 2000;
+/// Frames (evenly spread over the run) whose depth measures the sensor's noise (measureDepthNoise).
+constexpr int kNoiseSampleFrames = 32;
+
+/// The depth noise of raw depth images (CV_32F m, 0 = none) as sigma(z) = k z^2, k in m at 1 m: on any
+/// plane the inverse depth is linear along an image row, so its second difference across three valid
+/// neighbours, 1/z0 - 2/z1 + 1/z2, is noise alone, of sigma k sqrt(6). k = 1.4826 MAD / sqrt(6) over every
+/// such triple (each second row) whose depths step by less than `clusters`' gap (edges are the MAD's
+/// outliers). Spatially correlated noise (stereo sensors) reads lower than it is: the measure can only
+/// raise the configured Recon.DepthNoise. 0 without triples.
+double measureDepthNoise(const std::vector<cv::Mat>& depths_m, const segmentation::DepthKMeansOptions& clusters);
 
 struct HindsightMaskResult {
   int frames_written = 0;
@@ -240,6 +255,7 @@ struct HindsightMaskResult {
   long regions_voted = 0;
   int free_space_views = 0;   ///< keyframes whose depth served as free space
   int free_space_frame_views = 0;  ///< frames between them whose depth served too
+  double measured_noise_m = 0.0;   ///< measureDepthNoise over kNoiseSampleFrames frames (0: not measured)
   long voting_points = 0;     ///< static points (beta >= min_beta)
   int frames_rejudged = 0;    ///< frames judged again at the final poses (hindsight_rejudge.h)
   double rejudge_seconds = 0.0;  ///< thread time of that, summed over the threads
