@@ -199,11 +199,10 @@ HindsightRelabeller::HindsightRelabeller(const CameraModel& camera, const Hindsi
   grid_rows_ = (options.label_height + kFreeSpaceStride - 1) / kFreeSpaceStride;
 }
 
-double HindsightRelabeller::freeSpaceTolerance(double z_m) const {
-  const double gap = options_.clusters.gapThreshold(z_m);
-  if (options_.free_space_tolerance_m <= 0.0) return gap;
+double HindsightRelabeller::freeSpaceTolerance(double z_m, double gap_m) const {
+  if (options_.free_space_tolerance_m <= 0.0) return gap_m;
   const double noise_m = std::max(options_.depth_noise_m, options_.measured_noise_m);
-  return std::min(gap, options_.free_space_tolerance_m + 3.0 * noise_m * z_m * z_m);
+  return std::min(gap_m, options_.free_space_tolerance_m + 3.0 * noise_m * z_m * z_m);
 }
 
 Vec3 HindsightRelabeller::backProject(int c, int r) const {
@@ -243,7 +242,7 @@ int HindsightRelabeller::viewState(const FreeSpaceView& view, const Vec3& x_w) c
   if (depth <= 0.0f) return -1;
   const double gap = options_.clusters.gapThreshold(x_v.z());
   if (depth < x_v.z() - gap) return -1;  // the view's surface stands in front: it did not see here
-  return depth > x_v.z() + freeSpaceTolerance(x_v.z()) ? 1 : 0;  // past the point: free space
+  return depth > x_v.z() + freeSpaceTolerance(x_v.z(), gap) ? 1 : 0;  // past the point: free space
 }
 
 void HindsightRelabeller::selectViews(const SE3& T_w_c, const std::vector<FreeSpaceView>& views, double t_s) {

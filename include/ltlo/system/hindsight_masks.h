@@ -165,8 +165,9 @@ class HindsightRelabeller {
   static constexpr double kFrameViewMinGapS = 1.0;
 
  private:
-  /// A view's depth beyond a point at depth z_m by more than this saw through it (m).
-  double freeSpaceTolerance(double z_m) const;
+  /// A view's depth beyond a point at depth z_m by more than this saw through it (m); `gap_m` is the
+  /// clusters' gap at z_m, which the caller has at hand.
+  double freeSpaceTolerance(double z_m, double gap_m) const;
   /// The 3-D point (camera frame) of label pixel (c, r) at its label depth (the pinhole's rays).
   Vec3 backProject(int c, int r) const;
   /// The raw pixel of camera-frame point p_c, or nullopt when p_c lies outside the raw image's field
