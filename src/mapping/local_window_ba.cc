@@ -151,6 +151,17 @@ void addOptimisedKeyFrames(map::Map& map, const std::shared_ptr<map::KeyFrame>& 
   }
 }
 
+/// The valid ids of kf's points not in *point_seen yet, added to it. The map is asked for those
+/// only: on a revisit the 50 fixed keyframes' points are mostly the same few thousand, and each
+/// lookup takes a hash probe and a shared_ptr copy.
+void newPointIds(const map::KeyFrame& kf, std::unordered_set<map::MapPointId>* point_seen,
+                 std::vector<map::MapPointId>* ids) {
+  ids->clear();
+  for (const map::MapPointId id : kf.mapPoints()) {
+    if (id.valid() && point_seen->insert(id).second) ids->push_back(id);
+  }
+}
+
 /// Points seen by the window's first `window_end` keyframes (beta at least Window.MinPointBeta, each
 /// id once in *point_seen), and the other keyframes seeing most of them (fixed). Returns the points.
 std::vector<std::shared_ptr<map::MapPoint>> addObservedPoints(map::Map& map, const WindowBaOptions& options,
@@ -161,12 +172,12 @@ std::vector<std::shared_ptr<map::MapPoint>> addObservedPoints(map::Map& map, con
   std::vector<std::shared_ptr<map::MapPoint>> points;
   std::unordered_map<map::KeyFrameId, int> fixed_counts;
   map::Observations observations;
+  std::vector<map::MapPointId> ids;
   std::vector<std::shared_ptr<map::MapPoint>> kf_points;
   for (std::size_t k = 0; k < window_end; ++k) {
-    const std::vector<map::MapPointId> ids = keyframes[k].kf->mapPoints();
+    newPointIds(*keyframes[k].kf, point_seen, &ids);
     map.mapPointsInto(ids, &kf_points);
     for (std::size_t i = 0; i < ids.size(); ++i) {
-      if (!ids[i].valid() || !point_seen->insert(ids[i]).second) continue;
       const std::shared_ptr<map::MapPoint>& point = kf_points[i];
       if (!point || point->isBad() || point->beta() < options.min_point_beta) continue;
       points.push_back(point);
@@ -321,12 +332,12 @@ std::size_t fixedObservationLimit(const std::vector<std::shared_ptr<map::MapPoin
 void addProbePoints(map::Map& map, const WindowBaOptions& options, std::size_t window_end,
                     std::unordered_set<map::MapPointId>* point_seen, Window* window) {
   const std::vector<WindowKeyFrame>& keyframes = window->keyframes;
+  std::vector<map::MapPointId> ids;
   std::vector<std::shared_ptr<map::MapPoint>> kf_points;
   for (std::size_t k = window_end; k < keyframes.size(); ++k) {
-    const std::vector<map::MapPointId> ids = keyframes[k].kf->mapPoints();
+    newPointIds(*keyframes[k].kf, point_seen, &ids);
     map.mapPointsInto(ids, &kf_points);
     for (std::size_t i = 0; i < ids.size(); ++i) {
-      if (!ids[i].valid() || !point_seen->insert(ids[i]).second) continue;
       const std::shared_ptr<map::MapPoint>& point = kf_points[i];
       if (!point || point->isBad()) continue;
       const double beta = point->beta();
