@@ -152,8 +152,8 @@ void addOptimisedKeyFrames(map::Map& map, const std::shared_ptr<map::KeyFrame>& 
 }
 
 /// The valid ids of kf's points not in *point_seen yet, added to it. The map is asked for those
-/// only: on a revisit the 50 fixed keyframes' points are mostly the same few thousand, and each
-/// lookup takes a hash probe and a shared_ptr copy.
+/// only: on a revisit the fixed keyframes' points (up to LocalMapping.MaxFixedKeyFrames of them) are
+/// mostly the same few thousand, and each lookup takes a hash probe and a shared_ptr copy.
 void newPointIds(const map::KeyFrame& kf, std::unordered_set<map::MapPointId>* point_seen,
                  std::vector<map::MapPointId>* ids) {
   ids->clear();
