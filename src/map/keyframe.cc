@@ -176,6 +176,11 @@ std::optional<imu::Preintegrated> KeyFrame::imuFromPrevious() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return imu_from_previous_;
 }
+std::optional<KeyFrame::ImuLinkTiming> KeyFrame::imuLinkTiming() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!imu_from_previous_) return std::nullopt;
+  return ImuLinkTiming{imu_from_previous_->dt_s(), imu_from_previous_->shiftEnd_s()};
+}
 void KeyFrame::setImuFromPrevious(std::optional<imu::Preintegrated> preintegration) {
   std::lock_guard<std::mutex> lock(mutex_);
   imu_from_previous_ = std::move(preintegration);

@@ -195,8 +195,13 @@ void Map::observersInto(const Observations& observations, std::vector<std::share
 }
 
 void Map::updateDescriptor(MapPoint& point) {
+  // The median depends on the observations alone (a culled observer's are erased with it): one
+  // unchanged since the last update keeps its descriptor (issue 32: a point of a revisited room has
+  // tens of observers, and fusion asks for every point of the keyframe).
+  if (point.descriptorCurrent()) return;
   std::vector<features::Descriptor> descriptors;
-  const Observations observations = point.observations();
+  Observations observations;
+  const std::uint64_t version = point.versionedObservationsInto(&observations);
   std::vector<std::shared_ptr<KeyFrame>> observers;
   observersInto(observations, &observers);
   for (std::size_t i = 0; i < observations.size(); ++i) {
@@ -205,7 +210,7 @@ void Map::updateDescriptor(MapPoint& point) {
     if (kf && !kf->isBad()) descriptors.push_back(kf->descriptors()[static_cast<std::size_t>(index)]);
   }
   const int best = MapPoint::medianDescriptorIndex(descriptors);
-  if (best >= 0) point.setDescriptor(descriptors[static_cast<std::size_t>(best)]);
+  if (best >= 0) point.setDescriptor(descriptors[static_cast<std::size_t>(best)], version);
 }
 
 void Map::updateNormalAndDistances(MapPoint& point) {

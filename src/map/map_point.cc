@@ -62,6 +62,7 @@ void MapPoint::setObservationLocked(KeyFrameId kf, int keypoint_index) {
   } else {
     observations_.insert(it, {kf, keypoint_index});
   }
+  ++observations_version_;
 }
 KeyFrameId MapPoint::referenceKeyFrame() const {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -79,7 +80,10 @@ bool MapPoint::addObservation(KeyFrameId kf, int keypoint_index) {
 int MapPoint::eraseObservation(KeyFrameId kf) {
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = lowerBound(observations_, kf);
-  if (it != observations_.end() && it->first == kf) observations_.erase(it);
+  if (it != observations_.end() && it->first == kf) {
+    observations_.erase(it);
+    ++observations_version_;
+  }
   if (reference_ == kf) reference_ = observations_.empty() ? KeyFrameId() : observations_.begin()->first;
   return static_cast<int>(observations_.size());
 }
@@ -91,6 +95,7 @@ std::optional<Observations> MapPoint::setBad(MapPointId replaced_by) {
   replaced_by_ = replaced_by;
   Observations observations;
   observations.swap(observations_);
+  ++observations_version_;
   return observations;
 }
 
@@ -101,6 +106,21 @@ features::Descriptor MapPoint::descriptor() const {
 void MapPoint::setDescriptor(const features::Descriptor& descriptor) {
   std::lock_guard<std::mutex> lock(mutex_);
   descriptor_ = descriptor;
+  descriptor_version_ = kNoVersion;
+}
+std::uint64_t MapPoint::versionedObservationsInto(Observations* out) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  out->assign(observations_.begin(), observations_.end());
+  return observations_version_;
+}
+bool MapPoint::descriptorCurrent() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return descriptor_version_ == observations_version_;
+}
+void MapPoint::setDescriptor(const features::Descriptor& descriptor, std::uint64_t observations_version) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  descriptor_ = descriptor;
+  descriptor_version_ = observations_version;
 }
 
 int MapPoint::medianDescriptorIndex(const std::vector<features::Descriptor>& descriptors) {

@@ -127,27 +127,39 @@ namespace {
 
 bool mostlyRedundant(const map::Map& map, const map::KeyFrame& kf, int min_other_observers, double ratio,
                      KeyFrameLookup& keyframes) {
-  const std::vector<map::MapPointId> ids = kf.mapPoints();
-  std::vector<std::shared_ptr<map::MapPoint>> points;
-  map.mapPointsInto(ids, &points);
-  int left = 0;
-  for (std::size_t i = 0; i < ids.size(); ++i) {
-    if (ids[i].valid() && kf.depth_m(static_cast<int>(i)) > 0.0f) ++left;
+  // The keypoints judged: linked to a point and with depth.
+  const std::vector<map::MapPointId> all_ids = kf.mapPoints();
+  std::vector<int> judged;
+  judged.reserve(all_ids.size());
+  for (std::size_t i = 0; i < all_ids.size(); ++i) {
+    if (all_ids[i].valid() && kf.depth_m(static_cast<int>(i)) > 0.0f) judged.push_back(static_cast<int>(i));
   }
+  // Points are looked up a chunk at a time: most candidates fail within their first tens of points,
+  // and one lookup takes a hash probe and a shared_ptr copy under the map's lock.
+  constexpr std::size_t kChunk = 64;
+  std::vector<map::MapPointId> chunk_ids;
+  std::vector<std::shared_ptr<map::MapPoint>> points;
+  int left = static_cast<int>(judged.size());
   int with_depth = 0;
   int redundant = 0;
   map::Observations observations;
-  for (std::size_t i = 0; i < ids.size(); ++i) {
-    if (!ids[i].valid() || kf.depth_m(static_cast<int>(i)) <= 0.0f) continue;
+  for (std::size_t j = 0; j < judged.size(); ++j) {
     // (Rounding is monotone, so the bound fails the ratio only if the share would.)
     if (static_cast<double>(redundant + left) / (with_depth + left) < ratio) return false;
     --left;
-    const std::shared_ptr<map::MapPoint>& point = points[i];
+    if (j % kChunk == 0) {
+      chunk_ids.clear();
+      for (std::size_t c = j; c < std::min(j + kChunk, judged.size()); ++c) {
+        chunk_ids.push_back(all_ids[static_cast<std::size_t>(judged[c])]);
+      }
+      map.mapPointsInto(chunk_ids, &points);
+    }
+    const std::shared_ptr<map::MapPoint>& point = points[j % kChunk];
     if (!point || point->isBad()) continue;
     ++with_depth;
     point->observationsInto(&observations);
     if (static_cast<int>(observations.size()) <= min_other_observers) continue;
-    const int octave = kf.keypoints()[i].octave;
+    const int octave = kf.keypoints()[static_cast<std::size_t>(judged[j])].octave;
     int observers = 0;
     for (const auto& [other_id, index] : observations) {
       if (other_id == kf.id()) continue;

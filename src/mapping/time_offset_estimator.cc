@@ -105,12 +105,17 @@ int moveChainBoundaries(const map::Map& map, map::KeyFrameId newest_processed, d
     const std::shared_ptr<map::KeyFrame> next = map.keyFrame(kf->nextKeyFrame());
     if (!next || next->isBad() || next->id().value > newest_processed.value) continue;
     if (next->previousKeyFrame() != kf->id()) continue;
+    // The test on the links' timing first: copying a preintegration (its measurements) for every
+    // keyframe of a long run's map costs more than the moves (issue 32).
+    const std::optional<map::KeyFrame::ImuLinkTiming> earlier_timing = kf->imuLinkTiming();
+    const std::optional<map::KeyFrame::ImuLinkTiming> later_timing = next->imuLinkTiming();
+    if (!earlier_timing || !later_timing) continue;
+    const double move_s = shift_s - earlier_timing->shift_end_s;
+    if (std::abs(move_s) <= min_move_s) continue;
+    if (std::abs(move_s) >= 0.5 * std::min(earlier_timing->dt_s, later_timing->dt_s)) continue;
     std::optional<imu::Preintegrated> earlier = kf->imuFromPrevious();
     std::optional<imu::Preintegrated> later = next->imuFromPrevious();
     if (!earlier || !later) continue;
-    const double move_s = shift_s - earlier->shiftEnd_s();
-    if (std::abs(move_s) <= min_move_s) continue;
-    if (std::abs(move_s) >= 0.5 * std::min(earlier->dt_s(), later->dt_s())) continue;
     imu::Preintegrated::moveBoundary(*earlier, *later, shift_s);
     kf->setImuFromPrevious(std::move(earlier));
     next->setImuFromPrevious(std::move(later));

@@ -40,6 +40,60 @@ TEST(MapPointDescriptor, MapSelectsFromObservingKeyFrames) {
   for (const auto& o : observed) EXPECT_LE(median(point->descriptor()), median(o));
 }
 
+TEST(MapPointDescriptor, FollowsEveryChangeOfTheObservationsAndOnlyThem) {
+  Map map;
+  test::SceneBuilder scene(map, 23);
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  for (int k = 0; k < 6; ++k) kfs.push_back(scene.addKeyFrame());
+  const std::shared_ptr<MapPoint> point = scene.share(kfs, 1).front();
+  // The median over the observers that are still linked, recomputed from scratch.
+  auto expected = [&](const std::vector<std::shared_ptr<KeyFrame>>& observers) {
+    std::vector<features::Descriptor> observed;
+    for (const auto& kf : observers) {
+      observed.push_back(kf->descriptors()[static_cast<std::size_t>(*point->indexIn(kf->id()))]);
+    }
+    return observed[static_cast<std::size_t>(MapPoint::medianDescriptorIndex(observed))];
+  };
+  map.updateDescriptor(*point);
+  ASSERT_TRUE(point->descriptorCurrent());
+  EXPECT_EQ(point->descriptor(), expected(kfs));
+  // Erasing the chosen observer's link must move the descriptor to the median of the rest.
+  std::vector<std::shared_ptr<KeyFrame>> rest;
+  std::shared_ptr<KeyFrame> chosen;
+  for (const auto& kf : kfs) {
+    const auto index = static_cast<std::size_t>(*point->indexIn(kf->id()));
+    if (!chosen && kf->descriptors()[index] == point->descriptor()) {
+      chosen = kf;
+    } else {
+      rest.push_back(kf);
+    }
+  }
+  ASSERT_TRUE(chosen != nullptr);
+  const features::Descriptor chosen_descriptor = point->descriptor();
+  map.eraseObservation(*chosen, *point->indexIn(chosen->id()));
+  EXPECT_FALSE(point->descriptorCurrent());
+  map.updateDescriptor(*point);
+  EXPECT_EQ(point->descriptor(), expected(rest));
+  EXPECT_NE(point->descriptor(), chosen_descriptor);  // random descriptors: ~128 bits apart
+  // A descriptor set from outside (a loaded atlas, a new point) is recomputed on the next update.
+  point->setDescriptor(features::Descriptor{1, 2, 3, 4});
+  EXPECT_FALSE(point->descriptorCurrent());
+  map.updateDescriptor(*point);
+  EXPECT_EQ(point->descriptor(), expected(rest));
+  // Culling an observer (the chosen one unless it is the map's origin) changes them too.
+  auto culled = std::find_if(rest.begin() + 1, rest.end(), [&](const std::shared_ptr<KeyFrame>& kf) {
+    return kf->descriptors()[static_cast<std::size_t>(*point->indexIn(kf->id()))] == point->descriptor();
+  });
+  if (culled == rest.end()) culled = rest.begin() + 1;
+  ASSERT_NE((*culled)->id(), kfs.front()->id());
+  ASSERT_TRUE(map.eraseKeyFrame((*culled)->id()));
+  rest.erase(culled);
+  ASSERT_EQ(point->numObservations(), static_cast<int>(rest.size()));
+  EXPECT_FALSE(point->descriptorCurrent());
+  map.updateDescriptor(*point);
+  EXPECT_EQ(point->descriptor(), expected(rest));
+}
+
 TEST(MapPointGeometry, NormalAndDistancesFromObservations) {
   Map map;
   test::SceneBuilder scene(map, 22);

@@ -95,6 +95,13 @@ class KeyFrame {
   void setPreviousKeyFrame(KeyFrameId id);
   void setNextKeyFrame(KeyFrameId id);
   std::optional<imu::Preintegrated> imuFromPrevious() const;
+  /// Of the preintegration from the previous keyframe, without copying it: its span (s) and how
+  /// far its end is shifted from this keyframe's stamp (s) (Preintegrated::dt_s, shiftEnd_s).
+  struct ImuLinkTiming {
+    double dt_s = 0.0;
+    double shift_end_s = 0.0;
+  };
+  std::optional<ImuLinkTiming> imuLinkTiming() const;
   /// Made from a frame tracking held at rest (Frame::at_rest): the IMU link from the previous
   /// keyframe was then a standstill, if the previous keyframe is at rest too or was the map's first.
   bool atRest() const { return at_rest_; }

@@ -1,6 +1,7 @@
 #pragma once
 /// MapPoint: a 3-D landmark observed by keyframes. Shared by tracking (reads, found/visible
 /// counters), local mapping (creation, fusion, culling, BA) and loop closing (fusion, correction).
+#include <cstdint>
 #include <mutex>
 #include <optional>
 #include <utility>
@@ -53,7 +54,16 @@ class MapPoint {
 
   /// Representative descriptor: the observation with the least median distance to the others.
   features::Descriptor descriptor() const;
+  /// Sets a descriptor not derived from the observations (a new or loaded point): the next
+  /// Map::updateDescriptor recomputes it.
   void setDescriptor(const features::Descriptor& descriptor);
+  /// The observations with their version: a count of the changes to them (links added, moved or
+  /// erased), so a descriptor derived from them can tell it is still current.
+  std::uint64_t versionedObservationsInto(Observations* out) const;
+  /// Whether the descriptor was derived from the observations as they are now.
+  bool descriptorCurrent() const;
+  /// Sets the descriptor derived from the observations at `observations_version`.
+  void setDescriptor(const features::Descriptor& descriptor, std::uint64_t observations_version);
   /// Index of the descriptor with the smallest median Hamming distance to all the others (ties:
   /// lowest index); -1 for an empty list.
   static int medianDescriptorIndex(const std::vector<features::Descriptor>& descriptors);
@@ -102,6 +112,10 @@ class MapPoint {
   Observations observations_;
   KeyFrameId reference_;
   features::Descriptor descriptor_{};
+  static constexpr std::uint64_t kNoVersion = ~std::uint64_t{0};
+  std::uint64_t observations_version_ = 0;  ///< changes to observations_ so far
+  /// observations_version_ the descriptor was derived at (kNoVersion: none, or set otherwise)
+  std::uint64_t descriptor_version_ = kNoVersion;
   Vec3 normal_w_ = Vec3::Zero();
   double min_distance_m_ = 0.0;
   double max_distance_m_ = 0.0;
