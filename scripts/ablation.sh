@@ -17,6 +17,7 @@
 #                    only (a mover keeping pace with the camera passes as static)
 #   fixed_ratio_off  LocalMapping.MaxFixedObservationRatio = 0: local BA takes every fixed observation (its cost
 #                    grows with the laps of a revisited room)
+#   probe_ratio_off  LocalMapping.MaxProbePointRatio = 0: Eq. 56 samples every probe point of the fixed keyframes
 #   no_imu           --no-imu: RGB-D only
 # and, for the harder worlds (issue 32; not in the default list):
 #   start_off        the occluded start's handling off: Tracking.StartProvisional = 0, StartReacquireSpeed = 0,
@@ -100,6 +101,7 @@ variant_args() {
     robust_beta_off) echo "${full[@]}" --set Mapping.RobustBeta=0 ;;
     reference_off) echo "${full[@]}" --set Dense.ReferenceBaseline=0 ;;
     fixed_ratio_off) echo "${full[@]}" --set LocalMapping.MaxFixedObservationRatio=0 ;;
+    probe_ratio_off) echo "${full[@]}" --set LocalMapping.MaxProbePointRatio=0 ;;
     no_imu) echo "${full[@]}" --no-imu ;;
     start_off)
       echo "${full[@]}" --set Tracking.StartProvisional=0 --set Tracking.StartReacquireSpeed=0 \

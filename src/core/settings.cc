@@ -137,6 +137,7 @@ void visitLocalMapping(O& o, V& v) {
   v.integer("LocalMapping.MaxFixedKeyFrames", o.max_fixed_keyframes, 1, 1000);
   v.integer("LocalMapping.MaxFixedObservationsPerPoint", o.max_fixed_observations_per_point, 0, 1000);
   v.real("LocalMapping.MaxFixedObservationRatio", o.max_fixed_observation_ratio, 0.0, 1000.0);
+  v.real("LocalMapping.MaxProbePointRatio", o.max_probe_point_ratio, 0.0, 1000.0);
   v.integer("LocalMapping.Iterations", o.ba_iterations, 1, 1000);
   v.boolean("Mapping.RobustBeta", o.robust_beta);
   v.integer("LocalMapping.Alternations", o.alternations, 1, 100);

@@ -260,6 +260,7 @@ WindowBaStats LocalMapper::Impl::localBundleAdjust(map::Map& map, const std::sha
   ba.max_fixed_observations_per_point =
       static_cast<std::size_t>(options.local_mapping.max_fixed_observations_per_point);
   ba.max_fixed_observation_ratio = options.local_mapping.max_fixed_observation_ratio;
+  ba.max_probe_point_ratio = options.local_mapping.max_probe_point_ratio;
   ba.iterations = options.local_mapping.ba_iterations;
   ba.bf_px_m = options.bf_px_m;
   ba.min_point_beta = options.local_mapping.min_point_beta;

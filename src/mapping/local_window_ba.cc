@@ -328,22 +328,36 @@ std::size_t fixedObservationLimit(const std::vector<std::shared_ptr<map::MapPoin
 }
 
 /// Probe points for Eq. 56: the static points of the fixed keyframes (from `window_end` on) the
-/// window does not see (a dynamic object may hide them from the window's keyframes).
+/// window does not see (a dynamic object may hide them from the window's keyframes); at most
+/// LocalMapping.MaxProbePointRatio times the window's points, an even stride through them in the
+/// fixed keyframes' order (those sharing most points with the window first) when more. The ids are
+/// thinned before the map is asked for the points.
 void addProbePoints(map::Map& map, const WindowBaOptions& options, std::size_t window_end,
                     std::unordered_set<map::MapPointId>* point_seen, Window* window) {
   const std::vector<WindowKeyFrame>& keyframes = window->keyframes;
   std::vector<map::MapPointId> ids;
-  std::vector<std::shared_ptr<map::MapPoint>> kf_points;
+  std::vector<map::MapPointId> kf_ids;
   for (std::size_t k = window_end; k < keyframes.size(); ++k) {
-    newPointIds(*keyframes[k].kf, point_seen, &ids);
-    map.mapPointsInto(ids, &kf_points);
-    for (std::size_t i = 0; i < ids.size(); ++i) {
-      const std::shared_ptr<map::MapPoint>& point = kf_points[i];
-      if (!point || point->isBad()) continue;
-      const double beta = point->beta();
-      if (beta < options.min_point_beta) continue;
-      window->probes.push_back({point->p_w(), beta, visibilityOf(*point)});
+    newPointIds(*keyframes[k].kf, point_seen, &kf_ids);
+    ids.insert(ids.end(), kf_ids.begin(), kf_ids.end());
+  }
+  if (options.max_probe_point_ratio > 0.0) {
+    const auto cap =
+        static_cast<std::size_t>(options.max_probe_point_ratio * static_cast<double>(window->points.size()));
+    if (ids.size() > cap) {
+      // ids[floor(i n / cap)] for i < cap: increasing, so the thinning can run in place.
+      const std::size_t n = ids.size();
+      for (std::size_t i = 0; i < cap; ++i) ids[i] = ids[i * n / cap];
+      ids.resize(cap);
     }
+  }
+  std::vector<std::shared_ptr<map::MapPoint>> points;
+  map.mapPointsInto(ids, &points);
+  for (const std::shared_ptr<map::MapPoint>& point : points) {
+    if (!point || point->isBad()) continue;
+    const double beta = point->beta();
+    if (beta < options.min_point_beta) continue;
+    window->probes.push_back({point->p_w(), beta, visibilityOf(*point)});
   }
 }
 

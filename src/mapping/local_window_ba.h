@@ -42,6 +42,10 @@ struct WindowBaOptions {
   /// largest that keeps them within it (at least 1). Bounds local BA on revisited places; a window
   /// within it is built as without it.
   double max_fixed_observation_ratio = 0.0;
+  /// Robust: Eq. 56's probe points at most this many times the window's points (0: no limit), an
+  /// even stride through them in the fixed keyframes' order when more. A window within it is built
+  /// as without it.
+  double max_probe_point_ratio = 0.0;
   double bf_px_m = 40.0;
   double min_point_beta = 0.5;   ///< points with a lower static score are left out (robust: deleted)
   int num_threads = 1;

@@ -29,18 +29,30 @@ SE3 truePose(int n) {
 
 /// kKeyFrames keyframes seeing the same kPoints points (exact projections and depths, octave 0),
 /// all connected in the covisibility graph.
+/// With `own_points_per_fixed`, each keyframe outside the newest kWindow + 1 also sees that many
+/// points of its own, which the window does not: Eq. 56's probe points.
 struct RevisitedSpot {
-  RevisitedSpot() {
+  explicit RevisitedSpot(int own_points_per_fixed = 0) {
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> u(40.0, 280.0), v(30.0, 210.0), z(2.0, 3.0);
     const PinholeCamera camera = qvgaCamera();
     std::vector<Vec3> points_w;
     for (int k = 0; k < kPoints; ++k) points_w.push_back(camera.backProject(Vec2(u(rng), v(rng)), z(rng)));
+    const int with_own = kKeyFrames - kWindow - 1;
+    std::vector<std::vector<Vec3>> own_w(static_cast<std::size_t>(with_own));
+    for (auto& own : own_w) {
+      for (int j = 0; j < own_points_per_fixed; ++j) own.push_back(camera.backProject(Vec2(u(rng), v(rng)), z(rng)));
+    }
     for (int n = 0; n < kKeyFrames; ++n) {
       const SE3 T_w_b = truePose(n);
       features::OrbFeatures features;
       std::vector<float> depths;
-      for (const Vec3& p_w : points_w) {
+      std::vector<Vec3> seen_w = points_w;
+      if (n < with_own) {
+        const std::vector<Vec3>& own = own_w[static_cast<std::size_t>(n)];
+        seen_w.insert(seen_w.end(), own.begin(), own.end());
+      }
+      for (const Vec3& p_w : seen_w) {
         const Vec3 p_c = T_w_b.inverse() * p_w;
         const Vec2 uv = camera.project(p_c);
         features::Keypoint kp;
@@ -57,6 +69,13 @@ struct RevisitedSpot {
     for (int k = 0; k < kPoints; ++k) {
       auto point = map.createMapPoint(points_w[static_cast<std::size_t>(k)], keyframes.front()->id());
       for (const auto& kf : keyframes) map.addObservation(*kf, k, *point);
+    }
+    for (int n = 0; n < with_own; ++n) {
+      const auto& kf = keyframes[static_cast<std::size_t>(n)];
+      for (int j = 0; j < own_points_per_fixed; ++j) {
+        auto point = map.createMapPoint(own_w[static_cast<std::size_t>(n)][static_cast<std::size_t>(j)], kf->id());
+        map.addObservation(*kf, kPoints + j, *point);
+      }
     }
     for (const auto& kf : keyframes) map.updateConnections(*kf);
   }
@@ -149,6 +168,44 @@ TEST(LocalBaProblemSize, FixedObservationRatioLowersThePerPointLimitOnlyWhenExce
   EXPECT_EQ(runWindow(4, 7.5 / kWindow).stats.fixed_observation_limit, 4);  // the per-point limit is smaller
   EXPECT_EQ(runWindow(9, 7.5 / kWindow).stats.fixed_observation_limit, 7);  // the ratio's is
   EXPECT_EQ(runWindow(9, 0.0).stats.fixed_observation_limit, 9);
+}
+
+// LocalMapping.MaxProbePointRatio: the fixed keyframes' own points (which the window does not see)
+// become Eq. 56's probe points, at most the ratio times the window's points; below the cap the
+// window and its result are those without one, to the bit.
+TEST(LocalBaProblemSize, ProbePointsAreCappedByTheirRatioToTheWindowsPoints) {
+  constexpr int kOwn = 6;
+  constexpr int kProbes = (kKeyFrames - kWindow - 1) * kOwn;  // own points of the 24 oldest keyframes
+  auto run = [](double max_probe_point_ratio) {
+    RevisitedSpot spot(kOwn);
+    WindowBaOptions options;
+    options.window_size = kWindow;
+    options.max_fixed_keyframes = 50;
+    options.max_probe_point_ratio = max_probe_point_ratio;
+    options.robust = true;
+    options.bf_px_m = 262.5 * 0.5;
+    const auto& newest = spot.keyframes.back();
+    newest->setPose_T_w_b(
+        SE3(newest->T_w_b().quaternion(), newest->T_w_b().translation() + Vec3(0.03, -0.02, 0.01)));
+    CapResult result;
+    result.stats = localWindowBundleAdjust(spot.map, newest, options, levelSigma2());
+    result.pose_after = newest->T_w_b();
+    result.largest_error_m = (newest->T_w_b().translation() - truePose(kKeyFrames - 1).translation()).norm();
+    return result;
+  };
+  const CapResult all = run(0.0);
+  // Each own point is a window point (its keyframe is in the window) or a probe point.
+  ASSERT_EQ(all.stats.points + all.stats.probe_points, kPoints + kProbes);
+  ASSERT_GT(all.stats.probe_points, all.stats.points);  // so a ratio of 1 binds
+  const CapResult loose = run(10.0);                    // not reached
+  EXPECT_EQ(loose.stats.probe_points, all.stats.probe_points);
+  EXPECT_TRUE(loose.pose_after.translation() == all.pose_after.translation());
+  EXPECT_TRUE(loose.pose_after.quaternion().coeffs() == all.pose_after.quaternion().coeffs());
+  EXPECT_EQ(run(1.0).stats.probe_points, all.stats.points);
+  EXPECT_EQ(run(0.5).stats.probe_points, all.stats.points / 2);
+  const CapResult capped = run(1.0);
+  EXPECT_LT(all.largest_error_m, 1e-4);
+  EXPECT_LT(capped.largest_error_m, 1e-4);
 }
 
 }  // namespace

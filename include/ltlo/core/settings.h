@@ -210,6 +210,11 @@ struct LocalMappingOptions {
   /// a revisited room's stop growing with every lap, so the mapping cost per keyframe is bounded on
   /// long runs (issue 32). A ratio, not a count: the same value holds at any image size
   double max_fixed_observation_ratio = 0.0;
+  /// Eq. 56's probe points (the fixed keyframes' static points the window does not see) at most this
+  /// many times the window's points (LocalMapping.MaxProbePointRatio, [0, 1000]; 0: no limit), an even
+  /// stride through them when more. Every fixed keyframe of a revisited room brings its own, so they
+  /// grow to 3x the first lap's (issue 32); a ratio, not a count
+  double max_probe_point_ratio = 0.0;
   /// solver iterations per state step (LocalMapping.Iterations, [1, 1000])
   int ba_iterations = 10;
   /// Robust VIBA (Mapping.RobustBeta, 0/1): 1 alternates the state/point step with the closed-form
