@@ -15,6 +15,9 @@
 #             simulate exits 2 before the first frame when the file system lacks about 1.5 GB)
 #   SETTINGS  [config_yaml/synthetic.yaml]   RECON [1]: reconstruct + check_surfels the
 #             rgbd_inertial runs   BUILD [1]: build first (scripts/build.sh)
+#   RATE      [0]  --rate of the SLAM runs: 1 plays each sequence at the camera's pace, as a robot
+#             runs it (local mapping and loop closing get a robot's time; a 45 s run takes 45 s);
+#             0: frames as fast as tracking goes
 #   RESULTS_MD [unset]  e.g. docs/results.md: its benchmark block becomes this report's summary
 #             (scripts/update_results.sh)
 #
@@ -32,6 +35,7 @@ SEQ_ROOT=${SEQ_ROOT:-/work/seqs}
 SECONDS_PER_SEQUENCE=${SECONDS_PER_SEQUENCE:-45}
 SETTINGS=${SETTINGS:-config_yaml/synthetic.yaml}
 RECON=${RECON:-1}
+RATE=${RATE:-0}
 BIN=build/bin
 # shellcheck source=scripts/scenarios.sh
 source scripts/scenarios.sh
@@ -98,7 +102,7 @@ for scenario in "${scenarios[@]}"; do
       printf '[%d/%d] %s %s: SLAM' "$k" "$total" "$name" "$variant"
       # shellcheck disable=SC2046
       if ! "$BIN/rgbd_inertial" $(variant_args "$variant") --sequence "$seq" --out "$run" \
-        --progress-every 300 >"$run/slam.log" 2>&1; then
+        --rate "$RATE" --progress-every 300 >"$run/slam.log" 2>&1; then
         echo " FAILED (see $run/slam.log)"
         failed=$((failed + 1))
         continue

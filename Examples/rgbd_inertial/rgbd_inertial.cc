@@ -2,6 +2,7 @@
 //
 //   rgbd_inertial --settings YAML --sequence DIR --out DIR [--vocabulary FILE] [--no-imu]
 //                 [--single-thread] [--first-frame N] [--max-frames N] [--progress-every N] [--oracle-masks]
+//                 [--rate R]
 //                 [--set Key=Value]... [--viewer-video FILE] [--viewer-dir DIR]
 //                 [--viewer-http PORT [--viewer-bind ADDRESS] [--pose-stream]]
 //                 [--save-atlas FILE] [--load-atlas FILE [--localisation-only | --resume]]
@@ -26,6 +27,10 @@
 // lacks the figures it would give but has "evaluation_error" (file, line, value). --oracle-masks
 // (diagnostic ablation): DIR/masks/ replaces the segmentation (metrics.json "oracle_masks": true);
 // without it masks/ is not opened before the evaluation.
+// --rate R plays the sequence at R times its recorded speed, as a live camera delivers it (frames
+// wait for their stamps; one that starts late is still tracked, never dropped), so local mapping and
+// loop closing get the time a robot gives them; the summary says how many frames started more than a
+// frame interval late. Without it (or 0) frames follow each other as fast as tracking goes.
 // --set Key=Value (repeatable) replaces one key of the settings file (or of calib.yaml for Camera.*,
 // IMU.*, DepthMapFactor), validated like the file and logged; an unknown key is bad input.
 // Ctrl-C (or SIGTERM), a bad frame or an error part-way stop the run, shut the threads down and
@@ -43,6 +48,7 @@
 // vocabulary or camera, no run state to resume) is bad input: exit 2 naming the file, section and byte.
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -53,6 +59,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -61,6 +68,7 @@
 #include "bag_topic_options.h"
 #include "bow/vocabulary.h"
 #include "ltlo/core/errors.h"
+#include "ltlo/core/frame_pacer.h"
 #include "ltlo/core/log.h"
 #include "ltlo/core/progress.h"
 #include "ltlo/core/settings.h"
@@ -114,6 +122,7 @@ struct Arguments {
   long max_frames = 0;
   long first_frame = 0;  ///< --first-frame N: start at frame N (e.g. the second half of a sequence)
   long progress_every = 100;
+  double rate = 0.0;  ///< --rate R: play at R times the recorded speed (0: as fast as tracking goes)
   std::vector<std::string> overrides;  ///< --set Key=Value, in order
   std::string viewer_video;            ///< --viewer-video FILE
   std::string viewer_dir;              ///< --viewer-dir DIR
@@ -126,6 +135,19 @@ struct Arguments {
   bool resume = false;             ///< --resume: continue the run the loaded atlas saved
   bool first_frame_given = false;  ///< --first-frame was on the command line
 };
+
+/// Sleeps until a paced frame is due, in steps of at most 50 ms so that Ctrl-C is not held up by a
+/// slow rate.
+void waitUntilDue(double seconds) {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point until =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  while (!g_stop_requested.load()) {
+    const Clock::time_point now = Clock::now();
+    if (now >= until) return;
+    std::this_thread::sleep_for(std::min<Clock::duration>(until - now, std::chrono::milliseconds(50)));
+  }
+}
 
 /// The shipped vocabulary: $LTLO_SOURCE_DIR, then next to the executable's build tree
 /// (<root>/build/bin/<program> -> <root>), then the source tree this program was built from, then
@@ -338,10 +360,19 @@ int run(const Arguments& args) {
   int frames = 0;
   // Images are decoded a few frames ahead in a reader thread while the previous frame is tracked.
   io::FramePrefetcher prefetcher(reader, 4, total);
+  FramePacer pacer(args.rate);
   try {
     while (!g_stop_requested.load() && frames < total) {
       std::optional<io::RgbdImuFrame> input = prefetcher.next();
       if (!input) break;
+      if (pacer.enabled()) {
+        waitUntilDue(pacer.secondsUntilDue(input->t_s));
+        if (g_stop_requested.load()) break;
+        const double lag_s = pacer.frameStarts();
+        if (pacer.lastFrameLate()) {
+          log::debug("frame ", input->index, " (t ", input->t_s, " s) started ", 1e3 * lag_s, " ms late");
+        }
+      }
       const tracking::TrackingState state = slam.trackFrame(*input);
       ++frames;
       progress.frameDone();
@@ -366,6 +397,7 @@ int run(const Arguments& args) {
   if (!failure.empty()) log::error(kProgram, ": ", failure);
   const bool interrupted = g_stop_requested.load() || !failure.empty();
   progress.finish();
+  if (pacer.enabled()) log::info(kProgram, ": ", pacer.summary());
 
   slam.shutdown(!interrupted);
   if (!args.save_atlas.empty()) {
@@ -379,6 +411,13 @@ int run(const Arguments& args) {
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   system::RunReport report = slam.report(wall_s);
   report.interrupted = interrupted;
+  if (pacer.enabled()) {
+    const FramePacerStats paced = pacer.stats();
+    report.pacing_rate = pacer.rate();
+    report.paced_late_frames = paced.late_frames;
+    report.paced_lag_mean_ms = 1e3 * paced.mean_lag_s;
+    report.paced_lag_max_ms = 1e3 * paced.max_lag_s;
+  }
   writeFinalMasks(args, setup, report);
   const fs::path masks_dir = fs::path(args.sequence_dir) / "masks";
   system::EvaluationInputs evaluation;
@@ -481,6 +520,10 @@ int main(int argc, char** argv) {
   CLI::Option* first_frame_option =
       app.add_option("--first-frame", args.first_frame, "start at frame N of the sequence (0: the first)")
           ->check(CLI::NonNegativeNumber);
+  app.add_option("--rate", args.rate,
+                 "play the sequence at R times its recorded speed, as a live camera (frames wait for their stamps, "
+                 "none is dropped; the summary counts late ones); 0: as fast as tracking goes")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--progress-every", args.progress_every, "progress line every N frames (0: none)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--set", args.overrides,

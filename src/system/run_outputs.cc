@@ -354,6 +354,14 @@ io::Metrics computeRunMetrics(const RunReport& report, const io::Trajectory& gro
   metrics.set("wall_s", report.wall_s);
   metrics.set("fps", report.wall_s > 0.0 ? c.frames / report.wall_s : 0.0);
   metrics.set("peak_memory_mb", report.peak_memory_mb);
+  if (report.pacing_rate > 0.0) {
+    // Played at the camera's pace (--rate): did tracking keep up?
+    metrics.set("rate", report.pacing_rate);
+    metrics.set("late_frames", static_cast<int64_t>(report.paced_late_frames));
+    metrics.set("late_frame_share", c.frames > 0 ? static_cast<double>(report.paced_late_frames) / c.frames : 0.0);
+    metrics.set("lag_mean_ms", report.paced_lag_mean_ms);
+    metrics.set("lag_max_ms", report.paced_lag_max_ms);
+  }
   // Long runs: does the mapping cost per keyframe (and the memory) stay bounded?
   const MappingTimelineSummary timeline = summariseMappingTimeline(report.mapping_timeline, 60.0);
   if (timeline.windows) {

@@ -190,6 +190,22 @@ TEST_F(RunOutputs, MetricsCarryAteCountsAndTiming) {
   EXPECT_NEAR(metrics.number("tracking_frame_median_ms"), 18.0, 1e-9);
   EXPECT_NEAR(metrics.number("tracking_frame_p95_ms"), 30.0, 1e-9);
   EXPECT_NEAR(metrics.number("peak_memory_mb"), 123.0, 1e-12);
+  EXPECT_FALSE(metrics.has("late_frames"));  // not paced
+}
+
+TEST_F(RunOutputs, APacedRunCarriesItsLateFramesAndLag) {
+  const io::Trajectory gt = circleGroundTruth(40);
+  RunReport report = syntheticReport(gt, 0.01);
+  report.pacing_rate = 1.0;
+  report.paced_late_frames = 21;
+  report.paced_lag_mean_ms = 2.5;
+  report.paced_lag_max_ms = 80.0;
+  const io::Metrics metrics = computeRunMetrics(report, gt);
+  EXPECT_EQ(metrics.number("rate"), 1.0);
+  EXPECT_EQ(metrics.number("late_frames"), 21);
+  EXPECT_NEAR(metrics.number("late_frame_share"), 21.0 / 42.0, 1e-12);
+  EXPECT_EQ(metrics.number("lag_mean_ms"), 2.5);
+  EXPECT_EQ(metrics.number("lag_max_ms"), 80.0);
 }
 
 // A 5-minute timeline whose mapping cost doubles over the run: the first and last minutes' medians

@@ -87,6 +87,13 @@ struct RunReport {
   double wall_s = 0.0;          ///< whole run (reading + SLAM), s
   double peak_memory_mb = 0.0;  ///< peak resident set size, MB
   bool interrupted = false;     ///< stopped early (signal or error)
+  /// rgbd_inertial --rate (core/frame_pacer.h): the sequence played at this many times its recorded
+  /// speed (0: as fast as tracking went), the frames that started more than a frame interval late and
+  /// the lag of the frames behind the times they were due.
+  double pacing_rate = 0.0;
+  long paced_late_frames = 0;
+  double paced_lag_mean_ms = 0.0;
+  double paced_lag_max_ms = 0.0;
   /// the --oracle-masks ablation: ground-truth masks replaced the segmentation (diagnostic run)
   bool oracle_masks = false;
   /// The camera-IMU time offset at the end (LocalMapping.EstimateTimeOffset): IMU.TimeOffset plus
