@@ -481,6 +481,30 @@ void writeHarderWorldsTable(std::ostringstream& md, const std::vector<Row>& rows
 }
 
 // Only when some run has a reconstruction.
+// Runs played at the camera's pace (benchmark.sh RATE, rgbd_inertial --rate): did tracking keep up?
+// Only when there are some.
+void writeRealTimeTable(std::ostringstream& md, const std::vector<Row>& rows) {
+  bool any = false;
+  for (const Row& row : rows) any |= row.run->metrics.number("rate").has_value();
+  if (!any) return;
+  md << "\n## Real time\n\n"
+     << "Runs played at R times their recorded speed (`scripts/benchmark.sh` `RATE`, `rgbd_inertial --rate`), "
+     << "as a live camera delivers them: late frames started more than one frame interval after they were "
+     << "due (tracked all the same, never dropped); lag: how long after.\n\n";
+  md << "| sequence | variant | rate | late frames | late share | lag mean (ms) | lag max (ms) | "
+        "tracking median (ms) | tracking p95 (ms) |\n";
+  md << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const Row& row : rows) {
+    const FlatJson& m = row.run->metrics;
+    if (!m.number("rate")) continue;
+    md << "| " << row.run->sequence_name << " | " << row.run->variant << " | " << number(m.number("rate"), "%g")
+       << " | " << number(m.number("late_frames"), "%.0f") << " | " << number(m.number("late_frame_share"), "%.3f")
+       << " | " << number(m.number("lag_mean_ms"), "%.1f") << " | " << number(m.number("lag_max_ms"), "%.1f")
+       << " | " << number(m.number("tracking_frame_median_ms"), "%.1f") << " | "
+       << number(m.number("tracking_frame_p95_ms"), "%.1f") << " |\n";
+  }
+}
+
 void writeReconstructionTable(std::ostringstream& md, const std::vector<Row>& rows) {
   bool any_recon = false;
   for (const Row& row : rows) any_recon |= row.run->recon.has_value();
@@ -559,6 +583,7 @@ int writeBenchmarkReport(const std::string& benchmark_dir, const std::string& ti
   writeSummaryTable(md, rows);
   writeAllRunsTable(md, rows);
   writeHarderWorldsTable(md, rows);
+  writeRealTimeTable(md, rows);
   writeReconstructionTable(md, rows);
   writePlotsSection(md, rows, benchmark_dir);
   const std::string path = benchmark_dir + "/report.md";

@@ -158,8 +158,23 @@ TEST_F(BenchmarkFolder, ReportHasTheTablesAndThePlot) {
   cv::inRange(top, cv::Scalar(0, 140, 245), cv::Scalar(10, 160, 255), orange);
   EXPECT_GT(cv::countNonZero(red), 500);
   EXPECT_GT(cv::countNonZero(orange), 500);
-  // Only the five occlusion profiles: no harder-worlds section.
+  // Only the five occlusion profiles: no harder-worlds section; not paced: no real-time section.
   EXPECT_EQ(md.find("## Harder worlds"), std::string::npos);
+  EXPECT_EQ(md.find("## Real time"), std::string::npos);
+}
+
+// A run played at the camera's pace (--rate) gets a row in the real-time section: its late frames and lag.
+TEST_F(BenchmarkFolder, PacedRunsGetARealTimeSection) {
+  std::ofstream(dir_ + "/runs/ltlo_s7/rgbd_inertial/metrics.json", std::ios::trunc)
+      << "{\"ate_rmse_m\": 0.02, \"fps\": 10.0, \"tracking_frame_median_ms\": 21.0, \"tracking_frame_p95_ms\": 30.0, "
+         "\"rate\": 1, \"late_frames\": 3, \"late_frame_share\": 0.075, \"lag_mean_ms\": 4.3, \"lag_max_ms\": 61.5, "
+         "\"wall_s\": 4.2}";
+  EXPECT_EQ(writeBenchmarkReport(dir_, "test report"), 1);
+  const std::string md = readAll(dir_ + "/report.md");
+  const std::size_t section = md.find("## Real time");
+  ASSERT_NE(section, std::string::npos) << md;
+  const std::size_t row = md.find("| ltlo_s7 | rgbd_inertial | 1 | 3 | 0.075 | 4.3 | 61.5 | 21.0 | 30.0 |", section);
+  EXPECT_NE(row, std::string::npos) << md;
 }
 
 // A run of a scenario beyond the occlusion profiles gets a row in the harder-worlds section, with
