@@ -3,8 +3,8 @@
 # build-tsan (LTLO_SANITIZE_THREAD=ON) and build-asan (LTLO_SANITIZE_ADDRESS=ON), both
 # RelWithDebInfo with 2 jobs, and runs the end-to-end test binary (tests/system/system_test.cc:
 # System with its tracking, local-mapping and loop-closing threads on a generated 8 s 320x240
-# static sequence, RGB-D-inertial; and a 27 s lap of the room, RGB-D only, with a loop correction
-# and the full-BA thread) under each, then rgbd_inertial (all threads, reader thread, outputs) on a
+# static sequence, RGB-D-inertial; a 27 s lap of the room, RGB-D only, with a loop correction
+# and the full-BA thread; the lap RGB-D-inertial with culled keyframes swapped for stand-ins) under each, then rgbd_inertial (all threads, reader thread, outputs) on a
 # generated 20 s ltlo VGA sequence (out/sanitize/ltlo_20s, written by build/bin/simulate). Exits
 # non-zero when a test or the run fails or a sanitizer reports anything.
 #   scripts/sanitize_e2e.sh [tsan|asan ...]     (default: both; FILTER overrides the gtest filter,
@@ -12,7 +12,7 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 JOBS=${JOBS:-2}
-FILTER=${FILTER:-SystemEndToEnd.RgbdInertialThreaded:SystemEndToEnd.RgbdOnlyThreadedClosesTheLoop}
+FILTER=${FILTER:-SystemEndToEnd.RgbdInertialThreaded:SystemEndToEnd.RgbdOnlyThreadedClosesTheLoop:SystemEndToEnd.CulledKeyFramesAreHeldWithoutTheirImageData}
 KINDS=("$@")
 [ ${#KINDS[@]} -eq 0 ] && KINDS=(tsan asan)
 LTLO_SECONDS=${LTLO_SECONDS:-20}

@@ -320,6 +320,49 @@ void KeyFrame::setCulledParent(std::shared_ptr<KeyFrame> parent, const SE3& T_pa
   T_parent_this_ = T_parent_this;
 }
 
+bool KeyFrame::setCulled(std::shared_ptr<KeyFrame> parent, const SE3& T_parent_this) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (bad_) return false;
+  bad_ = true;
+  culled_parent_ = std::move(parent);
+  T_parent_this_ = T_parent_this;
+  return true;
+}
+
+void KeyFrame::replaceCulledParent(std::shared_ptr<KeyFrame> parent) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  LTLO_ASSERT(bad_, "only a culled keyframe has a culled parent to replace");
+  LTLO_ASSERT(parent && culled_parent_ && parent->id() == culled_parent_->id(),
+              "a culled parent is replaced by a stand-in of itself");
+  culled_parent_ = std::move(parent);
+}
+
+std::shared_ptr<KeyFrame> culledStandIn(const KeyFrame& culled) {
+  std::shared_ptr<KeyFrame> parent;
+  SE3 T_parent_this;
+  SE3 T_w_b;
+  Vec3 v_w_b;
+  imu::ImuBias bias;
+  MapId map;
+  {
+    std::lock_guard<std::mutex> lock(culled.mutex_);
+    LTLO_ASSERT(culled.bad_, "a stand-in is made of a culled keyframe");
+    parent = culled.culled_parent_;
+    T_parent_this = culled.T_parent_this_;
+    T_w_b = culled.T_w_b_;
+    v_w_b = culled.v_w_b_;
+    bias = culled.bias_;
+    map = culled.map_;
+  }
+  Frame state(culled.t_s(), culled.camera(), culled.T_b_c(), features::OrbFeatures{}, {}, {1.0f});
+  state.setPose_T_w_b(T_w_b);
+  state.setVelocity(v_w_b);
+  state.setBias(bias);
+  auto stand_in = std::make_shared<KeyFrame>(culled.id(), map, state);
+  stand_in->setCulled(std::move(parent), T_parent_this);
+  return stand_in;
+}
+
 SE3 latestPose_T_w_b(const KeyFrame& kf) {
   // Walk up the culled chain (each link is older and was alive when its child was culled).
   SE3 T_last_kf;  // T_{last visited}^-1 T_kf, composed right to left

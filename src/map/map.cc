@@ -250,7 +250,13 @@ void Map::updateNormalAndDistances(MapPoint& point) {
 bool Map::eraseKeyFrame(KeyFrameId id, ImuLink imu_link) {
   std::lock_guard<std::mutex> topology(topology_mutex_);
   const std::shared_ptr<KeyFrame> kf = keyFrame(id);
-  if (!kf || isOrigin(id) || !kf->setBad()) return false;
+  if (!kf || isOrigin(id)) return false;
+  // Bad and linked to its parent at culling in one step (KeyFrame::setCulled): a holder that sees it
+  // bad follows the link (latestPose_T_w_b, culledStandIn).
+  const KeyFrameId parent_id = kf->parent();
+  const std::shared_ptr<KeyFrame> parent_at_culling = keyFrame(parent_id);
+  const SE3 T_parent_this = parent_at_culling ? parent_at_culling->T_w_b().inverse() * kf->T_w_b() : SE3();
+  if (!kf->setCulled(parent_at_culling, T_parent_this)) return false;
 
   for (const auto& [other_id, w] : kf->covisibles()) {
     if (const std::shared_ptr<KeyFrame> other = keyFrame(other_id)) other->eraseConnection(id);
@@ -263,10 +269,6 @@ bool Map::eraseKeyFrame(KeyFrameId id, ImuLink imu_link) {
 
   // Spanning-tree repair: grow the set of possible parents from kf's parent; at each step attach the
   // child with the strongest covisibility edge to any member, which then becomes a member itself.
-  const KeyFrameId parent_id = kf->parent();
-  if (const std::shared_ptr<KeyFrame> parent_at_culling = keyFrame(parent_id)) {
-    kf->setCulledParent(parent_at_culling, parent_at_culling->T_w_b().inverse() * kf->T_w_b());
-  }
   std::vector<KeyFrameId> orphans = kf->children();
   std::set<KeyFrameId> parent_candidates{parent_id};
   while (!orphans.empty()) {

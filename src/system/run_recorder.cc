@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_set>
 #include <utility>
 
 #include "ltlo/core/log.h"
@@ -106,6 +107,9 @@ std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Fra
   }
   const bool before_map = tracker.framePosedBeforeMap();
   if (before_map) ++frames_before_map_;
+  const std::shared_ptr<const map::KeyFrame> reference = record.reference;
+  const bool has_stretch_reference = record.stretch_reference != nullptr;
+  std::vector<std::size_t> anchored;  // pre-map records given this frame's reference
   // The first map's first keyframe, at its creation pose in the dead reckoning's world (read before
   // mutex_, a leaf lock: the keyframe's pose has its own).
   std::optional<SE3> T_firstb_w;
@@ -119,7 +123,7 @@ std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Fra
         early.T_refb_c = *T_firstb_w * early.T_w_c;
         early.map_online = record.map_online;
       }
-      pre_map_records_.clear();
+      anchored.swap(pre_map_records_);
     }
     records_.push_back(std::move(record));
     if (before_map) pre_map_records_.push_back(records_.size() - 1);
@@ -128,7 +132,90 @@ std::optional<RecordedFrame> RunRecorder::recordFrame(double t_s, const map::Fra
       records_[index].imu = std::move(kept);
     }
   }
+  // records_ grows on this thread only: its size and the records' keyframes are read without the lock.
+  for (const std::size_t index : anchored) noteReference(reference, index);
+  if (reference) noteReference(reference, records_.size() - 1);
+  if (has_stretch_reference) whole_stretch_records_.push_back(records_.size() - 1);
+  if (++frames_since_release_ >= kReleaseEveryFrames) {
+    frames_since_release_ = 0;
+    releaseCulledKeyFrames();
+  }
   return recorded;
+}
+
+void RunRecorder::noteReference(const std::shared_ptr<const map::KeyFrame>& kf, std::size_t record) {
+  if (!whole_references_.empty()) {
+    ReferenceSpan& last = whole_references_.back();
+    if (last.kf == kf && last.end == record) {
+      last.end = record + 1;
+      return;
+    }
+  }
+  whole_references_.push_back({kf, record, record + 1});
+}
+
+std::shared_ptr<map::KeyFrame> RunRecorder::standInOf(const map::KeyFrame& kf) {
+  const auto it = stand_ins_.find(kf.id());
+  if (it != stand_ins_.end()) return it->second;
+  std::shared_ptr<map::KeyFrame> stand_in = map::culledStandIn(kf);
+  stand_ins_.emplace(kf.id(), stand_in);
+  if (stand_in->culledParent()) stand_ins_with_whole_parent_.push_back(stand_in);
+  return stand_in;
+}
+
+void RunRecorder::releaseCulledKeyFrames() {
+  struct Swap {
+    std::size_t first = 0;
+    std::size_t end = 0;
+    const map::KeyFrame* whole = nullptr;
+    std::shared_ptr<map::KeyFrame> stand_in;
+  };
+  std::vector<Swap> swaps;
+  std::size_t kept = 0;
+  for (ReferenceSpan& span : whole_references_) {
+    if (span.kf->isBad()) {
+      swaps.push_back({span.first, span.end, span.kf.get(), standInOf(*span.kf)});
+    } else {
+      whole_references_[kept++] = std::move(span);
+    }
+  }
+  whole_references_.resize(kept);
+  std::vector<std::pair<std::size_t, std::shared_ptr<map::KeyFrame>>> stretch_swaps;
+  kept = 0;
+  for (const std::size_t index : whole_stretch_records_) {
+    const std::shared_ptr<const map::KeyFrame>& kf = records_[index].stretch_reference;
+    if (kf->isBad()) {
+      stretch_swaps.emplace_back(index, standInOf(*kf));
+    } else {
+      whole_stretch_records_[kept++] = index;
+    }
+  }
+  whole_stretch_records_.resize(kept);
+  if (carried_reference_ && carried_reference_->isBad()) carried_reference_ = standInOf(*carried_reference_);
+  // Stand-ins whose culled parent has been culled since: linked to the parent's stand-in (which may
+  // join the list itself, so the chain is followed in this pass).
+  for (std::size_t k = 0; k < stand_ins_with_whole_parent_.size();) {
+    const std::shared_ptr<map::KeyFrame> stand_in = stand_ins_with_whole_parent_[k];
+    const std::shared_ptr<map::KeyFrame> parent = stand_in->culledParent();
+    const auto known = parent ? stand_ins_.find(parent->id()) : stand_ins_.end();
+    const bool parent_is_stand_in = known != stand_ins_.end() && known->second == parent;
+    if (parent && !parent_is_stand_in && !parent->isBad()) {
+      ++k;
+      continue;
+    }
+    if (parent && !parent_is_stand_in) stand_in->replaceCulledParent(standInOf(*parent));
+    stand_ins_with_whole_parent_[k] = std::move(stand_ins_with_whole_parent_.back());
+    stand_ins_with_whole_parent_.pop_back();
+  }
+  if (swaps.empty() && stretch_swaps.empty()) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const Swap& swap : swaps) {
+    for (std::size_t r = swap.first; r < swap.end; ++r) {
+      if (records_[r].reference.get() == swap.whole) records_[r].reference = swap.stand_in;
+    }
+    colours_.erase(swap.stand_in->id().value);
+  }
+  for (auto& [index, stand_in] : stretch_swaps) records_[index].stretch_reference = std::move(stand_in);
 }
 
 void RunRecorder::trackCarriedStretch(FrameRecord& record, const map::Frame& frame,
@@ -195,6 +282,12 @@ SystemCounts RunRecorder::counts(const tracking::Tracker& tracker, const loop::L
   }
   counts.imu_initialised = tracker.imuInitialised();
   counts.frames_localised_in_map = tracker.numFramesLocalisedInMap();
+  counts.keyframes_released = static_cast<int>(stand_ins_.size());
+  std::unordered_set<map::KeyFrameId> culled_held;
+  for (const ReferenceSpan& span : whole_references_) {
+    if (span.kf->isBad()) culled_held.insert(span.kf->id());
+  }
+  counts.keyframes_culled_held = static_cast<int>(culled_held.size());
   return counts;
 }
 
@@ -485,6 +578,13 @@ void RunRecorder::readState(map::ByteReader& in, const map::RunKeyFrames& keyfra
     if (!keypoints.empty()) in.failAt(offset, "keyframe colours given twice", std::to_string(id));
     keypoints.resize(in.count("keypoint colours", 3));
     for (cv::Vec3b& bgr : keypoints) in.raw(&bgr[0], 3, "keypoint colour");
+  }
+  // The restored records' live keyframes are swapped for stand-ins once culled, as this run's.
+  whole_references_.clear();
+  whole_stretch_records_.clear();
+  for (std::size_t r = 0; r < records.size(); ++r) {
+    if (records[r].reference && !records[r].reference->isBad()) noteReference(records[r].reference, r);
+    if (records[r].stretch_reference && !records[r].stretch_reference->isBad()) whole_stretch_records_.push_back(r);
   }
   std::lock_guard<std::mutex> lock(mutex_);
   records_ = std::move(records);

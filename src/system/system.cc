@@ -277,10 +277,14 @@ void System::shutdown(bool run_finished) {
     const int written = segmentation_writer_->finish();
     log::info("system: ", written, " segmentation masks written to ", options_.segmentation_dir);
   }
+  // The stages have let go: the culled keyframes the records still hold whole are swapped now.
+  recorder_->releaseCulledKeyFrames();
   // Last: its final picture shows the map after the last correction.
   if (viewer_) viewer_->stop();
+  const SystemCounts counts = recorder_->counts(*tracker_, *closer_);
   log::info("system shut down: ", recorder_->numFrames(), " frames, ", closer_->numLoops(), " loops, ",
-            closer_->numMerges(), " merges, ", atlas_->numMaps(), " map(s)");
+            closer_->numMerges(), " merges, ", atlas_->numMaps(), " map(s), ", counts.keyframes, " keyframes (",
+            counts.keyframes_released, " culled ones held by the frame records without their image data)");
 }
 
 std::vector<FramePose> System::trajectory() const {

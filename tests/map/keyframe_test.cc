@@ -72,6 +72,53 @@ TEST(KeyFrameOwnership, CulledKeyFrameIsBadAndGoneButHolderKeepsItValid) {
   EXPECT_TRUE(watcher.expired());  // the last holder freed it
 }
 
+TEST(KeyFrameOwnership, AStandInOfACulledKeyFrameFollowsTheSameChainWithoutItsImageData) {
+  Map map;
+  test::SceneBuilder scene(map, 3);
+  const SE3 T_w_a(so3ExpQuat(Vec3(0.0, 0.1, 0.0)), Vec3(0.0, 0.0, 0.0));
+  const SE3 T_w_b(so3ExpQuat(Vec3(0.0, 0.2, 0.05)), Vec3(0.5, 0.0, 0.1));
+  const SE3 T_w_c(so3ExpQuat(Vec3(0.1, 0.3, 0.0)), Vec3(1.0, 0.2, 0.0));
+  const std::shared_ptr<KeyFrame> a = scene.addKeyFrame(T_w_a);
+  std::shared_ptr<KeyFrame> b = scene.addKeyFrame(T_w_b);
+  std::shared_ptr<KeyFrame> c = scene.addKeyFrame(T_w_c);
+  scene.share({a, b, c}, 30);
+  scene.share({b, c}, 20);
+  for (const auto& kf : {a, b, c}) map.updateConnections(*kf);
+  ASSERT_TRUE(map.eraseKeyFrame(c->id()));
+  const std::shared_ptr<KeyFrame> c_stand_in = culledStandIn(*c);
+  // The same keyframe to its holders: id, map, time, camera, state, chain.
+  EXPECT_EQ(c_stand_in->id(), c->id());
+  EXPECT_EQ(c_stand_in->mapId(), c->mapId());
+  EXPECT_EQ(c_stand_in->t_s(), c->t_s());
+  EXPECT_EQ(c_stand_in->camera().fx(), c->camera().fx());
+  EXPECT_EQ(c_stand_in->T_b_c().matrix(), c->T_b_c().matrix());
+  EXPECT_EQ(c_stand_in->T_w_b().matrix(), c->T_w_b().matrix());
+  EXPECT_EQ(c_stand_in->v_w_b(), c->v_w_b());
+  EXPECT_TRUE(c_stand_in->isBad());
+  EXPECT_EQ(c_stand_in->culledParent(), b);
+  EXPECT_EQ(c_stand_in->T_parent_this().matrix(), c->T_parent_this().matrix());
+  // Without the image data.
+  EXPECT_EQ(c->numKeypoints(), 200);
+  EXPECT_EQ(c_stand_in->numKeypoints(), 0);
+  // Its parent culled in turn: the stand-in is pointed at the parent's stand-in, and the whole
+  // keyframes are freed once their holders let go.
+  ASSERT_TRUE(map.eraseKeyFrame(b->id()));
+  const std::shared_ptr<KeyFrame> b_stand_in = culledStandIn(*b);
+  EXPECT_EQ(b_stand_in->culledParent(), a);
+  c_stand_in->replaceCulledParent(b_stand_in);
+  EXPECT_EQ(latestPose_T_w_b(*c_stand_in).matrix(), latestPose_T_w_b(*c).matrix());
+  const std::weak_ptr<KeyFrame> b_whole = b, c_whole = c;
+  b.reset();
+  c.reset();
+  EXPECT_TRUE(b_whole.expired());
+  EXPECT_TRUE(c_whole.expired());
+  // A correction of the live keyframe moves the stand-ins rigidly with it, as it moved the culled ones.
+  const SE3 correction(so3ExpQuat(Vec3(0.0, 0.0, 0.3)), Vec3(0.2, -0.1, 0.05));
+  a->setPose_T_w_b(correction * T_w_a);
+  EXPECT_LT((latestPose_T_w_b(*b_stand_in).log() - (correction * T_w_b).log()).norm(), 1e-12);
+  EXPECT_LT((latestPose_T_w_b(*c_stand_in).log() - (correction * T_w_c).log()).norm(), 1e-12);
+}
+
 TEST(KeyFrameOwnership, OriginKeyFrameIsNeverCulled) {
   Map map;
   test::SceneBuilder scene(map, 2);

@@ -147,6 +147,10 @@ class KeyFrame {
   /// that used a culled keyframe as reference follow this chain to a live keyframe.
   std::shared_ptr<KeyFrame> culledParent() const;
   SE3 T_parent_this() const;
+  /// Points this culled keyframe at `parent`, a stand-in (culledStandIn) of its culled parent, in
+  /// place of that parent; T_parent_this stays. Asserts that this keyframe is bad and that `parent`
+  /// has the id of its culled parent.
+  void replaceCulledParent(std::shared_ptr<KeyFrame> parent);
 
  private:
   friend class Map;
@@ -160,6 +164,10 @@ class KeyFrame {
   bool addChild(KeyFrameId child);  ///< false on a bad keyframe
   void eraseChild(KeyFrameId child);
   bool setBad();  ///< false if it already was bad
+  /// Map::eraseKeyFrame: marks the keyframe bad and sets its culled parent in one step, so a reader
+  /// that sees it bad sees its parent (culledStandIn); false (nothing changed) if it already was bad.
+  bool setCulled(std::shared_ptr<KeyFrame> parent, const SE3& T_parent_this);
+  friend std::shared_ptr<KeyFrame> culledStandIn(const KeyFrame& culled);
   void sortCovisiblesLocked();
 
   // Immutable per-image data.
@@ -208,6 +216,14 @@ class KeyFrame {
 /// changes and what a loaded atlas rebuilds (KeyFrame::setBow takes it).
 std::pair<bow::BowVector, bow::FeatureVector> staticKeypointsBow(const KeyFrame& kf,
                                                                 const bow::Vocabulary& vocabulary);
+
+/// A culled keyframe as the holders of a frame's reference need it (latestPose_T_w_b, its id, map,
+/// time, camera, T_b_c and state at culling): bad, with the same culled parent and T_parent_this,
+/// and without the image data (features, depths, grid, segmentation layout; ~250 KB at VGA), which
+/// nobody reads once a keyframe is culled. The run's frame records hold these instead of the culled
+/// keyframes (system/run_recorder.h), so a culled keyframe's memory is freed once the stages let go
+/// of it. Asserts that `culled` is bad.
+std::shared_ptr<KeyFrame> culledStandIn(const KeyFrame& culled);
 
 /// The keyframe's current body pose, also once culled: a culled keyframe's pose is its culled
 /// parent's current pose composed with T_parent_this (recursively), so frames referenced to it follow

@@ -86,6 +86,16 @@ class RunRecorder {
   /// the tracker (maps created, IMU initialised) and the loop closer (loops, merges). Takes mutex_.
   SystemCounts counts(const tracking::Tracker& tracker, const loop::LoopCloser& closer) const;
 
+  /// Tracking thread (recordFrame, every kReleaseEveryFrames frames; System::shutdown): the culled
+  /// keyframes the records hold (as reference, as stretch reference, the open stretch's) are swapped
+  /// for their stand-ins (map::culledStandIn), and the stand-ins' culled parents for theirs once those
+  /// are culled too; the colours of the swapped keyframes are dropped. A culled keyframe's image data
+  /// is then freed once the stages let go of it: held by the records, a run of many laps kept every
+  /// keyframe it ever made (issue 32). The trajectories are the same to the bit (a stand-in walks the
+  /// same chain). Stand-ins are made outside mutex_ (a leaf lock; keyframes have their own) and
+  /// swapped in under it.
+  void releaseCulledKeyFrames();
+
   /// Any thread. Every frame with a pose, in input order, from its reference keyframe's latest pose;
   /// IMU-carried stretches corrected as `correction` says (system/carried_stretch.h).
   std::vector<FramePose> trajectory(CarriedCorrection correction) const;
@@ -140,6 +150,12 @@ class RunRecorder {
   /// Tracking thread: the loss policy's outcome counters of a frame with a pose.
   void countLossPolicy(const FrameRecord& record, const tracking::Tracker& tracker);
 
+  /// Tracking thread: the records [first, end) as holding `kf` (the span list of whole keyframes).
+  void noteReference(const std::shared_ptr<const map::KeyFrame>& kf, std::size_t record);
+  /// The stand-in of culled keyframe `kf`, made once per id.
+  std::shared_ptr<map::KeyFrame> standInOf(const map::KeyFrame& kf);
+  static constexpr int kReleaseEveryFrames = 30;
+
   /// The floating maps of the run's records (system/carried_stretch.h, floatingMapWorlds): floating
   /// map -> the map whose world it stands in. A longer map than kFloatingMapMaxSpan_s has tracked
   /// long enough for its own error to differ from the dead reckoning's shape.
@@ -167,6 +183,20 @@ class RunRecorder {
   /// keyframe: the first record with a reference anchors them to it (same world at that moment), so
   /// that the map's later corrections carry them.
   std::vector<std::size_t> pre_map_records_;
+  /// Records [first, end) hold `kf` as reference; only keyframes not yet swapped for a stand-in
+  /// (releaseCulledKeyFrames), in record order.
+  struct ReferenceSpan {
+    std::shared_ptr<const map::KeyFrame> kf;
+    std::size_t first = 0;
+    std::size_t end = 0;
+  };
+  std::vector<ReferenceSpan> whole_references_;
+  /// Records whose stretch reference is a keyframe not yet swapped.
+  std::vector<std::size_t> whole_stretch_records_;
+  /// The stand-ins made, by keyframe id; those whose culled parent is not a stand-in.
+  std::unordered_map<map::KeyFrameId, std::shared_ptr<map::KeyFrame>> stand_ins_;
+  std::vector<std::shared_ptr<map::KeyFrame>> stand_ins_with_whole_parent_;
+  int frames_since_release_ = 0;
 
   mutable std::mutex mutex_;  ///< guards records_, context_records_ and colours_ (leaf lock)
   std::vector<FrameRecord> records_;

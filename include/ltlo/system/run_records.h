@@ -60,6 +60,10 @@ struct SystemCounts {
   int loops = 0;              ///< same-map loops corrected
   int merges = 0;             ///< maps merged
   int keyframes = 0;          ///< keyframes of all maps
+  /// Culled keyframes the run's frame records hold as stand-ins without image data (RunRecorder::
+  /// releaseCulledKeyFrames), and those they still hold whole (culled since the last release).
+  int keyframes_released = 0;
+  int keyframes_culled_held = 0;
   int map_points = 0;         ///< map points of all maps
   bool imu_initialised = false;
   /// A run in a loaded atlas (SystemOptions::load_atlas_path): its keyframes and points at load,
