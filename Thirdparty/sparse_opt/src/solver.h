@@ -39,7 +39,8 @@ class Solver {
 
  private:
   double evaluateChi2(int num_threads);
-  /// Linearises every edge and accumulates H and b. Edges are sorted by landmark and split at a
+  /// Linearises every edge at the residuals the last evaluateChi2() left (the caller's contract: no
+  /// estimate changed since) and accumulates H and b. Edges are sorted by landmark and split at a
   /// landmark boundary: landmark blocks have one writer; camera blocks are summed per thread and
   /// added in a fixed order, so the result does not depend on the thread count.
   void linearizeAndAccumulate(int num_threads);

@@ -196,5 +196,60 @@ TEST(Graph, CostScaleWeighsTheEdgeNotTheKernelArgument) {
   EXPECT_NE(errorText([&] { edges[0]->setCostScale(-1.0); }).find("setCostScale: scale -1"), std::string::npos);
 }
 
+// x^2 measured (residual x^2 - m), counting the solver's calls.
+class EdgeSquareCounting final : public BaseEdge<1, double, VertexVector<1>> {
+ public:
+  void computeError() override {
+    ++compute_error_calls;
+    error_[0] = estimate<0>()[0] * estimate<0>()[0] - measurement_;
+  }
+  void linearizeOplus() override {
+    ++linearize_calls;
+    jacobian<0>()(0, 0) = 2.0 * estimate<0>()[0];
+  }
+  int compute_error_calls = 0;
+  int linearize_calls = 0;
+};
+
+TEST(Graph, TheSolverLinearisesAtTheResidualItJustEvaluated) {
+  // Every linearisation follows a chi2 evaluation at the same estimates, so the residual is computed
+  // once per evaluation: at the start and after each step; the end needs none when the last step was
+  // kept (none is rejected under Gauss-Newton, none cut short by the parameter or gradient tolerance
+  // at 0).
+  Graph graph;
+  auto* x = graph.addVertex(std::make_unique<VertexVector<1>>(0, Eigen::Matrix<double, 1, 1>(3.0)));
+  auto edge = std::make_unique<EdgeSquareCounting>();
+  edge->setVertex(0, x);
+  edge->setMeasurement(2.0);
+  EdgeSquareCounting* counted = graph.addEdge(std::move(edge));
+  Options options;
+  options.algorithm = Algorithm::kGaussNewton;
+  options.max_iterations = 50;
+  options.function_tolerance = 1e-14;
+  options.parameter_tolerance = 0.0;
+  options.gradient_tolerance = 0.0;
+  const Summary summary = graph.optimize(options);
+  EXPECT_NEAR(x->estimate()[0], std::sqrt(2.0), 1e-9);
+  ASSERT_GE(summary.iterations, 4);  // Newton from 3 to sqrt(2): several linearisations
+  EXPECT_EQ(counted->compute_error_calls, summary.iterations + 1);
+  EXPECT_EQ(counted->linearize_calls, summary.iterations);  // the last step ends on the tolerance
+  EXPECT_NEAR(counted->chi2(), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(summary.final_chi2, counted->robustChi2());
+
+  // A rejected last trial (LM from a start whose first step overshoots, one iteration) is rolled
+  // back, and the end evaluates the kept estimate again: chi2() describes it.
+  x->setEstimate(Eigen::Matrix<double, 1, 1>(0.05));
+  counted->compute_error_calls = 0;
+  options.algorithm = Algorithm::kLevenbergMarquardt;
+  options.initial_lambda = 1e-12;
+  options.max_iterations = 1;
+  const Summary rejected = graph.optimize(options);
+  ASSERT_EQ(rejected.accepted_iterations, 0);
+  EXPECT_EQ(x->estimate()[0], 0.05);
+  EXPECT_EQ(counted->compute_error_calls, 3);  // start, the trial, the kept estimate again
+  EXPECT_DOUBLE_EQ(counted->chi2(), std::pow(0.05 * 0.05 - 2.0, 2));
+  EXPECT_DOUBLE_EQ(rejected.final_chi2, rejected.initial_chi2);
+}
+
 }  // namespace
 }  // namespace sparse_opt

@@ -89,15 +89,16 @@ class EdgeRgbdReprojection final
  public:
   explicit EdgeRgbdReprojection(const ProjectionModel& model) : model_(model) {}
   void computeError() override {
-    this->error_ = this->measurement_ - model_.projectRgbd(cameraPoint());
+    p_x_ = PoseVertex::pointInFrame(this->template estimate<0>(), this->template estimate<1>());
+    p_c_ = model_.T_c_x * p_x_;
+    this->error_ = this->measurement_ - model_.projectRgbd(p_c_);
   }
+  /// At the estimates of the last computeError() (sparse_opt's contract): its p_x and p_c.
   void linearizeOplus() override {
     const SE3& T = this->template estimate<0>();
-    const Vec3 p_x = PoseVertex::pointInFrame(T, this->template estimate<1>());
-    const Mat3 d_r_d_p_x =
-        -model_.projectRgbdJacobian(model_.T_c_x * p_x) * model_.T_c_x.rotationMatrix();
+    const Mat3 d_r_d_p_x = -model_.projectRgbdJacobian(p_c_) * model_.T_c_x.rotationMatrix();
     // A fixed pose's block is never read (local BA's fixed keyframes: about half the edges).
-    if (!this->vertex(0)->fixed()) this->template jacobian<0>() = d_r_d_p_x * PoseVertex::d_point_d_delta(T, p_x);
+    if (!this->vertex(0)->fixed()) this->template jacobian<0>() = d_r_d_p_x * PoseVertex::d_point_d_delta(T, p_x_);
     this->template jacobian<1>() = d_r_d_p_x * PoseVertex::d_point_d_world(T);
   }
   /// The point lies in front of the camera.
@@ -108,6 +109,8 @@ class EdgeRgbdReprojection final
 
  private:
   ProjectionModel model_;
+  Vec3 p_x_ = Vec3::Zero();  ///< the point in the pose's frame at the last computeError()
+  Vec3 p_c_ = Vec3::Zero();  ///< and in the camera frame
 };
 
 /// Monocular reprojection between a pose vertex and a map point. Measurement [u, v] (px).

@@ -62,7 +62,9 @@ class EdgeBase {
 
   /// Fills the residual from the current vertex estimates (read them through estimate<I>()).
   virtual void computeError() = 0;
-  /// Fills the Jacobians d error / d delta_i. The default is numeric (central differences).
+  /// Fills the Jacobians d error / d delta_i at the estimates of the last computeError(), which
+  /// the solver (and linearize()) always calls first: an edge may reuse what computeError() left.
+  /// The default is numeric (central differences).
   virtual void linearizeOplus() = 0;
 
   std::string typeName() const;
@@ -71,7 +73,15 @@ class EdgeBase {
   /// computeError() and chi2(); returns rho(chi2).
   double evaluateChi2();
   /// computeError(), linearizeOplus() and the robust weights. Returns false if non-finite.
-  virtual bool linearize() = 0;
+  bool linearize() {
+    computeError();
+    return linearizeAtError();
+  }
+  /// linearizeOplus() and the robust weights at the residual computeError() last left: the solver
+  /// linearises right after evaluateChi2() at the same estimates, so it skips the second
+  /// computeError() (about a third of a reprojection edge's linearisation). Returns false if
+  /// non-finite.
+  virtual bool linearizeAtError() = 0;
   /// true if the error is finite.
   virtual bool errorFinite() const = 0;
   /// out (dim(a) x dim(b), column-major) += J_a^T W J_b.
@@ -177,8 +187,7 @@ class BaseEdge : public EdgeBase {
   }
 
   // ---- Solver interface ----
-  bool linearize() final {
-    computeError();
+  bool linearizeAtError() final {
     const double s = squaredError();
     robust_weight_ = cost_scale_;
     if (robustKernel() != nullptr) robust_weight_ *= robustKernel()->evaluate(s)[1];
