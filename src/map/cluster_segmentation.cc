@@ -13,26 +13,9 @@ ClusterSegmentation ClusterSegmentation::allStatic() {
   return s;
 }
 
-int ClusterSegmentation::clusterAt(float x_px, float y_px) const {
-  if (labels.empty()) return 0;
-  // The nearest input pixel, then the label pixel covering it.
-  const int col = std::clamp(static_cast<int>(std::lround(x_px)) / scale, 0, labels.cols - 1);
-  const int row = std::clamp(static_cast<int>(std::lround(y_px)) / scale, 0, labels.rows - 1);
-  return labels.at<std::uint8_t>(row, col);
-}
-
 double ClusterSegmentation::gammaOf(int cluster) const {
   if (cluster < 0 || cluster >= numClusters()) return 1.0;
   return gamma[static_cast<std::size_t>(cluster)];
-}
-
-double ClusterSegmentation::depthAt_m(double x_px, double y_px) const {
-  if (depth_mm.empty()) return 0.0;
-  const long x = std::lround(x_px), y = std::lround(y_px);
-  if (x < 0 || y < 0) return 0.0;
-  const long col = x / depth_scale, row = y / depth_scale;
-  if (col < 0 || row < 0 || col >= depth_mm.cols || row >= depth_mm.rows) return 0.0;
-  return 1e-3 * depth_mm.at<std::uint16_t>(row, col);
 }
 
 double ClusterSegmentation::staticAreaRatio(double static_threshold) const {

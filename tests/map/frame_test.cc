@@ -1,4 +1,6 @@
 // Frame: depth lookup and back-projection, the grid, the segmentation seam and the static-only BoW.
+#include <algorithm>
+#include <cmath>
 #include <gtest/gtest.h>
 
 #include "bow/vocabulary.h"
@@ -151,6 +153,36 @@ TEST(ClusterSegmentation, ReducedResolutionLookupsMaskAndMemory) {
   // Counted on demand when the counts are absent: the same ratio.
   seg.pixel_counts.clear();
   EXPECT_DOUBLE_EQ(seg.staticAreaRatio(0.5), 220.0 / 320.0);
+
+  // The inline rounding is std::lround's (half away from zero) everywhere a lookup can land,
+  // halves, negatives and the far edges included.
+  seg.depth_mm = cv::Mat(120, 160, CV_16U);
+  cv::randu(seg.depth_mm, 0, 5000);
+  auto clusterByLround = [&](float x, float y) {
+    const int col = std::clamp(static_cast<int>(std::lround(x)) / seg.scale, 0, seg.labels.cols - 1);
+    const int row = std::clamp(static_cast<int>(std::lround(y)) / seg.scale, 0, seg.labels.rows - 1);
+    return static_cast<int>(seg.labels.at<std::uint8_t>(row, col));
+  };
+  auto depthByLround = [&](double x, double y) {
+    const long xi = std::lround(x), yi = std::lround(y);
+    if (xi < 0 || yi < 0 || xi / seg.depth_scale >= seg.depth_mm.cols || yi / seg.depth_scale >= seg.depth_mm.rows) {
+      return 0.0;
+    }
+    return 1e-3 * seg.depth_mm.at<std::uint16_t>(static_cast<int>(yi / seg.depth_scale), static_cast<int>(xi / seg.depth_scale));
+  };
+  int compared = 0;
+  for (double x = -3.0; x <= 643.0; x += 0.25) {
+    for (const double y : {-1.5, -0.5, -0.25, 0.0, 0.5, 19.5, 101.75, 478.5, 479.5, 480.0}) {
+      for (const double dx : {0.0, 1e-4, -1e-4}) {
+        const double xx = x + dx;
+        ASSERT_EQ(seg.clusterAt(static_cast<float>(xx), static_cast<float>(y)),
+                  clusterByLround(static_cast<float>(xx), static_cast<float>(y))) << xx << ", " << y;
+        ASSERT_EQ(seg.depthAt_m(xx, y), depthByLround(xx, y)) << xx << ", " << y;
+        ++compared;
+      }
+    }
+  }
+  EXPECT_EQ(compared, 2585 * 10 * 3);
 
   const ClusterSegmentation trivial = ClusterSegmentation::allStatic();
   EXPECT_EQ(trivial.clusterAt(100.0f, 100.0f), 0);

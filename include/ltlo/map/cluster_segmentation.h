@@ -5,6 +5,7 @@
 /// mapping), the pixel count of every cluster, the cluster connectivity graph V_i (the smoothness
 /// term of Eq. 54) and the depth image local mapping needs for the gamma prior of Eq. 56. Carried
 /// by every Frame and KeyFrame.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -45,12 +46,27 @@ struct ClusterSegmentation {
   int noDepthCluster() const { return labels.empty() ? -1 : numClusters() - 1; }
   /// Cluster of the input pixel nearest to (x_px, y_px) (input coordinates; clamped to the label
   /// image); 0 when labels is empty.
-  int clusterAt(float x_px, float y_px) const;
+  int clusterAt(float x_px, float y_px) const {
+    if (labels.empty()) return 0;
+    // The nearest input pixel (half up, as std::lround for these non-negative coordinates; a
+    // negative one clamps to 0 either way), then the label pixel covering it. Inline, without a
+    // libm call: Eq. 56 samples every window point and probe in every window keyframe.
+    const int col = std::clamp(static_cast<int>(static_cast<double>(x_px) + 0.5) / scale, 0, labels.cols - 1);
+    const int row = std::clamp(static_cast<int>(static_cast<double>(y_px) + 0.5) / scale, 0, labels.rows - 1);
+    return labels.at<std::uint8_t>(row, col);
+  }
   /// gamma of `cluster`; 1 for a cluster outside [0, numClusters()) (no evidence of motion).
   double gammaOf(int cluster) const;
   /// Depth in metres at input coordinates (x_px, y_px) from depth_mm (nearest sample); 0 when there
   /// is no reading or no depth image.
-  double depthAt_m(double x_px, double y_px) const;
+  double depthAt_m(double x_px, double y_px) const {
+    // x_px <= -0.5 would round to a negative pixel (std::lround); above it, truncating x + 0.5 is
+    // the nearest pixel, half up.
+    if (depth_mm.empty() || x_px <= -0.5 || y_px <= -0.5) return 0.0;
+    const long col = static_cast<long>(x_px + 0.5) / depth_scale, row = static_cast<long>(y_px + 0.5) / depth_scale;
+    if (col >= depth_mm.cols || row >= depth_mm.rows) return 0.0;
+    return 1e-3 * depth_mm.at<std::uint16_t>(static_cast<int>(row), static_cast<int>(col));
+  }
   /// Static area (Loop.MinStaticRatio compares against it): the share of the pixels with depth
   /// whose cluster has gamma >= static_threshold, in [0, 1]. No-depth pixels count neither as
   /// static nor in the total. With empty labels: 1 when gamma[0] passes, else 0; 0 when no pixel
